@@ -1,0 +1,225 @@
+//! A bounding volume hierarchy over triangles, with exact ray–triangle tests.
+
+use glam::Vec3;
+
+#[derive(Debug, Clone, Copy)]
+struct Node {
+    min: Vec3,
+    max: Vec3,
+    /// Leaf: first triangle index; inner: index of the right child (left is next).
+    index: u32,
+    /// Triangles in a leaf; 0 for an inner node.
+    count: u32,
+}
+
+/// A closest hit: distance along the ray, triangle index and its geometric normal.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    pub t: f32,
+    pub triangle: u32,
+    pub normal: Vec3,
+}
+
+/// Median-split BVH. Built once per scene; queries are read-only and thread-safe.
+#[derive(Debug, Clone)]
+pub struct Bvh {
+    nodes: Vec<Node>,
+    triangles: Vec<[Vec3; 3]>,
+    /// Index of each stored triangle in the input slice.
+    original: Vec<u32>,
+}
+
+const LEAF_SIZE: usize = 4;
+
+impl Bvh {
+    pub fn new(triangles: &[[Vec3; 3]]) -> Self {
+        let mut order: Vec<u32> = (0..triangles.len() as u32).collect();
+        let centroids: Vec<Vec3> = triangles.iter().map(|t| (t[0] + t[1] + t[2]) / 3.0).collect();
+        let mut nodes = Vec::with_capacity(2 * triangles.len() / LEAF_SIZE + 1);
+        if !triangles.is_empty() {
+            build(&mut nodes, &mut order, 0, triangles, &centroids);
+        }
+        let tris = order.iter().map(|&i| triangles[i as usize]).collect();
+        Self { nodes, triangles: tris, original: order }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    /// True when the segment `origin + t·dir`, `t ∈ (t_min, t_max)`, hits any triangle.
+    pub fn any_hit(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let inv = dir.recip();
+        let mut stack = [0u32; 64];
+        let mut sp = 1;
+        while sp > 0 {
+            sp -= 1;
+            let idx = stack[sp] as usize;
+            let node = &self.nodes[idx];
+            if !slab_hit(node, origin, inv, t_min, t_max) {
+                continue;
+            }
+            if node.count > 0 {
+                let s = node.index as usize;
+                for tri in &self.triangles[s..s + node.count as usize] {
+                    if let Some(t) = intersect(tri, origin, dir) {
+                        if t > t_min && t < t_max {
+                            return true;
+                        }
+                    }
+                }
+            } else if sp + 2 <= stack.len() {
+                stack[sp] = node.index;
+                stack[sp + 1] = idx as u32 + 1;
+                sp += 2;
+            }
+        }
+        false
+    }
+
+    /// Nearest hit with `t > t_min`.
+    pub fn closest_hit(&self, origin: Vec3, dir: Vec3, t_min: f32) -> Option<Hit> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        let inv = dir.recip();
+        let mut best: Option<(f32, usize)> = None;
+        let mut stack = [0u32; 64];
+        let mut sp = 1;
+        while sp > 0 {
+            sp -= 1;
+            let idx = stack[sp] as usize;
+            let node = &self.nodes[idx];
+            let t_max = best.map_or(f32::INFINITY, |b| b.0);
+            if !slab_hit(node, origin, inv, t_min, t_max) {
+                continue;
+            }
+            if node.count > 0 {
+                let s = node.index as usize;
+                for (k, tri) in self.triangles[s..s + node.count as usize].iter().enumerate() {
+                    if let Some(t) = intersect(tri, origin, dir) {
+                        if t > t_min && best.is_none_or(|b| t < b.0) {
+                            best = Some((t, s + k));
+                        }
+                    }
+                }
+            } else if sp + 2 <= stack.len() {
+                stack[sp] = node.index;
+                stack[sp + 1] = idx as u32 + 1;
+                sp += 2;
+            }
+        }
+        best.map(|(t, k)| {
+            let [a, b, c] = self.triangles[k];
+            Hit { t, triangle: self.original[k], normal: (b - a).cross(c - a).normalize_or_zero() }
+        })
+    }
+}
+
+fn build(nodes: &mut Vec<Node>, order: &mut [u32], first: usize, tris: &[[Vec3; 3]], centroids: &[Vec3]) -> usize {
+    let (mut min, mut max) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    let (mut cmin, mut cmax) = (min, max);
+    for &i in order.iter() {
+        for v in tris[i as usize] {
+            min = min.min(v);
+            max = max.max(v);
+        }
+        cmin = cmin.min(centroids[i as usize]);
+        cmax = cmax.max(centroids[i as usize]);
+    }
+    let me = nodes.len();
+    nodes.push(Node { min, max, index: first as u32, count: order.len() as u32 });
+    let extent = cmax - cmin;
+    if order.len() <= LEAF_SIZE || extent.max_element() <= 0.0 {
+        return me;
+    }
+    let axis = if extent.x >= extent.y && extent.x >= extent.z { 0 } else if extent.y >= extent.z { 1 } else { 2 };
+    let mid = order.len() / 2;
+    order.select_nth_unstable_by(mid, |&a, &b| {
+        centroids[a as usize][axis].total_cmp(&centroids[b as usize][axis])
+    });
+    let (left, right) = order.split_at_mut(mid);
+    build(nodes, left, first, tris, centroids);
+    let r = build(nodes, right, first + mid, tris, centroids);
+    nodes[me].index = r as u32;
+    nodes[me].count = 0;
+    me
+}
+
+#[inline]
+fn slab_hit(node: &Node, origin: Vec3, inv: Vec3, t_min: f32, t_max: f32) -> bool {
+    let t0 = (node.min - origin) * inv;
+    let t1 = (node.max - origin) * inv;
+    // NaN (0 · ∞ on a slab boundary) must not reject: min/max ignore NaN operands.
+    let near = t0.min(t1).max_element().max(t_min);
+    let far = t0.max(t1).min_element().min(t_max);
+    near <= far
+}
+
+/// Möller–Trumbore; returns the ray parameter of the hit.
+#[inline]
+pub fn intersect(tri: &[Vec3; 3], origin: Vec3, dir: Vec3) -> Option<f32> {
+    let e1 = tri[1] - tri[0];
+    let e2 = tri[2] - tri[0];
+    let p = dir.cross(e2);
+    let det = e1.dot(p);
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let inv_det = 1.0 / det;
+    let s = origin - tri[0];
+    let u = s.dot(p) * inv_det;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let v = dir.dot(q) * inv_det;
+    if !(v >= 0.0 && u + v <= 1.0) {
+        return None;
+    }
+    Some(e2.dot(q) * inv_det)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn brute_any(tris: &[[Vec3; 3]], o: Vec3, d: Vec3, t0: f32, t1: f32) -> bool {
+        tris.iter().any(|t| intersect(t, o, d).is_some_and(|t| t > t0 && t < t1))
+    }
+
+    #[test]
+    fn bvh_agrees_with_brute_force() {
+        // A deterministic cloud of small triangles.
+        let mut s = 12345u32;
+        let mut rnd = || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            (s as f32 / u32::MAX as f32) * 2.0 - 1.0
+        };
+        let tris: Vec<[Vec3; 3]> = (0..300)
+            .map(|_| {
+                let c = Vec3::new(rnd(), rnd(), rnd()) * 3.0;
+                [c, c + Vec3::new(rnd(), rnd(), rnd()) * 0.4, c + Vec3::new(rnd(), rnd(), rnd()) * 0.4]
+            })
+            .collect();
+        let bvh = Bvh::new(&tris);
+        for _ in 0..2000 {
+            let o = Vec3::new(rnd(), rnd(), rnd()) * 4.0;
+            let d = Vec3::new(rnd(), rnd(), rnd());
+            assert_eq!(bvh.any_hit(o, d, 1e-4, 2.0), brute_any(&tris, o, d, 1e-4, 2.0));
+            let brute = tris
+                .iter()
+                .filter_map(|t| intersect(t, o, d).filter(|&t| t > 1e-4))
+                .fold(f32::INFINITY, f32::min);
+            match bvh.closest_hit(o, d, 1e-4) {
+                Some(h) => assert!((h.t - brute).abs() <= 1e-6 * brute.max(1.0)),
+                None => assert!(brute.is_infinite()),
+            }
+        }
+    }
+}

@@ -1,0 +1,32 @@
+//! A pinhole camera for visibility images.
+
+use glam::Vec3;
+
+/// Pinhole camera looking from `position` at `target`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    pub position: Vec3,
+    pub target: Vec3,
+    pub up: Vec3,
+    /// Vertical field of view in degrees.
+    pub vertical_fov: f32,
+}
+
+impl Camera {
+    pub fn looking_at(position: Vec3, target: Vec3) -> Self {
+        Self { position, target, up: Vec3::Y, vertical_fov: 45.0 }
+    }
+
+    /// World-space ray (origin, unit direction) through the centre of pixel `(x, y)`
+    /// of a `width × height` image, `y` down.
+    pub fn ray(&self, x: u32, y: u32, width: u32, height: u32) -> (Vec3, Vec3) {
+        let forward = (self.target - self.position).normalize_or(Vec3::NEG_Z);
+        let right = forward.cross(self.up).normalize_or(Vec3::X);
+        let up = right.cross(forward);
+        let half_h = (self.vertical_fov.to_radians() * 0.5).tan();
+        let half_w = half_h * width as f32 / height.max(1) as f32;
+        let sx = ((x as f32 + 0.5) / width as f32 * 2.0 - 1.0) * half_w;
+        let sy = (1.0 - (y as f32 + 0.5) / height as f32 * 2.0) * half_h;
+        (self.position, (forward + right * sx + up * sy).normalize())
+    }
+}

@@ -1,0 +1,257 @@
+//! glTF 2.0 (`.gltf` with embedded or side-by-side buffers, or `.glb`) into a
+//! [`Scene`], and a minimal writer for our own demo assets.
+//!
+//! Every triangle primitive of the default scene becomes one [`SceneObject`]
+//! with its node's world transform. A primitive that cannot be used (NaN
+//! positions, out-of-range indices, no area) is skipped and reported in
+//! [`GltfImport::skipped`] with its typed error, so one broken mesh does not
+//! lose the rest of the file; a file with no usable mesh is an error.
+
+use std::path::Path;
+
+use glam::{Affine3A, Mat4, Vec3};
+use gltf::mesh::Mode;
+
+use crate::{
+    error::{GltfError, MeshError},
+    mesh::Mesh,
+    scene::{Scene, SceneObject},
+};
+
+/// The result of an import.
+#[derive(Debug)]
+pub struct GltfImport {
+    pub scene: Scene,
+    /// Primitives that were skipped, with why.
+    pub skipped: Vec<GltfError>,
+}
+
+/// Reads a glTF or GLB file. External buffers are resolved next to the file.
+pub fn load_gltf(path: impl AsRef<Path>) -> Result<GltfImport, GltfError> {
+    let path = path.as_ref();
+    let bytes = std::fs::read(path).map_err(|source| GltfError::Io { path: path.display().to_string(), source })?;
+    parse_gltf(&bytes, path.parent())
+}
+
+/// Parses glTF/GLB bytes; `base_dir` resolves external buffer files.
+pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, GltfError> {
+    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| GltfError::Parse(e.to_string()))?;
+    let mut buffers = Vec::new();
+    for buffer in gltf.buffers() {
+        let index = buffer.index();
+        let data = match buffer.source() {
+            gltf::buffer::Source::Bin => gltf
+                .blob
+                .clone()
+                .ok_or_else(|| GltfError::Buffer { index, reason: "GLB has no BIN chunk".into() })?,
+            gltf::buffer::Source::Uri(uri) => read_uri(uri, base_dir).map_err(|reason| GltfError::Buffer { index, reason })?,
+        };
+        if data.len() < buffer.length() {
+            return Err(GltfError::Buffer {
+                index,
+                reason: format!("holds {} bytes, the file declares {}", data.len(), buffer.length()),
+            });
+        }
+        buffers.push(data);
+    }
+
+    let mut objects = Vec::new();
+    let mut skipped = Vec::new();
+    let scene = gltf.default_scene().or_else(|| gltf.scenes().next());
+    let roots: Vec<gltf::Node> = match &scene {
+        Some(s) => s.nodes().collect(),
+        None => gltf.nodes().collect(),
+    };
+    let mut stack: Vec<(gltf::Node, Mat4)> = roots.into_iter().map(|n| (n, Mat4::IDENTITY)).collect();
+    while let Some((node, parent)) = stack.pop() {
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        stack.extend(node.children().map(|c| (c, world)));
+        let Some(mesh) = node.mesh() else { continue };
+        let mesh_name = mesh.name().unwrap_or("unnamed").to_string();
+        for (pi, prim) in mesh.primitives().enumerate() {
+            let fail = |source: MeshError| GltfError::Mesh { mesh: mesh_name.clone(), primitive: pi, source };
+            let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+            let Some(positions) = reader.read_positions() else {
+                skipped.push(fail(MeshError::Empty));
+                continue;
+            };
+            let positions: Vec<Vec3> = positions.map(Vec3::from).collect();
+            let raw: Vec<u32> = match reader.read_indices() {
+                Some(i) => i.into_u32().collect(),
+                None => (0..positions.len() as u32).collect(),
+            };
+            let indices = match prim.mode() {
+                Mode::Triangles => raw,
+                Mode::TriangleStrip => strip_to_list(&raw),
+                Mode::TriangleFan => fan_to_list(&raw),
+                // Points and lines cast no shadow.
+                _ => continue,
+            };
+            let transform = Affine3A::from_mat4(world);
+            match Mesh::new(positions, indices).and_then(|m| SceneObject::new(mesh_name.clone(), m, transform)) {
+                Ok(o) => objects.push(o),
+                Err(e) => skipped.push(fail(e)),
+            }
+        }
+    }
+    if objects.is_empty() {
+        return Err(skipped.into_iter().next().unwrap_or(GltfError::NoMeshes));
+    }
+    Ok(GltfImport { scene: Scene::new(objects), skipped })
+}
+
+fn strip_to_list(s: &[u32]) -> Vec<u32> {
+    (2..s.len())
+        .flat_map(|i| if i % 2 == 0 { [s[i - 2], s[i - 1], s[i]] } else { [s[i - 1], s[i - 2], s[i]] })
+        .collect()
+}
+
+fn fan_to_list(s: &[u32]) -> Vec<u32> {
+    (2..s.len()).flat_map(|i| [s[0], s[i - 1], s[i]]).collect()
+}
+
+fn read_uri(uri: &str, base_dir: Option<&Path>) -> Result<Vec<u8>, String> {
+    if let Some(rest) = uri.strip_prefix("data:") {
+        let (_, data) = rest.split_once(";base64,").ok_or("data URI is not base64")?;
+        return base64_decode(data).ok_or_else(|| "data URI holds invalid base64".to_string());
+    }
+    let dir = base_dir.ok_or("external buffer but no directory to resolve it in")?;
+    let file = dir.join(percent_decode(uri));
+    std::fs::read(&file).map_err(|e| format!("cannot read {}: {e}", file.display()))
+}
+
+fn percent_decode(s: &str) -> String {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'%' && i + 2 < b.len() {
+            if let Ok(v) = u8::from_str_radix(&s[i + 1..i + 3], 16) {
+                out.push(v);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(b[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+fn base64_decode(s: &str) -> Option<Vec<u8>> {
+    let val = |c: u8| match c {
+        b'A'..=b'Z' => Some(c - b'A'),
+        b'a'..=b'z' => Some(c - b'a' + 26),
+        b'0'..=b'9' => Some(c - b'0' + 52),
+        b'+' | b'-' => Some(62),
+        b'/' | b'_' => Some(63),
+        _ => None,
+    };
+    let mut out = Vec::with_capacity(s.len() * 3 / 4);
+    let (mut acc, mut bits) = (0u32, 0);
+    for &c in s.as_bytes().iter().filter(|c| !c.is_ascii_whitespace()) {
+        if c == b'=' {
+            break;
+        }
+        acc = (acc << 6) | val(c)? as u32;
+        bits += 6;
+        if bits >= 8 {
+            bits -= 8;
+            out.push((acc >> bits) as u8);
+        }
+    }
+    Some(out)
+}
+
+fn base64_encode(data: &[u8]) -> String {
+    const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(data.len().div_ceil(3) * 4);
+    for chunk in data.chunks(3) {
+        let n = chunk.iter().enumerate().fold(0u32, |a, (i, &b)| a | (b as u32) << (16 - 8 * i));
+        for i in 0..4 {
+            if i <= chunk.len() {
+                out.push(T[(n >> (18 - 6 * i) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+/// Writes a scene as a self-contained `.gltf` (one embedded buffer, one node per
+/// object with its matrix). Used to make the demo assets; materials are omitted
+/// (Bevy gives such meshes its default `StandardMaterial`).
+pub fn write_gltf(scene: &Scene) -> String {
+    let mut bin: Vec<u8> = Vec::new();
+    let (mut views, mut accessors, mut meshes, mut nodes) = (vec![], vec![], vec![], vec![]);
+    for (i, o) in scene.objects.iter().enumerate() {
+        let (lo, hi) = o.mesh.positions().iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+        let pos_offset = bin.len();
+        for p in o.mesh.positions() {
+            for c in p.to_array() {
+                bin.extend(c.to_le_bytes());
+            }
+        }
+        let idx_offset = bin.len();
+        for &k in o.mesh.indices() {
+            bin.extend(k.to_le_bytes());
+        }
+        let (pv, iv) = (views.len(), views.len() + 1);
+        views.push(format!(r#"{{"buffer":0,"byteOffset":{pos_offset},"byteLength":{},"target":34962}}"#, idx_offset - pos_offset));
+        views.push(format!(r#"{{"buffer":0,"byteOffset":{idx_offset},"byteLength":{},"target":34963}}"#, bin.len() - idx_offset));
+        let (pa, ia) = (accessors.len(), accessors.len() + 1);
+        accessors.push(format!(
+            r#"{{"bufferView":{pv},"componentType":5126,"count":{},"type":"VEC3","min":[{},{},{}],"max":[{},{},{}]}}"#,
+            o.mesh.positions().len(), lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+        ));
+        accessors.push(format!(r#"{{"bufferView":{iv},"componentType":5125,"count":{},"type":"SCALAR"}}"#, o.mesh.indices().len()));
+        meshes.push(format!(r#"{{"name":"{}","primitives":[{{"attributes":{{"POSITION":{pa}}},"indices":{ia}}}]}}"#, json_escape(&o.name)));
+        let m = Mat4::from(o.transform).to_cols_array();
+        let m: Vec<String> = m.iter().map(|v| format!("{v}")).collect();
+        nodes.push(format!(r#"{{"name":"{}","mesh":{i},"matrix":[{}]}}"#, json_escape(&o.name), m.join(",")));
+    }
+    let node_ids: Vec<String> = (0..nodes.len()).map(|i| i.to_string()).collect();
+    format!(
+        concat!(
+            r#"{{"asset":{{"version":"2.0","generator":"shadow_fins"}},"scene":0,"scenes":[{{"nodes":[{}]}}],"#,
+            r#""nodes":[{}],"meshes":[{}],"accessors":[{}],"bufferViews":[{}],"#,
+            r#""buffers":[{{"byteLength":{},"uri":"data:application/octet-stream;base64,{}"}}]}}"#
+        ),
+        node_ids.join(","),
+        nodes.join(","),
+        meshes.join(","),
+        accessors.join(","),
+        views.join(","),
+        bin.len(),
+        base64_encode(&bin)
+    )
+}
+
+fn json_escape(s: &str) -> String {
+    s.chars().flat_map(|c| match c {
+        '"' => vec!['\\', '"'],
+        '\\' => vec!['\\', '\\'],
+        c if (c as u32) < 0x20 => vec![' '],
+        c => vec![c],
+    }).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base64_round_trips() {
+        for n in 0..20 {
+            let data: Vec<u8> = (0..n).map(|i| (i * 37 + 11) as u8).collect();
+            assert_eq!(base64_decode(&base64_encode(&data)).unwrap(), data);
+        }
+    }
+
+    #[test]
+    fn strips_and_fans_become_lists() {
+        assert_eq!(strip_to_list(&[0, 1, 2, 3]), vec![0, 1, 2, 2, 1, 3]);
+        assert_eq!(fan_to_list(&[0, 1, 2, 3]), vec![0, 1, 2, 0, 2, 3]);
+    }
+}

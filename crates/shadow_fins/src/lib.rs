@@ -1,0 +1,50 @@
+//! # shadow_fins
+//!
+//! Soft shadows from lights with a size by the *multi-layered shadow fins*
+//! method (Cai, Jia, Wang, Hu, Martin, *Rendering Soft Shadows using
+//! Multi-layered Shadow Fins*, CGF 25(1), 2006), on the CPU, with no Bevy:
+//!
+//! - [`mesh`]: validated triangle meshes, welding, edge → face adjacency;
+//! - [`light`]: disk and sun lights and the light frame everything runs in;
+//! - [`silhouette`], [`fins`], [`layers`], [`refine`]: the method's stages;
+//! - [`oracle`]: the method evaluated exactly ([`oracle::AnalyticIndex`]) and as
+//!   light-space maps at a resolution ([`oracle::RasterMaps`]), the GPU's reference;
+//! - [`ground_truth`]: many-sample disk visibility through a [`bvh::Bvh`];
+//! - [`metrics`]: error against ground truth over the shadowed region;
+//! - [`scenes`]: procedural scenes mirroring the paper's figures;
+//! - `gltf` (feature `gltf`): glTF files into the core's meshes.
+//!
+//! The exact semantics are in the repository's `DESIGN.md` §3.
+//!
+//! ```
+//! use shadow_fins::{scenes::SceneId, scene::LightSpaceScene, oracle::*};
+//! let s = SceneId::BoxOverPlane.build();
+//! let ls = LightSpaceScene::new(&s.scene, s.light);
+//! let model = FinShadowModel::new(&s.scene, &ls, Method::MultiLayer, FinSettings::default());
+//! let index = model.analytic();
+//! // A ground point right under the box is in the umbra.
+//! let p = ls.frame.to_frame(glam::Vec3::new(0.3, 0.0, 0.2));
+//! let n = ls.frame.dir_to_frame(glam::Vec3::Y);
+//! assert!(index.visibility(Receiver { position: p, normal: n }) < 0.01);
+//! ```
+
+pub mod bvh;
+pub mod camera;
+pub mod error;
+pub mod fins;
+#[cfg(feature = "gltf")]
+pub mod gltf_import;
+pub mod ground_truth;
+pub mod layers;
+pub mod light;
+pub mod mesh;
+pub mod metrics;
+pub mod oracle;
+pub mod refine;
+pub mod scene;
+pub mod scenes;
+pub mod shapes;
+pub mod silhouette;
+
+pub use error::{GltfError, LightError, MeshError, SettingsError};
+pub use glam;

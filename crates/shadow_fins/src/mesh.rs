@@ -1,0 +1,284 @@
+//! Mesh input, vertex welding and edge → face adjacency.
+//!
+//! A [`Mesh`] is an indexed triangle list, validated on construction. Its
+//! [`Topology`] welds vertices that share a position (so flat-shaded exports with
+//! split vertices still have connected edges), drops degenerate faces, and lists
+//! every edge with the faces around it. The topology is light-independent: it is
+//! built once per mesh and reused every frame by [`crate::silhouette`].
+
+use std::collections::HashMap;
+
+use glam::Vec3;
+
+use crate::error::MeshError;
+
+/// Marks "no face" in [`Edge::faces`] (a boundary edge has one face).
+pub const NO_FACE: u32 = u32::MAX;
+
+/// An indexed triangle mesh in its own object space.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mesh {
+    positions: Vec<Vec3>,
+    indices: Vec<u32>,
+}
+
+impl Mesh {
+    /// Validates and wraps a triangle list.
+    ///
+    /// Errors: no triangles, an index count that is not a multiple of 3, an index
+    /// out of range, a non-finite position, or every triangle of zero area.
+    /// Individual degenerate triangles are allowed (they are skipped later).
+    pub fn new(positions: Vec<Vec3>, indices: Vec<u32>) -> Result<Self, MeshError> {
+        if indices.is_empty() {
+            return Err(MeshError::Empty);
+        }
+        if indices.len() % 3 != 0 {
+            return Err(MeshError::IndexCountNotTriangles(indices.len()));
+        }
+        if let Some((vertex, p)) = positions.iter().enumerate().find(|(_, p)| !p.is_finite()) {
+            return Err(MeshError::NonFinitePosition { vertex, position: p.to_array() });
+        }
+        if let Some((at, &index)) =
+            indices.iter().enumerate().find(|&(_, &i)| i as usize >= positions.len())
+        {
+            return Err(MeshError::IndexOutOfRange { at, index, vertex_count: positions.len() });
+        }
+        let mesh = Self { positions, indices };
+        if mesh.triangles().all(|[a, b, c]| triangle_is_degenerate(a, b, c)) {
+            return Err(MeshError::AllDegenerate);
+        }
+        Ok(mesh)
+    }
+
+    pub fn positions(&self) -> &[Vec3] {
+        &self.positions
+    }
+
+    pub fn indices(&self) -> &[u32] {
+        &self.indices
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+
+    /// The corner positions of every triangle, in index order.
+    pub fn triangles(&self) -> impl Iterator<Item = [Vec3; 3]> + '_ {
+        self.indices.chunks_exact(3).map(|t| {
+            [
+                self.positions[t[0] as usize],
+                self.positions[t[1] as usize],
+                self.positions[t[2] as usize],
+            ]
+        })
+    }
+}
+
+/// True when the triangle has (numerically) zero area relative to its size.
+pub fn triangle_is_degenerate(a: Vec3, b: Vec3, c: Vec3) -> bool {
+    let cross = (b - a).cross(c - a);
+    let scale = (b - a).length_squared().max((c - a).length_squared()).max((c - b).length_squared());
+    // Area² below (1e-7 · edge²)² is noise for f32 positions.
+    !(cross.length_squared() > scale * scale * 1e-14)
+}
+
+/// One undirected edge of the welded mesh.
+///
+/// `vertices[0] < vertices[1]`. `faces[i]` is a face index or [`NO_FACE`];
+/// `forward[i]` says whether face `i` walks the edge from `vertices[0]` to
+/// `vertices[1]` in its winding order. Edges with three or more faces are listed
+/// in [`Topology::non_manifold_edges`] instead.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Edge {
+    pub vertices: [u32; 2],
+    pub faces: [u32; 2],
+    pub forward: [bool; 2],
+}
+
+/// An edge shared by three or more faces: `(face, forward)` for each.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct NonManifoldEdge {
+    pub vertices: [u32; 2],
+    pub faces: Vec<(u32, bool)>,
+}
+
+/// Light-independent connectivity of a mesh, built once and reused every frame.
+#[derive(Debug, Clone)]
+pub struct Topology {
+    /// Positions after welding: one per distinct position.
+    pub positions: Vec<Vec3>,
+    /// Non-degenerate faces, as welded vertex indices in the input winding.
+    pub faces: Vec<[u32; 3]>,
+    /// Unnormalised face normal `(b − a) × (c − a)` and `dot(normal, a)`, so that
+    /// "faces a point `x`" is `dot(normal, x) > offset` with no per-frame work.
+    pub face_planes: Vec<(Vec3, f32)>,
+    /// Area-weighted vertex normals (unnormalised), used at silhouette junctions.
+    pub vertex_normals: Vec<Vec3>,
+    /// Edges with one or two faces.
+    pub edges: Vec<Edge>,
+    /// Edges with three or more faces.
+    pub non_manifold_edges: Vec<NonManifoldEdge>,
+    /// Input triangles dropped for zero area (or for repeating a welded vertex).
+    pub degenerate_faces: usize,
+    /// Two-face edges whose faces walk them in the same direction (flipped winding).
+    pub inconsistent_edges: usize,
+}
+
+impl Topology {
+    /// Welds vertices by exact position and builds edge → face adjacency.
+    pub fn build(mesh: &Mesh) -> Self {
+        let (positions, remap) = weld_positions(mesh.positions());
+        let mut faces = Vec::with_capacity(mesh.triangle_count());
+        let mut degenerate_faces = 0;
+        for tri in mesh.indices().chunks_exact(3) {
+            let f = [remap[tri[0] as usize], remap[tri[1] as usize], remap[tri[2] as usize]];
+            let [a, b, c] = f.map(|i| positions[i as usize]);
+            if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] || triangle_is_degenerate(a, b, c) {
+                degenerate_faces += 1;
+            } else {
+                faces.push(f);
+            }
+        }
+        let face_planes: Vec<(Vec3, f32)> = faces
+            .iter()
+            .map(|f| {
+                let [a, b, c] = f.map(|i| positions[i as usize]);
+                let n = (b - a).cross(c - a);
+                (n, n.dot(a))
+            })
+            .collect();
+        let mut vertex_normals = vec![Vec3::ZERO; positions.len()];
+        for (f, (n, _)) in faces.iter().zip(&face_planes) {
+            for &v in f {
+                vertex_normals[v as usize] += *n;
+            }
+        }
+
+        // (min, max) → list of (face, walks min→max)
+        let mut by_key: HashMap<(u32, u32), Vec<(u32, bool)>> = HashMap::with_capacity(faces.len() * 3 / 2);
+        for (fi, f) in faces.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (f[k], f[(k + 1) % 3]);
+                let key = (a.min(b), a.max(b));
+                by_key.entry(key).or_default().push((fi as u32, a < b));
+            }
+        }
+        let mut keys: Vec<_> = by_key.into_iter().collect();
+        // Deterministic order (HashMap iteration is not): sort by vertex pair.
+        keys.sort_unstable_by_key(|(k, _)| *k);
+        let mut edges = Vec::with_capacity(keys.len());
+        let mut non_manifold_edges = Vec::new();
+        let mut inconsistent_edges = 0;
+        for ((v0, v1), list) in keys {
+            match list.as_slice() {
+                [(f, fw)] => edges.push(Edge {
+                    vertices: [v0, v1],
+                    faces: [*f, NO_FACE],
+                    forward: [*fw, false],
+                }),
+                [(f0, fw0), (f1, fw1)] => {
+                    if fw0 == fw1 {
+                        inconsistent_edges += 1;
+                    }
+                    edges.push(Edge { vertices: [v0, v1], faces: [*f0, *f1], forward: [*fw0, *fw1] })
+                }
+                _ => non_manifold_edges.push(NonManifoldEdge { vertices: [v0, v1], faces: list }),
+            }
+        }
+        Self {
+            positions,
+            faces,
+            face_planes,
+            vertex_normals,
+            edges,
+            non_manifold_edges,
+            degenerate_faces,
+            inconsistent_edges,
+        }
+    }
+
+    /// Edges with exactly one face.
+    pub fn boundary_edge_count(&self) -> usize {
+        self.edges.iter().filter(|e| e.faces[1] == NO_FACE).count()
+    }
+
+    /// True when every edge has exactly two consistently wound faces.
+    pub fn is_closed_manifold(&self) -> bool {
+        self.non_manifold_edges.is_empty()
+            && self.inconsistent_edges == 0
+            && self.edges.iter().all(|e| e.faces[1] != NO_FACE)
+    }
+}
+
+/// Merges vertices with bit-identical positions (`-0.0` and `0.0` are one).
+///
+/// Returns the distinct positions, in first-seen order, and the map from input
+/// vertex to welded vertex.
+pub fn weld_positions(positions: &[Vec3]) -> (Vec<Vec3>, Vec<u32>) {
+    let key = |p: Vec3| (p + Vec3::ZERO).to_array().map(f32::to_bits);
+    let mut index: HashMap<[u32; 3], u32> = HashMap::with_capacity(positions.len());
+    let mut welded = Vec::with_capacity(positions.len());
+    let remap = positions
+        .iter()
+        .map(|&p| {
+            *index.entry(key(p)).or_insert_with(|| {
+                welded.push(p);
+                (welded.len() - 1) as u32
+            })
+        })
+        .collect();
+    (welded, remap)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rejects_bad_meshes_with_typed_errors() {
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+        assert_eq!(Mesh::new(p.clone(), vec![]), Err(MeshError::Empty));
+        assert_eq!(Mesh::new(p.clone(), vec![0, 1]), Err(MeshError::IndexCountNotTriangles(2)));
+        assert!(matches!(Mesh::new(p.clone(), vec![0, 1, 3]), Err(MeshError::IndexOutOfRange { index: 3, .. })));
+        let nan = vec![Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 0.0), Vec3::Y];
+        assert!(matches!(Mesh::new(nan, vec![0, 1, 2]), Err(MeshError::NonFinitePosition { vertex: 1, .. })));
+        let flat = vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0];
+        assert_eq!(Mesh::new(flat, vec![0, 1, 2]), Err(MeshError::AllDegenerate));
+    }
+
+    #[test]
+    fn welding_merges_split_vertices_and_signed_zero() {
+        let p = [Vec3::ZERO, Vec3::X, Vec3::new(-0.0, 0.0, 0.0), Vec3::X];
+        let (w, remap) = weld_positions(&p);
+        assert_eq!(w.len(), 2);
+        assert_eq!(remap, vec![0, 1, 0, 1]);
+    }
+
+    #[test]
+    fn quad_has_one_interior_edge_and_four_boundary_edges() {
+        // Split vertices (as a flat-shaded export would have them) still weld.
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
+        let t = Topology::build(&Mesh::new(p, vec![0, 1, 2, 3, 4, 5]).unwrap());
+        assert_eq!(t.positions.len(), 4);
+        assert_eq!(t.edges.len(), 5);
+        assert_eq!(t.boundary_edge_count(), 4);
+        assert_eq!(t.inconsistent_edges, 0);
+        assert!(!t.is_closed_manifold());
+    }
+
+    #[test]
+    fn three_faces_on_one_edge_are_non_manifold() {
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(0.0, -1.0, 0.0)];
+        let t = Topology::build(&Mesh::new(p, vec![0, 1, 2, 1, 0, 3, 0, 1, 4]).unwrap());
+        assert_eq!(t.non_manifold_edges.len(), 1);
+        assert_eq!(t.non_manifold_edges[0].faces.len(), 3);
+    }
+
+    #[test]
+    fn degenerate_faces_are_counted_and_dropped() {
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::X * 2.0];
+        let t = Topology::build(&Mesh::new(p, vec![0, 1, 2, 0, 1, 3]).unwrap());
+        assert_eq!(t.faces.len(), 1);
+        assert_eq!(t.degenerate_faces, 1);
+    }
+}

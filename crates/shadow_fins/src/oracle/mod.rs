@@ -1,0 +1,348 @@
+//! The CPU oracle of the whole fin method (DESIGN §3).
+//!
+//! [`FinShadowModel`] prepares one scene under one light for one method:
+//! silhouettes, fins, the layer plan and the casters in map space. It then
+//! answers visibility in two ways that share every rule:
+//! - [`FinShadowModel::analytic`]: each receiver's centre ray is intersected
+//!   exactly with the casters and fins (no rasterization);
+//! - [`RasterMaps`]: the per-layer light-space maps at a given resolution, sampled
+//!   at texel centres, as a GPU renders them, looked up at the nearest texel.
+//!
+//! Both evaluate the same [`LayerTexel`] per layer and the same
+//! [`combine_layers`], so the raster converges to the analytic answer as the map
+//! resolution grows.
+
+mod analytic;
+mod map_geometry;
+mod raster;
+
+use glam::{Vec2, Vec3};
+
+pub use analytic::AnalyticIndex;
+pub use map_geometry::MapTriangle;
+pub use raster::{MapRegion, RasterMaps};
+
+use crate::{
+    error::SettingsError,
+    fins::{Fin, FinBuilder, FinSample, FinSide},
+    layers::LayerPlan,
+    light::LightFrame,
+    refine::{Falloff, refine_weight},
+    scene::{LightSpaceScene, Scene},
+    silhouette::{SilhouetteEdge, SilhouetteScratch, extract_object_silhouettes},
+};
+
+/// Which soft-shadow method to evaluate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// Shadow map from the light centre: visibility 0 or 1.
+    Hard,
+    /// Hard shadow plus outer fins only: the smoothies / penumbra-map family.
+    OuterFins,
+    /// Inner and outer fins in one layer (the paper's §3).
+    SingleLayer,
+    /// Inner and outer fins in up to `layers` layers (the paper's §4).
+    MultiLayer,
+}
+
+impl Method {
+    pub const ALL: [Method; 4] = [Method::Hard, Method::OuterFins, Method::SingleLayer, Method::MultiLayer];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Hard => "hard",
+            Method::OuterFins => "outer-fins",
+            Method::SingleLayer => "single-layer",
+            Method::MultiLayer => "fins",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|m| m.name() == s)
+    }
+}
+
+/// Settings of the fin method. Defaults are the paper's: 16 layers from 1024
+/// sub-layers, refinement on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FinSettings {
+    /// Layer count `N` (1..=64).
+    pub layers: u32,
+    /// Sub-layer count `S` (1..=65536).
+    pub sub_layers: u32,
+    /// Refine fin weights to the real receiver depth (eq. 5).
+    pub refinement: bool,
+    pub falloff: Falloff,
+}
+
+impl Default for FinSettings {
+    fn default() -> Self {
+        Self { layers: 16, sub_layers: 1024, refinement: true, falloff: Falloff::default() }
+    }
+}
+
+impl FinSettings {
+    /// Checks every field's range.
+    pub fn validate(self) -> Result<Self, SettingsError> {
+        if !(1..=64).contains(&self.layers) {
+            return Err(SettingsError::Layers(self.layers));
+        }
+        if !(1..=65536).contains(&self.sub_layers) {
+            return Err(SettingsError::SubLayers(self.sub_layers));
+        }
+        Ok(self)
+    }
+}
+
+/// One layer's light-map contents at one map point: the slab depth and the
+/// winning inner and outer fins.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LayerTexel {
+    /// Nearest caster depth within the layer's slab; `+∞` when none.
+    pub slab_depth: f32,
+    /// Minimum inner weight (`+∞` when none) and the depth of the fin that gave it.
+    pub inner_weight: f32,
+    pub inner_depth: f32,
+    /// Maximum outer weight (`−∞` when none) and the depth of the fin that gave it.
+    pub outer_weight: f32,
+    pub outer_depth: f32,
+}
+
+impl LayerTexel {
+    pub const EMPTY: Self = Self {
+        slab_depth: f32::INFINITY,
+        inner_weight: f32::INFINITY,
+        inner_depth: f32::INFINITY,
+        outer_weight: f32::NEG_INFINITY,
+        outer_depth: f32::INFINITY,
+    };
+
+    /// Keeps the nearest caster.
+    #[inline]
+    pub fn add_caster(&mut self, depth: f32) {
+        if depth < self.slab_depth {
+            self.slab_depth = depth;
+        }
+    }
+
+    /// Inner: minimum weight wins; outer: maximum. Ties go to the nearer fin.
+    /// Weight and depth of the same winner stay together (the plateau trick).
+    #[inline]
+    pub fn add_fin(&mut self, side: FinSide, s: FinSample) {
+        match side {
+            FinSide::Inner => {
+                if s.weight < self.inner_weight || (s.weight == self.inner_weight && s.depth < self.inner_depth) {
+                    self.inner_weight = s.weight;
+                    self.inner_depth = s.depth;
+                }
+            }
+            FinSide::Outer => {
+                if s.weight > self.outer_weight || (s.weight == self.outer_weight && s.depth < self.outer_depth) {
+                    self.outer_weight = s.weight;
+                    self.outer_depth = s.depth;
+                }
+            }
+        }
+    }
+
+    pub fn inner(&self) -> Option<FinSample> {
+        self.inner_weight.is_finite().then_some(FinSample { weight: self.inner_weight, depth: self.inner_depth })
+    }
+
+    pub fn outer(&self) -> Option<FinSample> {
+        self.outer_weight.is_finite().then_some(FinSample { weight: self.outer_weight, depth: self.outer_depth })
+    }
+}
+
+/// What the per-pixel combination needs to know about the receiver and light.
+#[derive(Debug, Clone, Copy)]
+pub struct CombineParams<'a> {
+    pub frame: &'a LightFrame,
+    pub reference_depth: f32,
+    pub refinement: bool,
+}
+
+/// The per-pixel combination of DESIGN §3 over layers `0..=k` (the receiver's
+/// layer last). Returns the illuminance `I ∈ [0, 1]` before the falloff.
+///
+/// For each layer: `base = 0` when the slab blocks the centre ray nearer than
+/// `blocking_limit`, else 1; `u = clamp(base + inner − outer, 0, 1)` with refined
+/// weights; penumbra (a fin applies): `I = min(I, u)`; umbra: `I = 0`; lit: keep.
+pub fn combine_layers(texels: &[LayerTexel], receiver_depth: f32, blocking_limit: f32, p: CombineParams) -> f32 {
+    let refine = |s: FinSample| {
+        if p.refinement {
+            refine_weight(p.frame, s.weight, s.depth, receiver_depth, p.reference_depth)
+        } else {
+            (s.depth < receiver_depth).then_some(s.weight)
+        }
+    };
+    let mut illuminance = 1.0f32;
+    for t in texels {
+        let base = if t.slab_depth < blocking_limit { 0.0 } else { 1.0 };
+        let inner = t.inner().and_then(refine);
+        let outer = t.outer().and_then(refine);
+        if inner.is_some() || outer.is_some() {
+            let u = (base + inner.unwrap_or(0.0) - outer.unwrap_or(0.0)).clamp(0.0, 1.0);
+            illuminance = illuminance.min(u);
+        } else if base == 0.0 {
+            illuminance = 0.0;
+        }
+    }
+    illuminance
+}
+
+/// A receiver point in the light frame, with its unit normal (zero if unknown).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Receiver {
+    pub position: Vec3,
+    pub normal: Vec3,
+}
+
+/// Per-frame fin extraction: silhouettes, fins and the layer plan. Buffers are
+/// reused between calls; this is the stage the paper runs on the CPU.
+#[derive(Debug, Default)]
+pub struct FinExtractor {
+    scratch: SilhouetteScratch,
+    builder: FinBuilder,
+    depths: Vec<f32>,
+    pub silhouettes: Vec<SilhouetteEdge>,
+    pub fins: Vec<Fin>,
+    /// Layer of each fin (same order as `fins`).
+    pub fin_layers: Vec<u32>,
+    pub plan: LayerPlan,
+}
+
+impl FinExtractor {
+    /// Extracts silhouettes and fins of every casting object and assigns layers.
+    /// `layers == 1` gives the single-layered plan.
+    pub fn extract(&mut self, scene: &Scene, light_space: &LightSpaceScene, layers: u32, sub_layers: u32) {
+        self.silhouettes.clear();
+        let frame = &light_space.frame;
+        let mut vertex_base = 0u32;
+        for (object, to_frame) in scene.objects.iter().zip(&light_space.object_frames) {
+            if object.casts_shadows {
+                let light = to_frame.light_in_object(frame);
+                extract_object_silhouettes(
+                    &object.topology,
+                    to_frame,
+                    light,
+                    vertex_base,
+                    &mut self.scratch,
+                    &mut self.silhouettes,
+                );
+            }
+            vertex_base += object.topology.positions.len() as u32;
+        }
+        let near = near_depth(light_space);
+        self.builder.build(&self.silhouettes, frame, light_space.reference_depth, near, &mut self.fins);
+        self.depths.clear();
+        self.depths.extend(self.silhouettes.iter().map(SilhouetteEdge::mid_depth));
+        self.plan = LayerPlan::from_edge_depths(&self.depths, sub_layers, layers);
+        self.fin_layers.clear();
+        self.fin_layers.extend(self.fins.iter().map(|f| self.plan.layer_of(f.layer_depth) as u32));
+    }
+}
+
+/// Depth below which geometry is treated as at or behind the light plane.
+pub fn near_depth(light_space: &LightSpaceScene) -> f32 {
+    if light_space.frame.is_perspective() { light_space.reference_depth * 1e-5 } else { f32::NEG_INFINITY }
+}
+
+/// One scene under one light, prepared for one method.
+pub struct FinShadowModel<'a> {
+    pub light_space: &'a LightSpaceScene,
+    pub method: Method,
+    pub settings: FinSettings,
+    pub silhouettes: Vec<SilhouetteEdge>,
+    pub fins: Vec<Fin>,
+    pub fin_layers: Vec<u32>,
+    pub plan: LayerPlan,
+    pub casters: Vec<MapTriangle>,
+    pub near: f32,
+}
+
+impl<'a> FinShadowModel<'a> {
+    /// Extracts silhouettes and fins and plans layers as `method` asks.
+    pub fn new(scene: &Scene, light_space: &'a LightSpaceScene, method: Method, settings: FinSettings) -> Self {
+        let mut ex = FinExtractor::default();
+        let layers = if method == Method::MultiLayer { settings.layers } else { 1 };
+        ex.extract(scene, light_space, layers, settings.sub_layers);
+        let keep = |f: &Fin| match method {
+            Method::Hard => false,
+            Method::OuterFins => f.side == FinSide::Outer,
+            Method::SingleLayer | Method::MultiLayer => true,
+        };
+        let (fins, fin_layers): (Vec<Fin>, Vec<u32>) =
+            ex.fins.iter().zip(&ex.fin_layers).filter(|(f, _)| keep(f)).map(|(f, l)| (*f, *l)).unzip();
+        let near = near_depth(light_space);
+        let perspective = light_space.frame.is_perspective();
+        let casters = light_space
+            .casters
+            .iter()
+            .zip(&light_space.in_slab_maps)
+            .filter(|(_, in_maps)| **in_maps)
+            .flat_map(|(tri, _)| MapTriangle::clipped(tri, &light_space.frame, near, perspective))
+            .collect();
+        Self {
+            light_space,
+            method,
+            settings,
+            silhouettes: ex.silhouettes,
+            fins,
+            fin_layers,
+            plan: ex.plan,
+            casters,
+            near,
+        }
+    }
+
+    pub fn frame(&self) -> &LightFrame {
+        &self.light_space.frame
+    }
+
+    fn combine_params(&self) -> CombineParams<'_> {
+        CombineParams {
+            frame: &self.light_space.frame,
+            reference_depth: self.light_space.reference_depth,
+            refinement: self.settings.refinement,
+        }
+    }
+
+    /// Receiver moved off its surface by `offset` along its normal.
+    fn lifted(&self, r: Receiver, offset: f32) -> Vec3 {
+        r.position + r.normal * offset
+    }
+
+    /// Epsilon for self-shadowing in the exact (analytic) evaluation.
+    pub fn surface_epsilon(&self) -> f32 {
+        self.light_space.extent * 1e-5
+    }
+
+    /// Visibility from the layer texels at a receiver: `falloff(I)`.
+    fn visibility_from(&self, texels: &[LayerTexel], depth: f32, blocking_limit: f32) -> f32 {
+        let i = combine_layers(texels, depth, blocking_limit, self.combine_params());
+        self.settings.falloff.apply(i)
+    }
+
+    /// Builds the map-space index for exact evaluation.
+    pub fn analytic(&self) -> AnalyticIndex<'_, 'a> {
+        AnalyticIndex::new(self)
+    }
+
+    /// Renders the per-layer light-space maps at `resolution²`, as the GPU does.
+    pub fn raster(&self, resolution: u32) -> RasterMaps<'_, 'a> {
+        RasterMaps::new(self, resolution)
+    }
+
+    /// Shared tail of both evaluations: a receiver at or behind the light plane
+    /// sees nothing of a one-sided disk.
+    fn behind_light(&self, p: Vec3) -> bool {
+        !(p.z > self.near) || !p.is_finite()
+    }
+
+    /// Map coordinate of a frame point.
+    #[inline]
+    fn map(&self, p: Vec3) -> Vec2 {
+        self.light_space.frame.map(p)
+    }
+}

@@ -1,0 +1,210 @@
+//! Scenes: meshes placed in the world, and their light-space view.
+
+use std::sync::Arc;
+
+use glam::{Affine3A, DAffine3, DVec3, Vec3};
+
+use crate::{
+    error::MeshError,
+    light::{Light, LightFrame},
+    mesh::{Mesh, Topology},
+};
+
+/// One mesh placed in the world.
+#[derive(Debug, Clone)]
+pub struct SceneObject {
+    pub name: String,
+    pub mesh: Arc<Mesh>,
+    /// Built once from `mesh`; shared between instances of the same mesh.
+    pub topology: Arc<Topology>,
+    pub transform: Affine3A,
+    /// Casts shadows (and fins). Like Bevy's `NotShadowCaster` when false.
+    pub casts_shadows: bool,
+    /// Receives shadows: its depth counts for the reference plane `L0`.
+    pub receives_shadows: bool,
+}
+
+impl SceneObject {
+    /// Places a mesh; builds its topology. Errors on a non-finite or singular transform.
+    pub fn new(name: impl Into<String>, mesh: Mesh, transform: Affine3A) -> Result<Self, MeshError> {
+        let mesh = Arc::new(mesh);
+        let topology = Arc::new(Topology::build(&mesh));
+        Self::shared(name, mesh, topology, transform)
+    }
+
+    /// Places an already built mesh and topology (instancing).
+    pub fn shared(
+        name: impl Into<String>,
+        mesh: Arc<Mesh>,
+        topology: Arc<Topology>,
+        transform: Affine3A,
+    ) -> Result<Self, MeshError> {
+        let det = transform.matrix3.determinant();
+        if !transform.is_finite() || !(det.abs() > 1e-20) {
+            return Err(MeshError::BadTransform(det));
+        }
+        Ok(Self { name: name.into(), mesh, topology, transform, casts_shadows: true, receives_shadows: true })
+    }
+
+    /// The object → world transform in f64.
+    pub fn transform_f64(&self) -> DAffine3 {
+        DAffine3::from_mat3_translation(
+            glam::Mat3::from(self.transform.matrix3).as_dmat3(),
+            Vec3::from(self.transform.translation).as_dvec3(),
+        )
+    }
+}
+
+/// A set of objects. Every object casts and receives unless told otherwise.
+#[derive(Debug, Clone, Default)]
+pub struct Scene {
+    pub objects: Vec<SceneObject>,
+}
+
+impl Scene {
+    pub fn new(objects: Vec<SceneObject>) -> Self {
+        Self { objects }
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.objects.iter().map(|o| o.mesh.triangle_count()).sum()
+    }
+
+    /// World-space axis-aligned bounds of every object (`None` when empty).
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        for o in &self.objects {
+            let m = o.transform_f64();
+            for p in o.topology.positions.iter() {
+                let w = m.transform_point3(p.as_dvec3());
+                lo = lo.min(w);
+                hi = hi.max(w);
+            }
+        }
+        (lo.x <= hi.x).then(|| (lo.as_vec3(), hi.as_vec3()))
+    }
+
+    /// Translates every object (stability tests: "the whole scene offset by 1e5").
+    pub fn translated(&self, offset: Vec3) -> Self {
+        let mut s = self.clone();
+        for o in &mut s.objects {
+            o.transform.translation += glam::Vec3A::from(offset);
+        }
+        s
+    }
+}
+
+/// Object space → light frame, as `f32` after the large offsets cancelled in `f64`.
+#[derive(Debug, Clone, Copy)]
+pub struct ObjectToFrame {
+    pub linear: glam::Mat3,
+    pub translation: Vec3,
+    /// The transform mirrors (negative determinant): face orientation flips.
+    pub mirrors: bool,
+}
+
+impl ObjectToFrame {
+    pub fn new(object: &SceneObject, frame: &LightFrame) -> Self {
+        let m = object.transform_f64();
+        let [u, v, n] = frame.axes().map(|a| a.as_dvec3());
+        let rows = glam::DMat3::from_cols(u, v, n).transpose();
+        let linear = rows * m.matrix3;
+        let translation = rows * (m.translation - frame.origin());
+        Self { linear: linear.as_mat3(), translation: translation.as_vec3(), mirrors: linear.determinant() < 0.0 }
+    }
+
+    #[inline]
+    pub fn point(&self, p: Vec3) -> Vec3 {
+        self.linear * p + self.translation
+    }
+
+    /// Transforms a normal (inverse transpose of the linear part, up to scale).
+    pub fn normal(&self, n: Vec3) -> Vec3 {
+        let c = self.linear;
+        // Cofactor matrix = det · inverse-transpose: no division, sign kept for mirrors.
+        let cof = glam::Mat3::from_cols(
+            c.y_axis.cross(c.z_axis),
+            c.z_axis.cross(c.x_axis),
+            c.x_axis.cross(c.y_axis),
+        );
+        let n = cof * n;
+        if self.mirrors { -n } else { n }
+    }
+
+    /// The light seen from object space: the disk centre (frame origin) as a
+    /// point, or the sun's travel direction (frame +z), for the facing test.
+    pub fn light_in_object(&self, frame: &LightFrame) -> LightInObject {
+        let inv = self.linear.as_dmat3().inverse();
+        if frame.is_perspective() {
+            LightInObject::Point((inv * (-self.translation.as_dvec3())).as_vec3())
+        } else {
+            LightInObject::Direction((inv * DVec3::Z).as_vec3())
+        }
+    }
+}
+
+/// The light's position or direction in an object's own space.
+#[derive(Debug, Clone, Copy)]
+pub enum LightInObject {
+    Point(Vec3),
+    Direction(Vec3),
+}
+
+/// The scene seen from the light: caster triangles in the light frame and the
+/// reference plane `L0`.
+#[derive(Debug, Clone)]
+pub struct LightSpaceScene {
+    pub light: Light,
+    pub frame: LightFrame,
+    /// Shadow-casting triangles, light frame, degenerate ones dropped. The
+    /// ground truth traces all of them.
+    pub casters: Vec<[Vec3; 3]>,
+    /// Per caster: whether it goes into the fin method's slab maps. Light-facing
+    /// triangles do; back-facing ones only for meshes that are not closed.
+    ///
+    /// Why: a closed mesh's back faces lie *behind* its silhouette, often in a
+    /// deeper layer than the silhouette's fins; in that layer they would block
+    /// the centre ray with no fin to soften them, turning the whole inner
+    /// penumbra into umbra. Light-facing faces alone give the same hard shadow.
+    pub in_slab_maps: Vec<bool>,
+    /// Per object: its transform into the light frame (same order as `Scene::objects`).
+    pub object_frames: Vec<ObjectToFrame>,
+    /// Reference plane depth `L0`: the deepest receiver (so real receivers never lie beyond it).
+    pub reference_depth: f32,
+    /// World-space diagonal of the scene's bounds, the yardstick for epsilons.
+    pub extent: f32,
+}
+
+impl LightSpaceScene {
+    pub fn new(scene: &Scene, light: Light) -> Self {
+        let (lo, hi) = scene.bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
+        let frame = LightFrame::new(&light, lo, hi);
+        let extent = (hi - lo).length().max(1e-30);
+        let object_frames: Vec<ObjectToFrame> =
+            scene.objects.iter().map(|o| ObjectToFrame::new(o, &frame)).collect();
+        let mut casters = Vec::with_capacity(scene.triangle_count());
+        let mut in_slab_maps = Vec::with_capacity(scene.triangle_count());
+        let perspective = frame.is_perspective();
+        let mut deepest = f32::NEG_INFINITY;
+        for (o, to_frame) in scene.objects.iter().zip(&object_frames) {
+            let pts: Vec<Vec3> = o.topology.positions.iter().map(|&p| to_frame.point(p)).collect();
+            if o.receives_shadows || o.casts_shadows {
+                deepest = pts.iter().fold(deepest, |d, p| d.max(p.z));
+            }
+            if o.casts_shadows {
+                let closed = o.topology.is_closed_manifold();
+                for f in &o.topology.faces {
+                    let tri = f.map(|i| pts[i as usize]);
+                    let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+                    let faces_light = if perspective { n.dot(tri[0]) < 0.0 } else { n.z < 0.0 } != to_frame.mirrors;
+                    casters.push(tri);
+                    in_slab_maps.push(faces_light || !closed);
+                }
+            }
+        }
+        // A scene entirely behind the light still needs a positive L0.
+        let reference_depth = if deepest > 0.0 { deepest } else { extent };
+        Self { light, frame, casters, in_slab_maps, object_frames, reference_depth, extent }
+    }
+}

@@ -1,0 +1,166 @@
+//! Built-in procedural scenes that mirror the paper's figures.
+
+use glam::{Affine3A, Quat, Vec3};
+
+use crate::{
+    camera::Camera,
+    light::{DiskLight, Light},
+    mesh::Mesh,
+    scene::{Scene, SceneObject},
+    shapes,
+};
+
+/// A scene with the light and camera it is meant to be seen with.
+#[derive(Debug, Clone)]
+pub struct BuiltinScene {
+    pub id: SceneId,
+    pub scene: Scene,
+    pub light: Light,
+    pub camera: Camera,
+}
+
+/// The built-in scenes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum SceneId {
+    /// A box above a ground plane: the basic case.
+    BoxOverPlane,
+    /// Two boxes almost touching each other and the ground (paper fig. 10).
+    NearContact,
+    /// A ring above a plate above the ground (fig. 7): needs more than one layer.
+    RingPlate,
+    /// A light much larger than its occluder (fig. 8): no umbra at all.
+    LargeLight,
+    /// A box over a receiver tilted 25° (fig. 9).
+    TiltedReceiver,
+    /// A five-pointed star prism with sharp silhouette angles (fig. 13).
+    StarPrism,
+    /// A 4×4 grid of spheres: overlapping penumbrae.
+    SphereGrid,
+    /// A ≥100k-triangle bumpy blob over the ground: scaling.
+    DenseBlob,
+}
+
+impl SceneId {
+    pub const ALL: [SceneId; 8] = [
+        SceneId::BoxOverPlane,
+        SceneId::NearContact,
+        SceneId::RingPlate,
+        SceneId::LargeLight,
+        SceneId::TiltedReceiver,
+        SceneId::StarPrism,
+        SceneId::SphereGrid,
+        SceneId::DenseBlob,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            SceneId::BoxOverPlane => "box-over-plane",
+            SceneId::NearContact => "near-contact",
+            SceneId::RingPlate => "ring-plate",
+            SceneId::LargeLight => "large-light",
+            SceneId::TiltedReceiver => "tilted-receiver",
+            SceneId::StarPrism => "star-prism",
+            SceneId::SphereGrid => "sphere-grid",
+            SceneId::DenseBlob => "dense-blob",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|id| id.name() == s)
+    }
+
+    pub fn build(self) -> BuiltinScene {
+        build(self)
+    }
+}
+
+fn object(name: &str, mesh: Mesh, transform: Affine3A) -> SceneObject {
+    SceneObject::new(name, mesh, transform).expect("built-in transforms are valid")
+}
+
+fn at(p: Vec3) -> Affine3A {
+    Affine3A::from_translation(p)
+}
+
+fn ground(size: f32) -> SceneObject {
+    object("ground", shapes::plane(size, 4), Affine3A::IDENTITY)
+}
+
+fn disk(center: Vec3, radius: f32) -> Light {
+    Light::Disk(DiskLight::new(center, Vec3::NEG_Y, radius).expect("built-in lights are valid"))
+}
+
+fn build(id: SceneId) -> BuiltinScene {
+    let cam = Camera::looking_at;
+    let (objects, light, camera) = match id {
+        SceneId::BoxOverPlane => (
+            vec![ground(10.0), object("box", shapes::cuboid(Vec3::splat(0.5)), at(Vec3::new(0.0, 1.5, 0.0)))],
+            disk(Vec3::new(0.3, 4.5, 0.2), 0.5),
+            cam(Vec3::new(3.0, 4.0, 4.5), Vec3::new(0.0, 0.3, 0.0)),
+        ),
+        SceneId::NearContact => {
+            let half = Vec3::new(0.5, 0.4, 0.5);
+            (
+                vec![
+                    ground(10.0),
+                    object("box-a", shapes::cuboid(half), at(Vec3::new(-0.525, 0.41, 0.0))),
+                    object("box-b", shapes::cuboid(half), at(Vec3::new(0.525, 0.41, 0.0))),
+                ],
+                disk(Vec3::new(0.8, 4.0, 0.6), 0.6),
+                cam(Vec3::new(-2.5, 3.5, 4.0), Vec3::new(0.0, 0.2, -0.5)),
+            )
+        }
+        SceneId::RingPlate => (
+            vec![
+                ground(12.0),
+                object("plate", shapes::cuboid(Vec3::new(2.1, 0.03, 2.1)), at(Vec3::new(0.0, 1.0, 0.0))),
+                object("ring", shapes::torus(1.2, 0.15, 96, 16), at(Vec3::new(0.0, 2.0, 0.0))),
+            ],
+            disk(Vec3::new(0.0, 5.0, 0.0), 1.0),
+            cam(Vec3::new(0.0, 5.5, 4.5), Vec3::new(0.0, 0.8, 0.0)),
+        ),
+        SceneId::LargeLight => (
+            vec![ground(10.0), object("ball", shapes::uv_sphere(0.3, 24, 48), at(Vec3::new(0.0, 1.0, 0.0)))],
+            disk(Vec3::new(0.0, 3.0, 0.0), 1.5),
+            cam(Vec3::new(0.0, 3.0, 3.5), Vec3::new(0.0, 0.2, 0.0)),
+        ),
+        SceneId::TiltedReceiver => (
+            vec![
+                object(
+                    "tilted-ground",
+                    shapes::plane(8.0, 4),
+                    Affine3A::from_rotation_translation(Quat::from_rotation_z(25f32.to_radians()), Vec3::ZERO),
+                ),
+                object("box", shapes::cuboid(Vec3::new(0.6, 0.3, 0.4)), at(Vec3::new(0.0, 1.6, 0.0))),
+            ],
+            disk(Vec3::new(0.5, 4.5, 0.0), 0.6),
+            cam(Vec3::new(0.0, 4.5, 5.0), Vec3::new(0.0, 0.3, 0.0)),
+        ),
+        SceneId::StarPrism => (
+            vec![ground(10.0), object("star", shapes::star_prism(5, 0.35, 1.2, 0.2), at(Vec3::new(0.0, 1.0, 0.0)))],
+            disk(Vec3::new(0.0, 4.0, 0.0), 0.5),
+            cam(Vec3::new(0.0, 5.0, 3.5), Vec3::new(0.0, 0.3, 0.0)),
+        ),
+        SceneId::SphereGrid => {
+            let sphere = std::sync::Arc::new(shapes::uv_sphere(0.3, 16, 32));
+            let topology = std::sync::Arc::new(crate::mesh::Topology::build(&sphere));
+            let mut objects = vec![ground(10.0)];
+            for i in 0..4 {
+                for j in 0..4 {
+                    let p = Vec3::new((i as f32 - 1.5) * 0.75, 1.0, (j as f32 - 1.5) * 0.75);
+                    objects.push(
+                        SceneObject::shared(format!("sphere-{i}-{j}"), sphere.clone(), topology.clone(), at(p))
+                            .expect("valid"),
+                    );
+                }
+            }
+            (objects, disk(Vec3::new(0.0, 4.5, 0.0), 0.8), cam(Vec3::new(0.0, 5.0, 4.5), Vec3::new(0.0, 0.0, 0.0)))
+        }
+        SceneId::DenseBlob => (
+            vec![ground(10.0), object("blob", shapes::bumpy_blob(100_000), at(Vec3::new(0.0, 1.5, 0.0)))],
+            disk(Vec3::new(0.4, 5.0, 0.0), 0.5),
+            cam(Vec3::new(3.0, 4.0, 4.5), Vec3::new(0.0, 0.5, 0.0)),
+        ),
+    };
+    BuiltinScene { id, scene: Scene::new(objects), light, camera }
+}

@@ -1,0 +1,195 @@
+//! Procedural meshes with outward (counter-clockwise) winding.
+
+use std::f32::consts::{PI, TAU};
+
+use glam::Vec3;
+
+use crate::mesh::Mesh;
+
+/// Collects triangles and builds a validated [`Mesh`].
+#[derive(Default)]
+struct Builder {
+    positions: Vec<Vec3>,
+    indices: Vec<u32>,
+}
+
+impl Builder {
+    fn vertex(&mut self, p: Vec3) -> u32 {
+        self.positions.push(p);
+        (self.positions.len() - 1) as u32
+    }
+
+    /// Quad `a b c d`, counter-clockwise seen from outside.
+    fn quad(&mut self, a: u32, b: u32, c: u32, d: u32) {
+        self.indices.extend([a, b, c, a, c, d]);
+    }
+
+    fn finish(self) -> Mesh {
+        Mesh::new(self.positions, self.indices).expect("procedural meshes are valid by construction")
+    }
+}
+
+/// Axis-aligned box centred at the origin.
+pub fn cuboid(half: Vec3) -> Mesh {
+    let mut b = Builder::default();
+    let v: Vec<u32> = (0..8)
+        .map(|i| {
+            let s = Vec3::new(
+                if i & 1 == 0 { -1.0 } else { 1.0 },
+                if i & 2 == 0 { -1.0 } else { 1.0 },
+                if i & 4 == 0 { -1.0 } else { 1.0 },
+            );
+            b.vertex(s * half)
+        })
+        .collect();
+    // Faces as (corner indices) counter-clockwise from outside.
+    for [a, bb, c, d] in [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]] {
+        b.quad(v[a], v[bb], v[c], v[d]);
+    }
+    b.finish()
+}
+
+/// Square plane in XZ facing +Y, `size` wide, split into `cells²` quads.
+pub fn plane(size: f32, cells: u32) -> Mesh {
+    let cells = cells.max(1);
+    let mut b = Builder::default();
+    let n = cells + 1;
+    for z in 0..n {
+        for x in 0..n {
+            let f = |i: u32| (i as f32 / cells as f32 - 0.5) * size;
+            b.vertex(Vec3::new(f(x), 0.0, f(z)));
+        }
+    }
+    for z in 0..cells {
+        for x in 0..cells {
+            let i = z * n + x;
+            b.quad(i, i + n, i + n + 1, i + 1);
+        }
+    }
+    b.finish()
+}
+
+/// UV sphere (poles welded; their degenerate triangles are skipped by the topology).
+pub fn uv_sphere(radius: f32, rings: u32, segments: u32) -> Mesh {
+    displaced_sphere(rings, segments, |_, _| radius)
+}
+
+/// UV sphere with radius `r(θ, φ)`; `θ` from the +Y pole, `φ` around Y.
+pub fn displaced_sphere(rings: u32, segments: u32, radius: impl Fn(f32, f32) -> f32) -> Mesh {
+    let (rings, segments) = (rings.max(2), segments.max(3));
+    let mut b = Builder::default();
+    for i in 0..=rings {
+        let theta = PI * i as f32 / rings as f32;
+        for j in 0..segments {
+            let phi = TAU * j as f32 / segments as f32;
+            // Poles exactly on the axis, so their copies weld (sin π ≠ 0 in f32).
+            let p = if i == 0 {
+                Vec3::Y * radius(0.0, 0.0)
+            } else if i == rings {
+                Vec3::NEG_Y * radius(PI, 0.0)
+            } else {
+                Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()) * radius(theta, phi)
+            };
+            b.vertex(p);
+        }
+    }
+    for i in 0..rings {
+        for j in 0..segments {
+            let k = (j + 1) % segments;
+            let (a, bb, c, d) = (i * segments + j, (i + 1) * segments + j, (i + 1) * segments + k, i * segments + k);
+            b.quad(a, d, c, bb);
+        }
+    }
+    b.finish()
+}
+
+/// Torus around the Y axis.
+pub fn torus(major: f32, minor: f32, major_segments: u32, minor_segments: u32) -> Mesh {
+    let (nu, nv) = (major_segments.max(3), minor_segments.max(3));
+    let mut b = Builder::default();
+    for i in 0..nu {
+        let u = TAU * i as f32 / nu as f32;
+        for j in 0..nv {
+            let v = TAU * j as f32 / nv as f32;
+            let ring = major + minor * v.cos();
+            b.vertex(Vec3::new(ring * u.cos(), minor * v.sin(), ring * u.sin()));
+        }
+    }
+    for i in 0..nu {
+        for j in 0..nv {
+            let (i1, j1) = ((i + 1) % nu, (j + 1) % nv);
+            b.quad(i * nv + j, i * nv + j1, i1 * nv + j1, i1 * nv + j);
+        }
+    }
+    b.finish()
+}
+
+/// Prism over a star polygon (`points` tips) in XZ, from y = 0 to `height`.
+pub fn star_prism(points: u32, inner: f32, outer: f32, height: f32) -> Mesh {
+    let n = points.max(2) * 2;
+    let mut b = Builder::default();
+    let ring = |b: &mut Builder, y: f32| -> Vec<u32> {
+        (0..n)
+            .map(|i| {
+                let a = TAU * i as f32 / n as f32;
+                let r = if i % 2 == 0 { outer } else { inner };
+                b.vertex(Vec3::new(r * a.cos(), y, r * a.sin()))
+            })
+            .collect()
+    };
+    let bottom = ring(&mut b, 0.0);
+    let top = ring(&mut b, height);
+    let (cb, ct) = (b.vertex(Vec3::ZERO), b.vertex(Vec3::Y * height));
+    for i in 0..n as usize {
+        let k = (i + 1) % n as usize;
+        b.indices.extend([ct, top[k], top[i]]);
+        b.indices.extend([cb, bottom[i], bottom[k]]);
+        b.quad(bottom[i], top[i], top[k], bottom[k]);
+    }
+    b.finish()
+}
+
+/// A bumpy closed blob of about `triangles` triangles (≥ 1k): the scaling mesh.
+pub fn bumpy_blob(triangles: u32) -> Mesh {
+    // A UV sphere with s segments and s/2 rings has s² triangles (poles included).
+    let segments = ((triangles.max(1000) as f32).sqrt().ceil() as u32).max(8);
+    displaced_sphere(segments / 2, segments, |t, p| 1.0 + 0.08 * (7.0 * t).sin() * (9.0 * p).sin() + 0.04 * (23.0 * t).cos())
+}
+
+/// Signed volume (positive when faces wind outward); for tests.
+pub fn signed_volume(mesh: &Mesh) -> f32 {
+    mesh.triangles().map(|[a, b, c]| a.dot(b.cross(c)) / 6.0).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::Topology;
+
+    #[test]
+    fn closed_shapes_wind_outward_and_are_manifold() {
+        let shapes = [
+            ("cuboid", cuboid(Vec3::new(1.0, 2.0, 3.0)), 48.0),
+            ("sphere", uv_sphere(1.0, 32, 64), 4.0 / 3.0 * PI),
+            ("torus", torus(2.0, 0.5, 64, 32), 2.0 * PI * PI * 2.0 * 0.25),
+            ("star", star_prism(5, 0.4, 1.0, 0.5), 0.0),
+            ("blob", bumpy_blob(4000), 0.0),
+        ];
+        for (name, mesh, volume) in shapes {
+            let v = signed_volume(&mesh);
+            assert!(v > 0.0, "{name} winds inward");
+            if volume > 0.0 {
+                assert!((v - volume).abs() < 0.02 * volume, "{name} volume {v} vs {volume}");
+            }
+            let t = Topology::build(&mesh);
+            assert!(t.is_closed_manifold(), "{name} is not a closed manifold");
+        }
+    }
+
+    #[test]
+    fn plane_faces_up_and_blob_reaches_its_size() {
+        let p = plane(2.0, 3);
+        assert!(p.triangles().all(|[a, b, c]| (b - a).cross(c - a).y > 0.0));
+        assert!(bumpy_blob(100_000).triangle_count() >= 100_000);
+    }
+}

@@ -1,0 +1,131 @@
+//! Side-by-side comparison of methods against the ground truth on one view.
+
+use shadow_fins::{
+    metrics::ErrorMetrics,
+    oracle::{FinSettings, Method, Receiver},
+    scene::LightSpaceScene,
+};
+
+use crate::{
+    eval::{Evaluation, camera_receivers, evaluate},
+    setup::{Loaded, Measured},
+};
+
+/// One configuration to measure.
+#[derive(Debug, Clone)]
+pub struct Config {
+    pub label: String,
+    pub method: Method,
+    pub settings: FinSettings,
+}
+
+impl Config {
+    pub fn new(method: Method, settings: FinSettings) -> Self {
+        let label = match method {
+            Method::MultiLayer => format!(
+                "fins {}L{}",
+                settings.layers,
+                if settings.refinement { "" } else { " no-refine" }
+            ),
+            m => m.name().to_string(),
+        };
+        Self { label, method, settings }
+    }
+
+    pub fn labelled(mut self, label: impl Into<String>) -> Self {
+        self.label = label.into();
+        self
+    }
+}
+
+/// The methods the paper compares, with `base` settings for the fin ones.
+pub fn standard_configs(base: FinSettings) -> Vec<Config> {
+    vec![
+        Config::new(Method::Hard, base),
+        Config::new(Method::OuterFins, base),
+        Config::new(Method::SingleLayer, base),
+        Config::new(Method::MultiLayer, FinSettings { refinement: false, ..base }),
+        Config::new(Method::MultiLayer, FinSettings { refinement: true, ..base }),
+    ]
+}
+
+/// A measured configuration.
+pub struct Row {
+    pub config: Config,
+    pub evaluation: Evaluation,
+    pub metrics: ErrorMetrics,
+}
+
+/// Everything measured on one view.
+pub struct Comparison {
+    pub width: u32,
+    pub height: u32,
+    /// Per pixel: the receiver seen, if any.
+    pub receivers: Vec<Option<Receiver>>,
+    pub reference: Evaluation,
+    pub rows: Vec<Row>,
+}
+
+impl Comparison {
+    /// Per-pixel values (background `None`) of evaluation values over hit pixels.
+    pub fn pixels(&self, values: &[f32]) -> Vec<Option<f32>> {
+        let mut it = values.iter();
+        self.receivers.iter().map(|r| r.and_then(|_| it.next().copied())).collect()
+    }
+}
+
+/// Renders the view once per configuration and once for the ground truth.
+pub fn compare(
+    loaded: &Loaded,
+    width: u32,
+    height: u32,
+    configs: &[Config],
+    map_resolution: Option<u32>,
+    samples: u32,
+) -> Comparison {
+    let ls = LightSpaceScene::new(&loaded.scene, loaded.light);
+    let receivers = camera_receivers(&loaded.camera, width, height, &ls);
+    let hits: Vec<Receiver> = receivers.iter().flatten().copied().collect();
+    let reference = evaluate(&loaded.scene, &ls, Measured::GroundTruth, FinSettings::default(), None, samples, &hits);
+    let rows = configs
+        .iter()
+        .map(|c| {
+            let evaluation =
+                evaluate(&loaded.scene, &ls, Measured::Method(c.method), c.settings, map_resolution, samples, &hits);
+            let metrics = ErrorMetrics::compute(&evaluation.values, &reference.values);
+            Row { config: c.clone(), evaluation, metrics }
+        })
+        .collect();
+    Comparison { width, height, receivers, reference, rows }
+}
+
+/// A markdown table of the rows.
+pub fn markdown_table(c: &Comparison) -> String {
+    let mut s = String::from(
+        "| method | MAE | RMSE | p99 | umbra over | leak | silhouettes | fins | layers | prepare ms | evaluate ms |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in &c.rows {
+        let (m, e) = (&r.metrics, &r.evaluation);
+        s += &format!(
+            "| {} | {:.4} | {:.4} | {:.3} | {:.2}% | {:.2}% | {} | {} | {} | {:.1} | {:.1} |\n",
+            r.config.label,
+            m.mae,
+            m.rmse,
+            m.p99,
+            m.umbra_over * 100.0,
+            m.leak * 100.0,
+            e.silhouettes,
+            e.fins,
+            e.layers,
+            e.prepare_ms,
+            e.evaluate_ms
+        );
+    }
+    s += &format!(
+        "| ground truth ({} px in shadow) | | | | | | | | | {:.1} | {:.1} |\n",
+        c.rows.first().map_or(0, |r| r.metrics.count),
+        c.reference.prepare_ms,
+        c.reference.evaluate_ms
+    );
+    s
+}

@@ -1,0 +1,101 @@
+//! Evaluating a method or the ground truth over a set of receivers, timed.
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+use shadow_fins::{
+    bvh::Bvh,
+    camera::Camera,
+    ground_truth::GroundTruth,
+    oracle::{FinSettings, FinShadowModel, Receiver},
+    scene::{LightSpaceScene, Scene},
+};
+
+use crate::setup::Measured;
+
+/// Values per receiver and what they cost, measured in this run.
+#[derive(Debug, Clone)]
+pub struct Evaluation {
+    pub values: Vec<f32>,
+    /// Silhouettes, fins, layers (and maps, for the raster oracle), in ms.
+    pub prepare_ms: f64,
+    /// Per-receiver evaluation over all receivers, in ms.
+    pub evaluate_ms: f64,
+    pub silhouettes: usize,
+    pub fins: usize,
+    pub layers: usize,
+}
+
+impl Evaluation {
+    pub fn total_ms(&self) -> f64 {
+        self.prepare_ms + self.evaluate_ms
+    }
+}
+
+/// Evaluates `measured` at every receiver (light frame).
+pub fn evaluate(
+    scene: &Scene,
+    light_space: &LightSpaceScene,
+    measured: Measured,
+    settings: FinSettings,
+    map_resolution: Option<u32>,
+    samples: u32,
+    receivers: &[Receiver],
+) -> Evaluation {
+    let start = Instant::now();
+    match measured {
+        Measured::GroundTruth => {
+            let gt = GroundTruth::new(light_space, samples);
+            let prepare_ms = ms(start);
+            let t = Instant::now();
+            let values = receivers.par_iter().map(|r| gt.visibility(*r)).collect();
+            Evaluation { values, prepare_ms, evaluate_ms: ms(t), silhouettes: 0, fins: 0, layers: 0 }
+        }
+        Measured::Method(method) => {
+            let model = FinShadowModel::new(scene, light_space, method, settings);
+            let (silhouettes, fins, layers) = (model.silhouettes.len(), model.fins.len(), model.plan.len());
+            let (values, prepare_ms, evaluate_ms) = match map_resolution {
+                Some(res) => {
+                    let maps = model.raster(res);
+                    let prepare_ms = ms(start);
+                    let t = Instant::now();
+                    let v = receivers.par_iter().map(|r| maps.visibility(*r)).collect();
+                    (v, prepare_ms, ms(t))
+                }
+                None => {
+                    let index = model.analytic();
+                    let prepare_ms = ms(start);
+                    let t = Instant::now();
+                    let v = receivers
+                        .par_iter()
+                        .map_init(Vec::new, |buf, r| index.visibility_with(*r, buf))
+                        .collect();
+                    (v, prepare_ms, ms(t))
+                }
+            };
+            Evaluation { values, prepare_ms, evaluate_ms, silhouettes, fins, layers }
+        }
+    }
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Primary hits of a camera: per pixel, the receiver it sees (light frame), or
+/// `None` for the background. Normals face the camera.
+pub fn camera_receivers(camera: &Camera, width: u32, height: u32, light_space: &LightSpaceScene) -> Vec<Option<Receiver>> {
+    let bvh = Bvh::new(&light_space.casters);
+    let frame = &light_space.frame;
+    (0..width * height)
+        .into_par_iter()
+        .map(|i| {
+            let (o, d) = camera.ray(i % width, i / width, width, height);
+            let (o, d) = (frame.to_frame(o), frame.dir_to_frame(d));
+            bvh.closest_hit(o, d, 0.0).map(|h| {
+                let n = if h.normal.dot(d) > 0.0 { -h.normal } else { h.normal };
+                Receiver { position: o + d * h.t, normal: n }
+            })
+        })
+        .collect()
+}

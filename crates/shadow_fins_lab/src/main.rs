@@ -1,0 +1,287 @@
+//! `shadow-fins-lab`: measures the fin method against ground truth.
+//!
+//! - `visibility`: visibility at the points of a CSV, by one method;
+//! - `image`: a camera view rendered by each method beside the ground truth,
+//!   with error heat maps, and the error table;
+//! - `report`: the error table of every built-in scene (for BENCHMARKS.md);
+//! - `export-gltf`: writes a built-in scene as a glTF file.
+
+mod compare;
+mod eval;
+mod picture;
+mod setup;
+
+use std::{io::Write, path::PathBuf};
+
+use clap::{Parser, Subcommand};
+use shadow_fins::{
+    glam::Vec3,
+    oracle::{FinSettings, Method, Receiver},
+    scene::LightSpaceScene,
+    scenes::SceneId,
+};
+
+use crate::{
+    compare::{Config, compare, markdown_table, standard_configs},
+    eval::evaluate,
+    picture::Picture,
+    setup::{FinArgs, SceneArgs, parse_measured, parse_vec3},
+};
+
+/// Everything that can go wrong, with what to do about it.
+#[derive(Debug, thiserror::Error)]
+pub enum LabError {
+    #[error("{0}")]
+    Usage(String),
+    #[error(transparent)]
+    Gltf(#[from] shadow_fins::GltfError),
+    #[error(transparent)]
+    Light(#[from] shadow_fins::LightError),
+    #[error(transparent)]
+    Settings(#[from] shadow_fins::SettingsError),
+    #[error("{0}: {1}")]
+    Io(String, std::io::Error),
+    #[error("points file line {line}: {reason}")]
+    Points { line: usize, reason: String },
+    #[error("cannot write PNG: {0}")]
+    Png(String),
+}
+
+#[derive(Parser)]
+#[command(name = "shadow-fins-lab", version, about = "Soft shadows by multi-layered shadow fins, measured against ground truth")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Visibility of the light at the points of a CSV (x,y,z[,nx,ny,nz] per line).
+    Visibility {
+        #[command(flatten)]
+        scene: SceneArgs,
+        #[command(flatten)]
+        fins: FinArgs,
+        /// CSV of world points: x,y,z or x,y,z,nx,ny,nz (a header line is skipped).
+        #[arg(long)]
+        points: PathBuf,
+        /// ground-truth, fins, hard, outer-fins or single-layer.
+        #[arg(long, default_value = "fins")]
+        method: String,
+        /// Output CSV (default: standard output).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Render the scene's view by each method beside the ground truth, with error maps.
+    Image {
+        #[command(flatten)]
+        scene: SceneArgs,
+        #[command(flatten)]
+        fins: FinArgs,
+        /// Camera position x,y,z (default: the scene's).
+        #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+        camera_position: Option<Vec3>,
+        /// Camera target x,y,z.
+        #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+        camera_target: Option<Vec3>,
+        #[arg(long, default_value_t = 240)]
+        width: u32,
+        #[arg(long, default_value_t = 180)]
+        height: u32,
+        /// Output PNG.
+        #[arg(long, default_value = "out/image.png")]
+        out: PathBuf,
+    },
+    /// Error tables of every built-in scene against ground truth (markdown).
+    Report {
+        #[command(flatten)]
+        fins: FinArgs,
+        /// Scenes to measure (default: all but dense-blob, whose ground truth is slow).
+        #[arg(long, value_delimiter = ',')]
+        scenes: Vec<String>,
+        #[arg(long, default_value_t = 160)]
+        width: u32,
+        #[arg(long, default_value_t = 120)]
+        height: u32,
+        /// Also write each scene's image strip into this folder.
+        #[arg(long)]
+        images: Option<PathBuf>,
+    },
+    /// Write a built-in scene as a self-contained glTF file.
+    ExportGltf {
+        #[arg(long, default_value = "box-over-plane")]
+        scene: String,
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+fn main() {
+    let cli = Cli::parse();
+    if let Err(e) = run(cli.command) {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run(command: Command) -> Result<(), LabError> {
+    match command {
+        Command::Visibility { scene, fins, points, method, out } => {
+            let loaded = scene.load()?;
+            let settings = fins.settings()?;
+            let measured = parse_measured(&method)?;
+            let pts = read_points(&points)?;
+            let ls = LightSpaceScene::new(&loaded.scene, loaded.light);
+            let receivers: Vec<Receiver> = pts
+                .iter()
+                .map(|(p, n)| Receiver {
+                    position: ls.frame.to_frame(*p),
+                    normal: ls.frame.dir_to_frame(n.normalize_or_zero()),
+                })
+                .collect();
+            let ev = evaluate(&loaded.scene, &ls, measured, settings, fins.map_resolution, fins.samples, &receivers);
+            let mut text = String::from("x,y,z,visibility\n");
+            for ((p, _), v) in pts.iter().zip(&ev.values) {
+                text += &format!("{},{},{},{v:.6}\n", p.x, p.y, p.z);
+            }
+            write_text(out.as_deref(), &text)?;
+            eprintln!("{method}: {} points in {:.1} ms", pts.len(), ev.total_ms());
+        }
+        Command::Image { scene, fins, camera_position, camera_target, width, height, out } => {
+            let mut loaded = scene.load()?;
+            if let Some(p) = camera_position {
+                loaded.camera.position = p;
+            }
+            if let Some(t) = camera_target {
+                loaded.camera.target = t;
+            }
+            let settings = fins.settings()?;
+            let configs = standard_configs(settings);
+            let c = compare(&loaded, width.clamp(8, 4096), height.clamp(8, 4096), &configs, fins.map_resolution, fins.samples);
+            println!("{}", title(&loaded.name, &loaded.light, &fins));
+            println!("{}", markdown_table(&c));
+            strip(&c).save_png(&out)?;
+            eprintln!("wrote {}", out.display());
+        }
+        Command::Report { fins, scenes, width, height, images } => {
+            let settings = fins.settings()?;
+            let ids: Vec<SceneId> = if scenes.is_empty() {
+                SceneId::ALL.into_iter().filter(|s| *s != SceneId::DenseBlob).collect()
+            } else {
+                scenes
+                    .iter()
+                    .map(|s| SceneId::parse(s).ok_or_else(|| LabError::Usage(format!("unknown scene '{s}'"))))
+                    .collect::<Result<_, _>>()?
+            };
+            let mut configs = standard_configs(settings);
+            for f in shadow_fins::refine::Falloff::ALL {
+                if f != settings.falloff {
+                    let s = FinSettings { falloff: f, ..settings };
+                    configs.push(Config::new(Method::MultiLayer, s).labelled(format!("fins {}L {}", s.layers, f.name())));
+                }
+            }
+            for id in ids {
+                let args = SceneArgs {
+                    scene: id.name().into(),
+                    gltf: None,
+                    light_center: None,
+                    light_normal: None,
+                    radius: None,
+                    sun_direction: None,
+                    sun_angle: 0.05,
+                };
+                let loaded = args.load()?;
+                let c = compare(&loaded, width, height, &configs, fins.map_resolution, fins.samples);
+                println!("### {}\n", title(&loaded.name, &loaded.light, &fins));
+                println!("{}", markdown_table(&c));
+                std::io::stdout().flush().ok();
+                if let Some(dir) = &images {
+                    strip(&c).save_png(&dir.join(format!("{}.png", id.name())))?;
+                }
+            }
+        }
+        Command::ExportGltf { scene, out } => {
+            let id = SceneId::parse(&scene).ok_or_else(|| LabError::Usage(format!("unknown scene '{scene}'")))?;
+            let text = shadow_fins::gltf_import::write_gltf(&id.build().scene);
+            write_text(Some(&out), &text)?;
+            eprintln!("wrote {}", out.display());
+        }
+    }
+    Ok(())
+}
+
+fn title(name: &str, light: &shadow_fins::light::Light, fins: &FinArgs) -> String {
+    let light = match light {
+        shadow_fins::light::Light::Disk(d) => format!("disk light R = {}", d.radius),
+        shadow_fins::light::Light::Sun(s) => format!("sun θ = {} rad", s.angular_radius),
+    };
+    let oracle = match fins.map_resolution {
+        Some(r) => format!("raster oracle {r}²"),
+        None => "analytic oracle".into(),
+    };
+    format!("{name}: {light}, {oracle}, ground truth {} samples", fins.samples)
+}
+
+/// Top row: visibility per method and the ground truth; bottom row: error maps.
+fn strip(c: &Comparison) -> Picture {
+    let (w, h) = (c.width, c.height);
+    let label_h = 14;
+    let columns = c.rows.len() as u32 + 1;
+    let mut pic = Picture::new(columns * (w + 4), 2 * (h + label_h) + 4, [12, 12, 16]);
+    let reference = c.pixels(&c.reference.values);
+    for (i, row) in c.rows.iter().enumerate() {
+        let x = i as u32 * (w + 4);
+        let values = c.pixels(&row.evaluation.values);
+        pic.blit(&Picture::visibility(w, h, &values), x, label_h);
+        pic.text(&row.config.label, x + 2, 3, 2, [230, 230, 230]);
+        pic.blit(&Picture::error_map(w, h, &values, &reference, 0.5), x, 2 * label_h + h + 4);
+        pic.text(&format!("mae {:.3}", row.metrics.mae), x + 2, label_h + h + 5, 2, [230, 230, 230]);
+    }
+    let x = c.rows.len() as u32 * (w + 4);
+    pic.blit(&Picture::visibility(w, h, &reference), x, label_h);
+    pic.text("ground truth", x + 2, 3, 2, [230, 230, 230]);
+    pic.text("error: red bright", x + 2, label_h + h + 5, 2, [230, 120, 60]);
+    pic.text("cyan dark", x + 2, 2 * label_h + h + 8, 2, [60, 220, 220]);
+    pic
+}
+
+use compare::Comparison;
+
+fn read_points(path: &std::path::Path) -> Result<Vec<(Vec3, Vec3)>, LabError> {
+    let text = std::fs::read_to_string(path).map_err(|e| LabError::Io(path.display().to_string(), e))?;
+    let mut out = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        let nums: Result<Vec<f32>, _> = fields.iter().map(|f| f.parse::<f32>()).collect();
+        let nums = match nums {
+            Ok(n) => n,
+            Err(_) if i == 0 => continue, // header
+            Err(_) => return Err(LabError::Points { line: i + 1, reason: format!("'{line}' is not numbers") }),
+        };
+        if !(nums.len() == 3 || nums.len() == 6) || nums.iter().any(|v| !v.is_finite()) {
+            return Err(LabError::Points { line: i + 1, reason: "need 3 or 6 finite numbers: x,y,z[,nx,ny,nz]".into() });
+        }
+        let n = if nums.len() == 6 { Vec3::new(nums[3], nums[4], nums[5]) } else { Vec3::ZERO };
+        out.push((Vec3::new(nums[0], nums[1], nums[2]), n));
+    }
+    Ok(out)
+}
+
+fn write_text(path: Option<&std::path::Path>, text: &str) -> Result<(), LabError> {
+    match path {
+        Some(p) => {
+            if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir).map_err(|e| LabError::Io(dir.display().to_string(), e))?;
+            }
+            std::fs::write(p, text).map_err(|e| LabError::Io(p.display().to_string(), e))
+        }
+        None => {
+            print!("{text}");
+            Ok(())
+        }
+    }
+}

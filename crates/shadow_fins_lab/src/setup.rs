@@ -1,0 +1,170 @@
+//! Turning command-line flags into a scene, a light, a camera and method settings.
+
+use clap::Args;
+use shadow_fins::{
+    camera::Camera,
+    gltf_import::load_gltf,
+    glam::Vec3,
+    light::{DiskLight, Light, SunLight},
+    oracle::{FinSettings, Method},
+    refine::Falloff,
+    scene::Scene,
+    scenes::SceneId,
+};
+
+use crate::LabError;
+
+/// Where the scene comes from and how it is lit.
+#[derive(Args, Debug, Clone)]
+pub struct SceneArgs {
+    /// Built-in scene: box-over-plane, near-contact, ring-plate, large-light,
+    /// tilted-receiver, star-prism, sphere-grid, dense-blob.
+    #[arg(long, default_value = "box-over-plane", conflicts_with = "gltf")]
+    pub scene: String,
+    /// A glTF/GLB file instead of a built-in scene (needs a light: --light-center or --sun-direction).
+    #[arg(long)]
+    pub gltf: Option<std::path::PathBuf>,
+    /// Disk light centre x,y,z (world units).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub light_center: Option<Vec3>,
+    /// Disk light normal x,y,z, pointing into the scene (default 0,-1,0).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub light_normal: Option<Vec3>,
+    /// Disk light radius (world units); 0 gives hard shadows.
+    #[arg(long, allow_hyphen_values = true)]
+    pub radius: Option<f32>,
+    /// Sun light travel direction x,y,z (instead of a disk light).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, conflicts_with = "light_center")]
+    pub sun_direction: Option<Vec3>,
+    /// Sun angular radius in radians (the real sun: 0.0047).
+    #[arg(long, default_value_t = 0.05)]
+    pub sun_angle: f32,
+}
+
+/// How the fin method is set up.
+#[derive(Args, Debug, Clone)]
+pub struct FinArgs {
+    /// Layers N (1..=64).
+    #[arg(long, default_value_t = 16)]
+    pub layers: u32,
+    /// Sub-layers S (1..=65536).
+    #[arg(long, default_value_t = 1024)]
+    pub sub_layers: u32,
+    /// Turn refinement (eq. 5) off.
+    #[arg(long)]
+    pub no_refinement: bool,
+    /// Falloff: linear, bernstein, disk-segment.
+    #[arg(long, default_value = "disk-segment")]
+    pub falloff: String,
+    /// Evaluate on light-space maps of this resolution (as the GPU does) instead of exactly.
+    #[arg(long)]
+    pub map_resolution: Option<u32>,
+    /// Ground-truth samples on the disk.
+    #[arg(long, default_value_t = 1024)]
+    pub samples: u32,
+}
+
+impl FinArgs {
+    pub fn settings(&self) -> Result<FinSettings, LabError> {
+        let falloff = Falloff::parse(&self.falloff).ok_or_else(|| {
+            LabError::Usage(format!("unknown falloff '{}': use linear, bernstein or disk-segment", self.falloff))
+        })?;
+        if let Some(r) = self.map_resolution {
+            if !(16..=8192).contains(&r) {
+                return Err(shadow_fins::SettingsError::MapResolution(r).into());
+            }
+        }
+        if !(1..=1 << 20).contains(&self.samples) {
+            return Err(shadow_fins::SettingsError::Samples(self.samples).into());
+        }
+        Ok(FinSettings {
+            layers: self.layers,
+            sub_layers: self.sub_layers,
+            refinement: !self.no_refinement,
+            falloff,
+        }
+        .validate()?)
+    }
+}
+
+/// What a run measures: a fin method or the ground truth.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Measured {
+    Method(Method),
+    GroundTruth,
+}
+
+pub fn parse_measured(s: &str) -> Result<Measured, LabError> {
+    if s == "ground-truth" {
+        return Ok(Measured::GroundTruth);
+    }
+    Method::parse(s).map(Measured::Method).ok_or_else(|| {
+        LabError::Usage(format!("unknown method '{s}': use ground-truth, fins, hard, outer-fins or single-layer"))
+    })
+}
+
+/// A loaded scene with its light and camera.
+pub struct Loaded {
+    pub name: String,
+    pub scene: Scene,
+    pub light: Light,
+    pub camera: Camera,
+}
+
+impl SceneArgs {
+    pub fn load(&self) -> Result<Loaded, LabError> {
+        let (name, scene, default_light, camera) = match &self.gltf {
+            Some(path) => {
+                let import = load_gltf(path)?;
+                for s in &import.skipped {
+                    eprintln!("warning: skipped {s}");
+                }
+                let (lo, hi) = import.scene.bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
+                let center = (lo + hi) * 0.5;
+                let size = (hi - lo).length().max(1e-6);
+                let camera = Camera::looking_at(center + Vec3::new(0.6, 0.7, 0.9).normalize() * size * 1.2, center);
+                let light = DiskLight::new(center + Vec3::Y * size, Vec3::NEG_Y, size * 0.05).map(Light::Disk)?;
+                (path.display().to_string(), import.scene, light, camera)
+            }
+            None => {
+                let id = SceneId::parse(&self.scene).ok_or_else(|| {
+                    let names: Vec<_> = SceneId::ALL.iter().map(|s| s.name()).collect();
+                    LabError::Usage(format!("unknown scene '{}': use one of {}", self.scene, names.join(", ")))
+                })?;
+                let b = id.build();
+                (id.name().to_string(), b.scene, b.light, b.camera)
+            }
+        };
+        let light = self.light(default_light)?;
+        Ok(Loaded { name, scene, light, camera })
+    }
+
+    fn light(&self, default: Light) -> Result<Light, LabError> {
+        if let Some(dir) = self.sun_direction {
+            return Ok(Light::Sun(SunLight::new(dir, self.sun_angle)?));
+        }
+        let (c, n, r) = match default {
+            Light::Disk(d) => (d.center, d.normal, d.radius),
+            Light::Sun(_) => (Vec3::Y * 5.0, Vec3::NEG_Y, 0.5),
+        };
+        let center = self.light_center.unwrap_or(c);
+        let normal = self.light_normal.unwrap_or(n);
+        let radius = self.radius.unwrap_or(r);
+        Ok(Light::Disk(DiskLight::new(center, normal, radius)?))
+    }
+}
+
+pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!("'{s}' is not x,y,z"));
+    }
+    let mut v = [0.0f32; 3];
+    for (slot, p) in v.iter_mut().zip(&parts) {
+        *slot = p.parse().map_err(|_| format!("'{p}' is not a number"))?;
+        if !slot.is_finite() {
+            return Err(format!("'{p}' is not finite"));
+        }
+    }
+    Ok(Vec3::from_array(v))
+}
