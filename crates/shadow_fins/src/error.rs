@@ -10,8 +10,14 @@ pub enum MeshError {
     #[error("index count {0} is not a multiple of 3: meshes must be triangle lists")]
     IndexCountNotTriangles(usize),
     #[error("index {index} at position {at} is out of range for {vertex_count} vertices")]
-    IndexOutOfRange { at: usize, index: u32, vertex_count: usize },
-    #[error("vertex {vertex} has a non-finite position {position:?}: remove NaN/Inf vertices before use")]
+    IndexOutOfRange {
+        at: usize,
+        index: u32,
+        vertex_count: usize,
+    },
+    #[error(
+        "vertex {vertex} has a non-finite position {position:?}: remove NaN/Inf vertices before use"
+    )]
     NonFinitePosition { vertex: usize, position: [f32; 3] },
     #[error("every triangle of the mesh has zero area: nothing can cast or receive a shadow")]
     AllDegenerate,
@@ -51,13 +57,20 @@ pub enum SettingsError {
 #[derive(Debug, Error)]
 pub enum GltfError {
     #[error("cannot read glTF file {path}: {source}")]
-    Io { path: String, source: std::io::Error },
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
     #[error("not a valid glTF/GLB file: {0}")]
     Parse(String),
     #[error("glTF buffer {index} is missing or unreadable: {reason}")]
     Buffer { index: usize, reason: String },
     #[error("glTF mesh '{mesh}' primitive {primitive} is unusable: {source}")]
-    Mesh { mesh: String, primitive: usize, source: MeshError },
+    Mesh {
+        mesh: String,
+        primitive: usize,
+        source: MeshError,
+    },
     #[error("glTF file has no triangle meshes: export the scene with triangulated meshes")]
     NoMeshes,
 }

@@ -52,16 +52,22 @@ pub enum FinShape {
     },
     /// Circular sector around a silhouette vertex, from `from` to `to` (unit
     /// vectors, short arc, less than π apart).
-    Sector { center: Vec2, radius: f32, from: Vec2, to: Vec2, depth: f32 },
+    Sector {
+        center: Vec2,
+        radius: f32,
+        from: Vec2,
+        to: Vec2,
+        depth: f32,
+    },
 }
 
-/// One fin: shape, side, and the depth that decides its layer.
+/// One fin: shape, side, and the patch (occluder) it softens.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Fin {
     pub shape: FinShape,
     pub side: FinSide,
-    /// Edge-midpoint depth (quads) or vertex depth (fans): the layer key.
-    pub layer_depth: f32,
+    /// The patch of its silhouette edge: the fin goes into that patch's layer.
+    pub patch: u32,
 }
 
 /// What a fin says at a map point: weight `s0 = (1 − t)/2` (eq. 1) and depth `L_b`.
@@ -76,7 +82,15 @@ impl Fin {
     #[inline]
     pub fn sample(&self, q: Vec2, perspective: bool) -> Option<FinSample> {
         match self.shape {
-            FinShape::Quad { m0, m1, dir, w0, w1, z0, z1 } => {
+            FinShape::Quad {
+                m0,
+                m1,
+                dir,
+                w0,
+                w1,
+                z0,
+                z1,
+            } => {
                 let e = m1 - m0;
                 let rel = q - m0;
                 let alpha = rel.dot(e) / e.length_squared();
@@ -97,9 +111,18 @@ impl Fin {
                 } else {
                     z0 + (z1 - z0) * alpha
                 };
-                Some(FinSample { weight: 0.5 * (1.0 - t), depth })
+                Some(FinSample {
+                    weight: 0.5 * (1.0 - t),
+                    depth,
+                })
             }
-            FinShape::Sector { center, radius, from, to, depth } => {
+            FinShape::Sector {
+                center,
+                radius,
+                from,
+                to,
+                depth,
+            } => {
                 let rel = q - center;
                 let r2 = rel.length_squared();
                 if !(r2 <= radius * radius) || (r2 == 0.0 && self.side == FinSide::Outer) {
@@ -110,7 +133,10 @@ impl Fin {
                     return None;
                 }
                 let t = r2.sqrt() / radius;
-                Some(FinSample { weight: 0.5 * (1.0 - t), depth })
+                Some(FinSample {
+                    weight: 0.5 * (1.0 - t),
+                    depth,
+                })
             }
         }
     }
@@ -118,11 +144,20 @@ impl Fin {
     /// Map-space bounding box `(min, max)`.
     pub fn bounds(&self) -> (Vec2, Vec2) {
         match self.shape {
-            FinShape::Quad { m0, m1, dir, w0, w1, .. } => {
+            FinShape::Quad {
+                m0,
+                m1,
+                dir,
+                w0,
+                w1,
+                ..
+            } => {
                 let (p2, p3) = (m0 + dir * w0, m1 + dir * w1);
                 (m0.min(m1).min(p2).min(p3), m0.max(m1).max(p2).max(p3))
             }
-            FinShape::Sector { center, radius, .. } => (center - Vec2::splat(radius), center + Vec2::splat(radius)),
+            FinShape::Sector { center, radius, .. } => {
+                (center - Vec2::splat(radius), center + Vec2::splat(radius))
+            }
         }
     }
 }
@@ -134,6 +169,7 @@ impl Fin {
 #[derive(Debug, Default)]
 pub struct FinBuilder {
     incidences: Vec<(u32, u32, bool)>,
+    mapped: Vec<(Vec2, Vec2, Vec2)>,
 }
 
 impl FinBuilder {
@@ -151,15 +187,15 @@ impl FinBuilder {
         }
         let width = |z: f32| frame.penumbra_half_width(z, reference_depth);
         // Per edge: projected endpoints and outward normal; NaN normal = degenerate.
-        let mapped: Vec<(Vec2, Vec2, Vec2)> = edges
-            .iter()
-            .map(|e| {
-                let (m0, m1) = (frame.map(e.a), frame.map(e.b));
-                let dir = Vec2::new(m0.y - m1.y, m1.x - m0.x).normalize_or(Vec2::NAN);
-                (m0, m1, dir)
-            })
-            .collect();
-        for (e, &(m0, m1, dir)) in edges.iter().zip(&mapped) {
+        let mapped = &mut self.mapped;
+        mapped.clear();
+        mapped.extend(edges.iter().map(|e| {
+            let (m0, m1) = (frame.map(e.a), frame.map(e.b));
+            let dir = Vec2::new(m0.y - m1.y, m1.x - m0.x).normalize_or(Vec2::NAN);
+            (m0, m1, dir)
+        }));
+        let mapped = &*mapped;
+        for (e, &(m0, m1, dir)) in edges.iter().zip(mapped) {
             if e.a.z <= near || e.b.z <= near || dir.is_nan() {
                 continue;
             }
@@ -167,10 +203,21 @@ impl FinBuilder {
             if !(w0 > 0.0 || w1 > 0.0) {
                 continue;
             }
-            let layer_depth = e.mid_depth();
             for (side, d) in [(FinSide::Outer, dir), (FinSide::Inner, -dir)] {
-                let shape = FinShape::Quad { m0, m1, dir: d, w0, w1, z0: e.a.z, z1: e.b.z };
-                out.push(Fin { shape, side, layer_depth });
+                let shape = FinShape::Quad {
+                    m0,
+                    m1,
+                    dir: d,
+                    w0,
+                    w1,
+                    z0: e.a.z,
+                    z1: e.b.z,
+                };
+                out.push(Fin {
+                    shape,
+                    side,
+                    patch: e.patch,
+                });
             }
         }
 
@@ -189,7 +236,11 @@ impl FinBuilder {
             let group = &inc[k..end];
             k = end;
             let (first_edge, first_starts) = (group[0].1 as usize, group[0].2);
-            let pos = if first_starts { edges[first_edge].a } else { edges[first_edge].b };
+            let pos = if first_starts {
+                edges[first_edge].a
+            } else {
+                edges[first_edge].b
+            };
             if pos.z <= near {
                 continue;
             }
@@ -198,17 +249,38 @@ impl FinBuilder {
                 continue;
             }
             let center = frame.map(pos);
+            let patch = edges[first_edge].patch;
             let mut sector = |from: Vec2, to: Vec2, side: FinSide| {
                 // Skip empty or degenerate sectors (collinear fins need no fan).
-                if from.is_nan() || to.is_nan() || from.perp_dot(to).abs() < 1e-6 && from.dot(to) > 0.0 {
+                if from.is_nan()
+                    || to.is_nan()
+                    || from.perp_dot(to).abs() < 1e-6 && from.dot(to) > 0.0
+                {
                     return;
                 }
-                out.push(Fin { shape: FinShape::Sector { center, radius, from, to, depth: pos.z }, side, layer_depth: pos.z });
+                out.push(Fin {
+                    shape: FinShape::Sector {
+                        center,
+                        radius,
+                        from,
+                        to,
+                        depth: pos.z,
+                    },
+                    side,
+                    patch,
+                });
             };
-            let incoming: Vec<usize> = group.iter().filter(|x| !x.2).map(|x| x.1 as usize).collect();
-            let outgoing: Vec<usize> = group.iter().filter(|x| x.2).map(|x| x.1 as usize).collect();
-            match (incoming.as_slice(), outgoing.as_slice()) {
-                ([a], [b]) => {
+            let ends = |starts: bool| {
+                group
+                    .iter()
+                    .filter(move |x| x.2 == starts)
+                    .map(|x| x.1 as usize)
+            };
+            let (n_in, n_out) = (ends(false).count(), ends(true).count());
+            let (first_in, first_out) = (ends(false).next(), ends(true).next());
+            match (n_in, n_out, first_in, first_out) {
+                (1, 1, Some(a), Some(b)) => {
+                    let (a, b) = (&a, &b);
                     let (ea, eb) = (mapped[*a].1 - mapped[*a].0, mapped[*b].1 - mapped[*b].0);
                     let (da, db) = (mapped[*a].2, mapped[*b].2);
                     // Interior is on the right: a right turn (negative cross) is convex.
@@ -219,11 +291,11 @@ impl FinBuilder {
                         sector(-da, -db, FinSide::Inner);
                     }
                 }
-                ([a], []) | ([], [a]) => {
+                (1, 0, Some(a), _) | (0, 1, _, Some(a)) => {
                     // Open chain end: outer half-disk cap around the edge's extension.
-                    let (m0, m1, d) = mapped[*a];
+                    let (m0, m1, d) = mapped[a];
                     let along = (m1 - m0).normalize_or(Vec2::NAN);
-                    let ext = if incoming.is_empty() { -along } else { along };
+                    let ext = if n_in == 0 { -along } else { along };
                     sector(d, ext, FinSide::Outer);
                     sector(ext, -d, FinSide::Outer);
                 }
@@ -231,7 +303,13 @@ impl FinBuilder {
                     // Junction: sectors from each fin to the projected averaged normal.
                     let normal: glam::Vec3 = group
                         .iter()
-                        .map(|&(_, i, s)| if s { edges[i as usize].normal_a } else { edges[i as usize].normal_b })
+                        .map(|&(_, i, s)| {
+                            if s {
+                                edges[i as usize].normal_a
+                            } else {
+                                edges[i as usize].normal_b
+                            }
+                        })
                         .next()
                         .unwrap_or_default();
                     let avg = frame.map_direction(pos, normal).normalize_or(Vec2::NAN);

@@ -31,7 +31,11 @@ pub struct GroundTruth<'a> {
 
 impl<'a> GroundTruth<'a> {
     pub fn new(scene: &'a LightSpaceScene, samples: u32) -> Self {
-        Self { scene, bvh: Bvh::new(&scene.casters), samples: disk_samples(samples) }
+        Self {
+            scene,
+            bvh: Bvh::new(&scene.casters),
+            samples: disk_samples(samples),
+        }
     }
 
     /// The BVH over the casters (light frame), for primary rays.
@@ -39,7 +43,16 @@ impl<'a> GroundTruth<'a> {
         &self.bvh
     }
 
-    /// Fraction of the disk visible from the receiver, in `[0, 1]`.
+    /// Fraction of the disk visible from the receiver, in `[0, 1]`, counting only
+    /// the part of the disk above the receiver's tangent plane when its normal
+    /// is known.
+    ///
+    /// Why the horizon: the part of the disk below a surface's own horizon is
+    /// cut off by the surface itself, not by a shadow. That is the light's
+    /// shading (the cosine term, which Bevy's lighting applies when the fin
+    /// light is composited), so counting it here would charge every shadow
+    /// method for a shading term on surfaces that face the light at a grazing
+    /// angle. When the whole disk is below the horizon, the result is 0.
     ///
     /// The receiver is lifted off its surface by 1e-5 of the scene size along its
     /// normal (the same lift the oracle uses). Points at or behind the light
@@ -50,7 +63,8 @@ impl<'a> GroundTruth<'a> {
         if !p.is_finite() {
             return 0.0;
         }
-        let mut visible = 0u32;
+        let n = receiver.normal;
+        let (mut visible, mut above) = (0u32, 0u32);
         match self.scene.frame.projection {
             Projection::Perspective { radius } => {
                 if !(p.z > self.scene.reference_depth * 1e-5) {
@@ -59,6 +73,10 @@ impl<'a> GroundTruth<'a> {
                 for s in &self.samples {
                     let target = (*s * radius).extend(0.0);
                     let dir = target - p;
+                    if n.dot(dir) < 0.0 {
+                        continue;
+                    }
+                    above += 1;
                     // Segment p → target, t ∈ (ε, 1): excludes the receiver itself.
                     let t_min = eps / dir.length().max(eps);
                     if !self.bvh.any_hit(p, dir, t_min, 1.0) {
@@ -70,12 +88,20 @@ impl<'a> GroundTruth<'a> {
                 let far = self.scene.extent * 4.0 + p.z.abs();
                 for s in &self.samples {
                     let dir = (*s * tan_angle).extend(-1.0);
+                    if n.dot(dir) < 0.0 {
+                        continue;
+                    }
+                    above += 1;
                     if !self.bvh.any_hit(p, dir, eps, far) {
                         visible += 1;
                     }
                 }
             }
         }
-        visible as f32 / self.samples.len() as f32
+        if above == 0 {
+            0.0
+        } else {
+            visible as f32 / above as f32
+        }
     }
 }

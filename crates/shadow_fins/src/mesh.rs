@@ -36,15 +36,27 @@ impl Mesh {
             return Err(MeshError::IndexCountNotTriangles(indices.len()));
         }
         if let Some((vertex, p)) = positions.iter().enumerate().find(|(_, p)| !p.is_finite()) {
-            return Err(MeshError::NonFinitePosition { vertex, position: p.to_array() });
+            return Err(MeshError::NonFinitePosition {
+                vertex,
+                position: p.to_array(),
+            });
         }
-        if let Some((at, &index)) =
-            indices.iter().enumerate().find(|&(_, &i)| i as usize >= positions.len())
+        if let Some((at, &index)) = indices
+            .iter()
+            .enumerate()
+            .find(|&(_, &i)| i as usize >= positions.len())
         {
-            return Err(MeshError::IndexOutOfRange { at, index, vertex_count: positions.len() });
+            return Err(MeshError::IndexOutOfRange {
+                at,
+                index,
+                vertex_count: positions.len(),
+            });
         }
         let mesh = Self { positions, indices };
-        if mesh.triangles().all(|[a, b, c]| triangle_is_degenerate(a, b, c)) {
+        if mesh
+            .triangles()
+            .all(|[a, b, c]| triangle_is_degenerate(a, b, c))
+        {
             return Err(MeshError::AllDegenerate);
         }
         Ok(mesh)
@@ -77,7 +89,10 @@ impl Mesh {
 /// True when the triangle has (numerically) zero area relative to its size.
 pub fn triangle_is_degenerate(a: Vec3, b: Vec3, c: Vec3) -> bool {
     let cross = (b - a).cross(c - a);
-    let scale = (b - a).length_squared().max((c - a).length_squared()).max((c - b).length_squared());
+    let scale = (b - a)
+        .length_squared()
+        .max((c - a).length_squared())
+        .max((c - b).length_squared());
     // Area² below (1e-7 · edge²)² is noise for f32 positions.
     !(cross.length_squared() > scale * scale * 1e-14)
 }
@@ -114,6 +129,9 @@ pub struct Topology {
     pub face_planes: Vec<(Vec3, f32)>,
     /// Area-weighted vertex normals (unnormalised), used at silhouette junctions.
     pub vertex_normals: Vec<Vec3>,
+    /// Per face, the face across each of its edges `(v0,v1)`, `(v1,v2)`, `(v2,v0)`
+    /// when that edge has exactly two faces; [`NO_FACE`] otherwise.
+    pub face_neighbors: Vec<[u32; 3]>,
     /// Edges with one or two faces.
     pub edges: Vec<Edge>,
     /// Edges with three or more faces.
@@ -131,7 +149,11 @@ impl Topology {
         let mut faces = Vec::with_capacity(mesh.triangle_count());
         let mut degenerate_faces = 0;
         for tri in mesh.indices().chunks_exact(3) {
-            let f = [remap[tri[0] as usize], remap[tri[1] as usize], remap[tri[2] as usize]];
+            let f = [
+                remap[tri[0] as usize],
+                remap[tri[1] as usize],
+                remap[tri[2] as usize],
+            ];
             let [a, b, c] = f.map(|i| positions[i as usize]);
             if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] || triangle_is_degenerate(a, b, c) {
                 degenerate_faces += 1;
@@ -155,12 +177,29 @@ impl Topology {
         }
 
         // (min, max) → list of (face, walks min→max)
-        let mut by_key: HashMap<(u32, u32), Vec<(u32, bool)>> = HashMap::with_capacity(faces.len() * 3 / 2);
+        let mut by_key: HashMap<(u32, u32), Vec<(u32, bool)>> =
+            HashMap::with_capacity(faces.len() * 3 / 2);
         for (fi, f) in faces.iter().enumerate() {
             for k in 0..3 {
                 let (a, b) = (f[k], f[(k + 1) % 3]);
                 let key = (a.min(b), a.max(b));
                 by_key.entry(key).or_default().push((fi as u32, a < b));
+            }
+        }
+        let mut face_neighbors = vec![[NO_FACE; 3]; faces.len()];
+        for list in by_key.values() {
+            if let [(f0, _), (f1, _)] = list.as_slice() {
+                for (a, b) in [(*f0, *f1), (*f1, *f0)] {
+                    let f = faces[a as usize];
+                    // Which of a's edges is shared with b?
+                    let k = (0..3).find(|&k| {
+                        faces[b as usize].contains(&f[k])
+                            && faces[b as usize].contains(&f[(k + 1) % 3])
+                    });
+                    if let Some(k) = k {
+                        face_neighbors[a as usize][k] = b;
+                    }
+                }
             }
         }
         let mut keys: Vec<_> = by_key.into_iter().collect();
@@ -180,9 +219,16 @@ impl Topology {
                     if fw0 == fw1 {
                         inconsistent_edges += 1;
                     }
-                    edges.push(Edge { vertices: [v0, v1], faces: [*f0, *f1], forward: [*fw0, *fw1] })
+                    edges.push(Edge {
+                        vertices: [v0, v1],
+                        faces: [*f0, *f1],
+                        forward: [*fw0, *fw1],
+                    })
                 }
-                _ => non_manifold_edges.push(NonManifoldEdge { vertices: [v0, v1], faces: list }),
+                _ => non_manifold_edges.push(NonManifoldEdge {
+                    vertices: [v0, v1],
+                    faces: list,
+                }),
             }
         }
         Self {
@@ -190,6 +236,7 @@ impl Topology {
             faces,
             face_planes,
             vertex_normals,
+            face_neighbors,
             edges,
             non_manifold_edges,
             degenerate_faces,
@@ -238,12 +285,24 @@ mod tests {
     fn rejects_bad_meshes_with_typed_errors() {
         let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
         assert_eq!(Mesh::new(p.clone(), vec![]), Err(MeshError::Empty));
-        assert_eq!(Mesh::new(p.clone(), vec![0, 1]), Err(MeshError::IndexCountNotTriangles(2)));
-        assert!(matches!(Mesh::new(p.clone(), vec![0, 1, 3]), Err(MeshError::IndexOutOfRange { index: 3, .. })));
+        assert_eq!(
+            Mesh::new(p.clone(), vec![0, 1]),
+            Err(MeshError::IndexCountNotTriangles(2))
+        );
+        assert!(matches!(
+            Mesh::new(p.clone(), vec![0, 1, 3]),
+            Err(MeshError::IndexOutOfRange { index: 3, .. })
+        ));
         let nan = vec![Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 0.0), Vec3::Y];
-        assert!(matches!(Mesh::new(nan, vec![0, 1, 2]), Err(MeshError::NonFinitePosition { vertex: 1, .. })));
+        assert!(matches!(
+            Mesh::new(nan, vec![0, 1, 2]),
+            Err(MeshError::NonFinitePosition { vertex: 1, .. })
+        ));
         let flat = vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0];
-        assert_eq!(Mesh::new(flat, vec![0, 1, 2]), Err(MeshError::AllDegenerate));
+        assert_eq!(
+            Mesh::new(flat, vec![0, 1, 2]),
+            Err(MeshError::AllDegenerate)
+        );
     }
 
     #[test]
@@ -257,7 +316,14 @@ mod tests {
     #[test]
     fn quad_has_one_interior_edge_and_four_boundary_edges() {
         // Split vertices (as a flat-shaded export would have them) still weld.
-        let p = vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
+        let p = vec![
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::ZERO,
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::Y,
+        ];
         let t = Topology::build(&Mesh::new(p, vec![0, 1, 2, 3, 4, 5]).unwrap());
         assert_eq!(t.positions.len(), 4);
         assert_eq!(t.edges.len(), 5);
@@ -268,7 +334,13 @@ mod tests {
 
     #[test]
     fn three_faces_on_one_edge_are_non_manifold() {
-        let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(0.0, -1.0, 0.0)];
+        let p = vec![
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::Y,
+            Vec3::Z,
+            Vec3::new(0.0, -1.0, 0.0),
+        ];
         let t = Topology::build(&Mesh::new(p, vec![0, 1, 2, 1, 0, 3, 0, 1, 4]).unwrap());
         assert_eq!(t.non_manifold_edges.len(), 1);
         assert_eq!(t.non_manifold_edges[0].faces.len(), 3);

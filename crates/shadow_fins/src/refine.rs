@@ -13,7 +13,13 @@ use crate::light::LightFrame;
 /// edge) with no NaN or infinity. Returns `None` when the fin is not in front of
 /// the receiver (`L_b >= L_r`): it cannot shadow it.
 #[inline]
-pub fn refine_weight(frame: &LightFrame, s0: f32, fin_depth: f32, receiver_depth: f32, reference_depth: f32) -> Option<f32> {
+pub fn refine_weight(
+    frame: &LightFrame,
+    s0: f32,
+    fin_depth: f32,
+    receiver_depth: f32,
+    reference_depth: f32,
+) -> Option<f32> {
     if !(fin_depth < receiver_depth) {
         return None;
     }
@@ -42,13 +48,18 @@ impl Falloff {
     /// Applies the curve; the input is clamped to `[0, 1]` and NaN maps to 0.
     #[inline]
     pub fn apply(self, illuminance: f32) -> f32 {
-        let i = if illuminance > 0.0 { illuminance.min(1.0) } else { 0.0 };
+        let i = if illuminance > 0.0 {
+            illuminance.min(1.0)
+        } else {
+            0.0
+        };
         match self {
             Falloff::Linear => i,
             Falloff::Bernstein => i * i * (3.0 - 2.0 * i),
             Falloff::DiskSegment => {
                 let x = 2.0 * i - 1.0;
-                (0.5 + (x * (1.0 - x * x).max(0.0).sqrt() + x.asin()) / std::f32::consts::PI).clamp(0.0, 1.0)
+                (0.5 + (x * (1.0 - x * x).max(0.0).sqrt() + x.asin()) / std::f32::consts::PI)
+                    .clamp(0.0, 1.0)
             }
         }
     }

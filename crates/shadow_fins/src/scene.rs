@@ -26,7 +26,11 @@ pub struct SceneObject {
 
 impl SceneObject {
     /// Places a mesh; builds its topology. Errors on a non-finite or singular transform.
-    pub fn new(name: impl Into<String>, mesh: Mesh, transform: Affine3A) -> Result<Self, MeshError> {
+    pub fn new(
+        name: impl Into<String>,
+        mesh: Mesh,
+        transform: Affine3A,
+    ) -> Result<Self, MeshError> {
         let mesh = Arc::new(mesh);
         let topology = Arc::new(Topology::build(&mesh));
         Self::shared(name, mesh, topology, transform)
@@ -43,7 +47,14 @@ impl SceneObject {
         if !transform.is_finite() || !(det.abs() > 1e-20) {
             return Err(MeshError::BadTransform(det));
         }
-        Ok(Self { name: name.into(), mesh, topology, transform, casts_shadows: true, receives_shadows: true })
+        Ok(Self {
+            name: name.into(),
+            mesh,
+            topology,
+            transform,
+            casts_shadows: true,
+            receives_shadows: true,
+        })
     }
 
     /// The object → world transform in f64.
@@ -111,7 +122,11 @@ impl ObjectToFrame {
         let rows = glam::DMat3::from_cols(u, v, n).transpose();
         let linear = rows * m.matrix3;
         let translation = rows * (m.translation - frame.origin());
-        Self { linear: linear.as_mat3(), translation: translation.as_vec3(), mirrors: linear.determinant() < 0.0 }
+        Self {
+            linear: linear.as_mat3(),
+            translation: translation.as_vec3(),
+            mirrors: linear.determinant() < 0.0,
+        }
     }
 
     #[inline]
@@ -157,17 +172,10 @@ pub enum LightInObject {
 pub struct LightSpaceScene {
     pub light: Light,
     pub frame: LightFrame,
-    /// Shadow-casting triangles, light frame, degenerate ones dropped. The
-    /// ground truth traces all of them.
+    /// Shadow-casting triangles, light frame, degenerate ones dropped: casting
+    /// objects in order, each object's topology faces in order. The ground truth
+    /// traces all of them; the fin method maps those in a patch.
     pub casters: Vec<[Vec3; 3]>,
-    /// Per caster: whether it goes into the fin method's slab maps. Light-facing
-    /// triangles do; back-facing ones only for meshes that are not closed.
-    ///
-    /// Why: a closed mesh's back faces lie *behind* its silhouette, often in a
-    /// deeper layer than the silhouette's fins; in that layer they would block
-    /// the centre ray with no fin to soften them, turning the whole inner
-    /// penumbra into umbra. Light-facing faces alone give the same hard shadow.
-    pub in_slab_maps: Vec<bool>,
     /// Per object: its transform into the light frame (same order as `Scene::objects`).
     pub object_frames: Vec<ObjectToFrame>,
     /// Reference plane depth `L0`: the deepest receiver (so real receivers never lie beyond it).
@@ -181,30 +189,36 @@ impl LightSpaceScene {
         let (lo, hi) = scene.bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
         let frame = LightFrame::new(&light, lo, hi);
         let extent = (hi - lo).length().max(1e-30);
-        let object_frames: Vec<ObjectToFrame> =
-            scene.objects.iter().map(|o| ObjectToFrame::new(o, &frame)).collect();
+        let object_frames: Vec<ObjectToFrame> = scene
+            .objects
+            .iter()
+            .map(|o| ObjectToFrame::new(o, &frame))
+            .collect();
         let mut casters = Vec::with_capacity(scene.triangle_count());
-        let mut in_slab_maps = Vec::with_capacity(scene.triangle_count());
-        let perspective = frame.is_perspective();
         let mut deepest = f32::NEG_INFINITY;
         for (o, to_frame) in scene.objects.iter().zip(&object_frames) {
-            let pts: Vec<Vec3> = o.topology.positions.iter().map(|&p| to_frame.point(p)).collect();
+            let pts: Vec<Vec3> = o
+                .topology
+                .positions
+                .iter()
+                .map(|&p| to_frame.point(p))
+                .collect();
             if o.receives_shadows || o.casts_shadows {
                 deepest = pts.iter().fold(deepest, |d, p| d.max(p.z));
             }
             if o.casts_shadows {
-                let closed = o.topology.is_closed_manifold();
-                for f in &o.topology.faces {
-                    let tri = f.map(|i| pts[i as usize]);
-                    let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-                    let faces_light = if perspective { n.dot(tri[0]) < 0.0 } else { n.z < 0.0 } != to_frame.mirrors;
-                    casters.push(tri);
-                    in_slab_maps.push(faces_light || !closed);
-                }
+                casters.extend(o.topology.faces.iter().map(|f| f.map(|i| pts[i as usize])));
             }
         }
         // A scene entirely behind the light still needs a positive L0.
         let reference_depth = if deepest > 0.0 { deepest } else { extent };
-        Self { light, frame, casters, in_slab_maps, object_frames, reference_depth, extent }
+        Self {
+            light,
+            frame,
+            casters,
+            object_frames,
+            reference_depth,
+            extent,
+        }
     }
 }

@@ -94,7 +94,14 @@ fn build(id: SceneId) -> BuiltinScene {
     let cam = Camera::looking_at;
     let (objects, light, camera) = match id {
         SceneId::BoxOverPlane => (
-            vec![ground(10.0), object("box", shapes::cuboid(Vec3::splat(0.5)), at(Vec3::new(0.0, 1.5, 0.0)))],
+            vec![
+                ground(10.0),
+                object(
+                    "box",
+                    shapes::cuboid(Vec3::splat(0.5)),
+                    at(Vec3::new(0.0, 1.5, 0.0)),
+                ),
+            ],
             disk(Vec3::new(0.3, 4.5, 0.2), 0.5),
             cam(Vec3::new(3.0, 4.0, 4.5), Vec3::new(0.0, 0.3, 0.0)),
         ),
@@ -103,8 +110,16 @@ fn build(id: SceneId) -> BuiltinScene {
             (
                 vec![
                     ground(10.0),
-                    object("box-a", shapes::cuboid(half), at(Vec3::new(-0.525, 0.41, 0.0))),
-                    object("box-b", shapes::cuboid(half), at(Vec3::new(0.525, 0.41, 0.0))),
+                    object(
+                        "box-a",
+                        shapes::cuboid(half),
+                        at(Vec3::new(-0.525, 0.41, 0.0)),
+                    ),
+                    object(
+                        "box-b",
+                        shapes::cuboid(half),
+                        at(Vec3::new(0.525, 0.41, 0.0)),
+                    ),
                 ],
                 disk(Vec3::new(0.8, 4.0, 0.6), 0.6),
                 cam(Vec3::new(-2.5, 3.5, 4.0), Vec3::new(0.0, 0.2, -0.5)),
@@ -113,14 +128,29 @@ fn build(id: SceneId) -> BuiltinScene {
         SceneId::RingPlate => (
             vec![
                 ground(12.0),
-                object("plate", shapes::cuboid(Vec3::new(2.1, 0.03, 2.1)), at(Vec3::new(0.0, 1.0, 0.0))),
-                object("ring", shapes::torus(1.2, 0.15, 96, 16), at(Vec3::new(0.0, 2.0, 0.0))),
+                object(
+                    "plate",
+                    shapes::cuboid(Vec3::new(2.1, 0.03, 2.1)),
+                    at(Vec3::new(0.0, 1.0, 0.0)),
+                ),
+                object(
+                    "ring",
+                    shapes::torus(1.2, 0.15, 96, 16),
+                    at(Vec3::new(0.0, 2.0, 0.0)),
+                ),
             ],
             disk(Vec3::new(0.0, 5.0, 0.0), 1.0),
             cam(Vec3::new(0.0, 5.5, 4.5), Vec3::new(0.0, 0.8, 0.0)),
         ),
         SceneId::LargeLight => (
-            vec![ground(10.0), object("ball", shapes::uv_sphere(0.3, 24, 48), at(Vec3::new(0.0, 1.0, 0.0)))],
+            vec![
+                ground(10.0),
+                object(
+                    "ball",
+                    shapes::uv_sphere(0.3, 24, 48),
+                    at(Vec3::new(0.0, 1.0, 0.0)),
+                ),
+            ],
             disk(Vec3::new(0.0, 3.0, 0.0), 1.5),
             cam(Vec3::new(0.0, 3.0, 3.5), Vec3::new(0.0, 0.2, 0.0)),
         ),
@@ -129,15 +159,29 @@ fn build(id: SceneId) -> BuiltinScene {
                 object(
                     "tilted-ground",
                     shapes::plane(8.0, 4),
-                    Affine3A::from_rotation_translation(Quat::from_rotation_z(25f32.to_radians()), Vec3::ZERO),
+                    Affine3A::from_rotation_translation(
+                        Quat::from_rotation_z(25f32.to_radians()),
+                        Vec3::ZERO,
+                    ),
                 ),
-                object("box", shapes::cuboid(Vec3::new(0.6, 0.3, 0.4)), at(Vec3::new(0.0, 1.6, 0.0))),
+                object(
+                    "box",
+                    shapes::cuboid(Vec3::new(0.6, 0.3, 0.4)),
+                    at(Vec3::new(0.0, 1.6, 0.0)),
+                ),
             ],
             disk(Vec3::new(0.5, 4.5, 0.0), 0.6),
             cam(Vec3::new(0.0, 4.5, 5.0), Vec3::new(0.0, 0.3, 0.0)),
         ),
         SceneId::StarPrism => (
-            vec![ground(10.0), object("star", shapes::star_prism(5, 0.35, 1.2, 0.2), at(Vec3::new(0.0, 1.0, 0.0)))],
+            vec![
+                ground(10.0),
+                object(
+                    "star",
+                    shapes::star_prism(5, 0.35, 1.2, 0.2),
+                    at(Vec3::new(0.0, 1.0, 0.0)),
+                ),
+            ],
             disk(Vec3::new(0.0, 4.0, 0.0), 0.5),
             cam(Vec3::new(0.0, 5.0, 3.5), Vec3::new(0.0, 0.3, 0.0)),
         ),
@@ -149,18 +193,39 @@ fn build(id: SceneId) -> BuiltinScene {
                 for j in 0..4 {
                     let p = Vec3::new((i as f32 - 1.5) * 0.75, 1.0, (j as f32 - 1.5) * 0.75);
                     objects.push(
-                        SceneObject::shared(format!("sphere-{i}-{j}"), sphere.clone(), topology.clone(), at(p))
-                            .expect("valid"),
+                        SceneObject::shared(
+                            format!("sphere-{i}-{j}"),
+                            sphere.clone(),
+                            topology.clone(),
+                            at(p),
+                        )
+                        .expect("valid"),
                     );
                 }
             }
-            (objects, disk(Vec3::new(0.0, 4.5, 0.0), 0.8), cam(Vec3::new(0.0, 5.0, 4.5), Vec3::new(0.0, 0.0, 0.0)))
+            (
+                objects,
+                disk(Vec3::new(0.0, 4.5, 0.0), 0.8),
+                cam(Vec3::new(0.0, 5.0, 4.5), Vec3::new(0.0, 0.0, 0.0)),
+            )
         }
         SceneId::DenseBlob => (
-            vec![ground(10.0), object("blob", shapes::bumpy_blob(100_000), at(Vec3::new(0.0, 1.5, 0.0)))],
+            vec![
+                ground(10.0),
+                object(
+                    "blob",
+                    shapes::bumpy_blob(100_000),
+                    at(Vec3::new(0.0, 1.5, 0.0)),
+                ),
+            ],
             disk(Vec3::new(0.4, 5.0, 0.0), 0.5),
             cam(Vec3::new(3.0, 4.0, 4.5), Vec3::new(0.0, 0.5, 0.0)),
         ),
     };
-    BuiltinScene { id, scene: Scene::new(objects), light, camera }
+    BuiltinScene {
+        id,
+        scene: Scene::new(objects),
+        light,
+        camera,
+    }
 }

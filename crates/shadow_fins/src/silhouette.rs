@@ -15,6 +15,13 @@
 //! is then the left normal of the projected edge, with no look at the third
 //! vertex, so it is robust even when the face projects to a sliver.
 //!
+//! **Patches.** The faces that go into the light-space maps (light-facing faces,
+//! plus back faces of meshes that are not closed) are grouped into *patches*:
+//! connected regions joined across edges that are not silhouettes. A patch is
+//! one occluder as the light sees it: its outline is exactly its silhouette
+//! edges, so its fins and its hard shadow belong together. Layers are built from
+//! whole patches (see [`crate::layers`]), never from parts of one.
+//!
 //! The facing test runs in each object's own space against the light moved into
 //! that space: one dot product per face, no per-vertex transform. Only
 //! silhouette endpoints are transformed to the light frame.
@@ -38,6 +45,8 @@ pub struct SilhouetteEdge {
     /// Area-weighted vertex normals at `a` and `b`, light frame (for junctions).
     pub normal_a: Vec3,
     pub normal_b: Vec3,
+    /// Scene-wide id of the patch whose outline this edge is.
+    pub patch: u32,
 }
 
 impl SilhouetteEdge {
@@ -48,33 +57,78 @@ impl SilhouetteEdge {
     }
 }
 
+/// Marks a face that is in no patch (a back face of a closed mesh).
+pub const NO_PATCH: u32 = u32::MAX;
+
 /// Reusable buffers for [`extract_object_silhouettes`].
 #[derive(Debug, Default)]
 pub struct SilhouetteScratch {
     facing: Vec<bool>,
+    stack: Vec<u32>,
 }
 
-/// Appends the silhouette edges of one object to `out`.
+/// Appends the silhouette edges of one object to `out` and the patch of each of
+/// its faces to `face_patches` (in face order; [`NO_PATCH`] for faces outside
+/// the maps). Patch ids start at `patch_base`; returns how many were made.
 ///
 /// `vertex_base` makes vertex ids unique across objects.
+#[allow(clippy::too_many_arguments)]
 pub fn extract_object_silhouettes(
     topology: &Topology,
     to_frame: &ObjectToFrame,
     light: LightInObject,
     vertex_base: u32,
+    patch_base: u32,
     scratch: &mut SilhouetteScratch,
+    face_patches: &mut Vec<u32>,
     out: &mut Vec<SilhouetteEdge>,
-) {
-    let facing = &mut scratch.facing;
+) -> u32 {
+    let SilhouetteScratch { facing, stack } = scratch;
     facing.clear();
     let flip = to_frame.mirrors;
     match light {
-        LightInObject::Point(c) => facing.extend(topology.face_planes.iter().map(|&(n, d)| (n.dot(c) > d) != flip)),
-        LightInObject::Direction(dir) => {
-            facing.extend(topology.face_planes.iter().map(|&(n, _)| (n.dot(dir) < 0.0) != flip))
+        LightInObject::Point(c) => facing.extend(
+            topology
+                .face_planes
+                .iter()
+                .map(|&(n, d)| (n.dot(c) > d) != flip),
+        ),
+        LightInObject::Direction(dir) => facing.extend(
+            topology
+                .face_planes
+                .iter()
+                .map(|&(n, _)| (n.dot(dir) < 0.0) != flip),
+        ),
+    }
+
+    // Patches: flood fill over map faces across non-silhouette edges.
+    let closed = topology.is_closed_manifold();
+    let first = face_patches.len();
+    face_patches.resize(first + facing.len(), NO_PATCH);
+    let labels = &mut face_patches[first..];
+    let mut patches = 0u32;
+    for seed in 0..facing.len() {
+        if labels[seed] != NO_PATCH || !(facing[seed] || !closed) {
+            continue;
+        }
+        let id = patch_base + patches;
+        patches += 1;
+        labels[seed] = id;
+        stack.clear();
+        stack.push(seed as u32);
+        while let Some(f) = stack.pop() {
+            let side = facing[f as usize];
+            for n in topology.face_neighbors[f as usize] {
+                if n != NO_FACE && labels[n as usize] == NO_PATCH && facing[n as usize] == side {
+                    labels[n as usize] = id;
+                    stack.push(n);
+                }
+            }
         }
     }
-    let mut emit = |v0: u32, v1: u32, forward: bool| {
+    let face_patches = &face_patches[first..];
+
+    let mut emit = |v0: u32, v1: u32, forward: bool, face: u32| {
         // Orient along the light-facing face's winding.
         let (va, vb) = if forward { (v0, v1) } else { (v1, v0) };
         out.push(SilhouetteEdge {
@@ -84,29 +138,31 @@ pub fn extract_object_silhouettes(
             vertex_b: vertex_base + vb,
             normal_a: to_frame.normal(topology.vertex_normals[va as usize]),
             normal_b: to_frame.normal(topology.vertex_normals[vb as usize]),
+            patch: face_patches[face as usize],
         });
     };
     for e in &topology.edges {
         let f0 = facing[e.faces[0] as usize];
         if e.faces[1] == NO_FACE {
             if f0 {
-                emit(e.vertices[0], e.vertices[1], e.forward[0]);
+                emit(e.vertices[0], e.vertices[1], e.forward[0], e.faces[0]);
             }
             continue;
         }
         let f1 = facing[e.faces[1] as usize];
         if f0 != f1 {
             let k = if f0 { 0 } else { 1 };
-            emit(e.vertices[0], e.vertices[1], e.forward[k]);
+            emit(e.vertices[0], e.vertices[1], e.forward[k], e.faces[k]);
         }
     }
     for e in &topology.non_manifold_edges {
         let first_facing = e.faces.iter().find(|(f, _)| facing[*f as usize]);
         let any_back = e.faces.iter().any(|(f, _)| !facing[*f as usize]);
-        if let (Some(&(_, forward)), true) = (first_facing, any_back) {
-            emit(e.vertices[0], e.vertices[1], forward);
+        if let (Some(&(face, forward)), true) = (first_facing, any_back) {
+            emit(e.vertices[0], e.vertices[1], forward, face);
         }
     }
+    patches
 }
 
 /// Groups oriented silhouette edges into closed loops by following `b → a`.
@@ -134,7 +190,9 @@ pub fn trace_loops(edges: &[SilhouetteEdge]) -> (Vec<Vec<usize>>, Vec<usize>) {
             if at == edges[start].vertex_a {
                 break true;
             }
-            let next = outgoing.get(&at).and_then(|l| l.iter().copied().find(|&i| !used[i]));
+            let next = outgoing
+                .get(&at)
+                .and_then(|l| l.iter().copied().find(|&i| !used[i]));
             match next {
                 Some(n) => {
                     used[n] = true;
@@ -144,7 +202,11 @@ pub fn trace_loops(edges: &[SilhouetteEdge]) -> (Vec<Vec<usize>>, Vec<usize>) {
                 None => break false,
             }
         };
-        if closed { loops.push(chain) } else { open.extend(chain) }
+        if closed {
+            loops.push(chain)
+        } else {
+            open.extend(chain)
+        }
     }
     (loops, open)
 }

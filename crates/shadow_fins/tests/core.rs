@@ -2,5 +2,12 @@
 
 mod core {
     pub mod common;
+    mod contact;
+    mod convergence;
+    mod gltf_files;
+    mod ground_truth_closed_form;
+    mod multi_layer;
+    mod silhouette_properties;
+    mod stability;
     mod straight_edge;
 }

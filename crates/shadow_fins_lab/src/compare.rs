@@ -25,11 +25,19 @@ impl Config {
             Method::MultiLayer => format!(
                 "fins {}L{}",
                 settings.layers,
-                if settings.refinement { "" } else { " no-refine" }
+                if settings.refinement {
+                    ""
+                } else {
+                    " no-refine"
+                }
             ),
             m => m.name().to_string(),
         };
-        Self { label, method, settings }
+        Self {
+            label,
+            method,
+            settings,
+        }
     }
 
     pub fn labelled(mut self, label: impl Into<String>) -> Self {
@@ -44,8 +52,20 @@ pub fn standard_configs(base: FinSettings) -> Vec<Config> {
         Config::new(Method::Hard, base),
         Config::new(Method::OuterFins, base),
         Config::new(Method::SingleLayer, base),
-        Config::new(Method::MultiLayer, FinSettings { refinement: false, ..base }),
-        Config::new(Method::MultiLayer, FinSettings { refinement: true, ..base }),
+        Config::new(
+            Method::MultiLayer,
+            FinSettings {
+                refinement: false,
+                ..base
+            },
+        ),
+        Config::new(
+            Method::MultiLayer,
+            FinSettings {
+                refinement: true,
+                ..base
+            },
+        ),
     ]
 }
 
@@ -62,15 +82,21 @@ pub struct Comparison {
     pub height: u32,
     /// Per pixel: the receiver seen, if any.
     pub receivers: Vec<Option<Receiver>>,
+    /// Per hit receiver: does the light's centre face it (only those are scored)?
+    pub lit_side: Vec<bool>,
     pub reference: Evaluation,
     pub rows: Vec<Row>,
 }
 
 impl Comparison {
-    /// Per-pixel values (background `None`) of evaluation values over hit pixels.
-    pub fn pixels(&self, values: &[f32]) -> Vec<Option<f32>> {
-        let mut it = values.iter();
-        self.receivers.iter().map(|r| r.and_then(|_| it.next().copied())).collect()
+    /// Per-pixel values of evaluation values over hit pixels: `None` for the
+    /// background, `Some(None)` for surfaces facing away from the light.
+    pub fn pixels(&self, values: &[f32]) -> Vec<Option<Option<f32>>> {
+        let mut it = values.iter().zip(&self.lit_side);
+        self.receivers
+            .iter()
+            .map(|r| r.and_then(|_| it.next().map(|(v, lit)| lit.then_some(*v))))
+            .collect()
     }
 }
 
@@ -86,17 +112,53 @@ pub fn compare(
     let ls = LightSpaceScene::new(&loaded.scene, loaded.light);
     let receivers = camera_receivers(&loaded.camera, width, height, &ls);
     let hits: Vec<Receiver> = receivers.iter().flatten().copied().collect();
-    let reference = evaluate(&loaded.scene, &ls, Measured::GroundTruth, FinSettings::default(), None, samples, &hits);
+    let reference = evaluate(
+        &loaded.scene,
+        &ls,
+        Measured::GroundTruth,
+        FinSettings::default(),
+        None,
+        samples,
+        &hits,
+    );
+    let lit_side: Vec<bool> = hits.iter().map(|r| r.faces_light(&ls.frame)).collect();
+    let scored = |values: &[f32]| -> Vec<f32> {
+        values
+            .iter()
+            .zip(&lit_side)
+            .filter(|(_, lit)| **lit)
+            .map(|(v, _)| *v)
+            .collect()
+    };
+    let reference_scored = scored(&reference.values);
     let rows = configs
         .iter()
         .map(|c| {
-            let evaluation =
-                evaluate(&loaded.scene, &ls, Measured::Method(c.method), c.settings, map_resolution, samples, &hits);
-            let metrics = ErrorMetrics::compute(&evaluation.values, &reference.values);
-            Row { config: c.clone(), evaluation, metrics }
+            let evaluation = evaluate(
+                &loaded.scene,
+                &ls,
+                Measured::Method(c.method),
+                c.settings,
+                map_resolution,
+                samples,
+                &hits,
+            );
+            let metrics = ErrorMetrics::compute(&scored(&evaluation.values), &reference_scored);
+            Row {
+                config: c.clone(),
+                evaluation,
+                metrics,
+            }
         })
         .collect();
-    Comparison { width, height, receivers, reference, rows }
+    Comparison {
+        width,
+        height,
+        receivers,
+        lit_side,
+        reference,
+        rows,
+    }
 }
 
 /// A markdown table of the rows.

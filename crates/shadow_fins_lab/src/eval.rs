@@ -49,11 +49,19 @@ pub fn evaluate(
             let prepare_ms = ms(start);
             let t = Instant::now();
             let values = receivers.par_iter().map(|r| gt.visibility(*r)).collect();
-            Evaluation { values, prepare_ms, evaluate_ms: ms(t), silhouettes: 0, fins: 0, layers: 0 }
+            Evaluation {
+                values,
+                prepare_ms,
+                evaluate_ms: ms(t),
+                silhouettes: 0,
+                fins: 0,
+                layers: 0,
+            }
         }
         Measured::Method(method) => {
             let model = FinShadowModel::new(scene, light_space, method, settings);
-            let (silhouettes, fins, layers) = (model.silhouettes.len(), model.fins.len(), model.plan.len());
+            let (silhouettes, fins, layers) =
+                (model.silhouettes.len(), model.fins.len(), model.plan.len());
             let (values, prepare_ms, evaluate_ms) = match map_resolution {
                 Some(res) => {
                     let maps = model.raster(res);
@@ -73,7 +81,14 @@ pub fn evaluate(
                     (v, prepare_ms, ms(t))
                 }
             };
-            Evaluation { values, prepare_ms, evaluate_ms, silhouettes, fins, layers }
+            Evaluation {
+                values,
+                prepare_ms,
+                evaluate_ms,
+                silhouettes,
+                fins,
+                layers,
+            }
         }
     }
 }
@@ -84,7 +99,12 @@ fn ms(t: Instant) -> f64 {
 
 /// Primary hits of a camera: per pixel, the receiver it sees (light frame), or
 /// `None` for the background. Normals face the camera.
-pub fn camera_receivers(camera: &Camera, width: u32, height: u32, light_space: &LightSpaceScene) -> Vec<Option<Receiver>> {
+pub fn camera_receivers(
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    light_space: &LightSpaceScene,
+) -> Vec<Option<Receiver>> {
     let bvh = Bvh::new(&light_space.casters);
     let frame = &light_space.frame;
     (0..width * height)
@@ -93,8 +113,15 @@ pub fn camera_receivers(camera: &Camera, width: u32, height: u32, light_space: &
             let (o, d) = camera.ray(i % width, i / width, width, height);
             let (o, d) = (frame.to_frame(o), frame.dir_to_frame(d));
             bvh.closest_hit(o, d, 0.0).map(|h| {
-                let n = if h.normal.dot(d) > 0.0 { -h.normal } else { h.normal };
-                Receiver { position: o + d * h.t, normal: n }
+                let n = if h.normal.dot(d) > 0.0 {
+                    -h.normal
+                } else {
+                    h.normal
+                };
+                Receiver {
+                    position: o + d * h.t,
+                    normal: n,
+                }
             })
         })
         .collect()

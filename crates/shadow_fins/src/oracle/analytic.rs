@@ -28,24 +28,38 @@ impl<'m, 'a> AnalyticIndex<'m, 'a> {
             .iter()
             .map(|c| c.bounds())
             .chain(model.fins.iter().map(|f| f.bounds()))
-            .map(|(lo, hi)| (lo.max(Vec2::splat(-MAP_LIMIT)), hi.min(Vec2::splat(MAP_LIMIT))))
+            .map(|(lo, hi)| {
+                (
+                    lo.max(Vec2::splat(-MAP_LIMIT)),
+                    hi.min(Vec2::splat(MAP_LIMIT)),
+                )
+            })
             .collect();
-        let (mut min, mut max) = bounds
-            .iter()
-            .fold((Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)), |(a, b), (lo, hi)| (a.min(*lo), b.max(*hi)));
+        let (mut min, mut max) = bounds.iter().fold(
+            (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)),
+            |(a, b), (lo, hi)| (a.min(*lo), b.max(*hi)),
+        );
         if !(min.x <= max.x && min.y <= max.y) {
             (min, max) = (Vec2::ZERO, Vec2::ONE);
         }
         let size = (max - min).max(Vec2::splat(1e-12));
         let n = (bounds.len() as f32).sqrt().clamp(1.0, 1024.0);
         let aspect = (size.x / size.y).clamp(1e-3, 1e3).sqrt();
-        let dims = [((n * aspect).ceil() as usize).clamp(1, 2048), ((n / aspect).ceil() as usize).clamp(1, 2048)];
+        let dims = [
+            ((n * aspect).ceil() as usize).clamp(1, 2048),
+            ((n / aspect).ceil() as usize).clamp(1, 2048),
+        ];
         let inv_cell = Vec2::new(dims[0] as f32, dims[1] as f32) / size;
         let cell_range = |lo: Vec2, hi: Vec2| {
             let a = ((lo - min) * inv_cell).floor();
             let b = ((hi - min) * inv_cell).floor();
             let clamp = |v: f32, d: usize| (v.max(0.0) as usize).min(d - 1);
-            (clamp(a.x, dims[0]), clamp(b.x, dims[0]), clamp(a.y, dims[1]), clamp(b.y, dims[1]))
+            (
+                clamp(a.x, dims[0]),
+                clamp(b.x, dims[0]),
+                clamp(a.y, dims[1]),
+                clamp(b.y, dims[1]),
+            )
         };
         let mut counts = vec![0u32; dims[0] * dims[1] + 1];
         for &(lo, hi) in &bounds {
@@ -78,15 +92,26 @@ impl<'m, 'a> AnalyticIndex<'m, 'a> {
                 }
             }
         }
-        Self { model, min, inv_cell, dims, starts, items }
+        Self {
+            model,
+            min,
+            inv_cell,
+            dims,
+            starts,
+            items,
+        }
     }
 
-    /// Every layer's texel at map point `q`, for layers `0..=last_layer`.
-    pub fn layer_texels(&self, q: Vec2, last_layer: usize, out: &mut Vec<LayerTexel>) {
+    /// Every layer's texel at map point `q`.
+    pub fn layer_texels(&self, q: Vec2, out: &mut Vec<LayerTexel>) {
         out.clear();
-        out.resize(last_layer + 1, LayerTexel::EMPTY);
+        out.resize(self.model.plan.len(), LayerTexel::EMPTY);
         let c = (q - self.min) * self.inv_cell;
-        if !(c.x >= 0.0 && c.y >= 0.0 && (c.x as usize) < self.dims[0] && (c.y as usize) < self.dims[1]) {
+        if !(c.x >= 0.0
+            && c.y >= 0.0
+            && (c.x as usize) < self.dims[0]
+            && (c.y as usize) < self.dims[1])
+        {
             return;
         }
         let cell = c.y as usize * self.dims[0] + c.x as usize;
@@ -95,22 +120,16 @@ impl<'m, 'a> AnalyticIndex<'m, 'a> {
         for &id in &self.items[self.starts[cell] as usize..self.starts[cell + 1] as usize] {
             let id = id as usize;
             if let Some(tri) = m.casters.get(id) {
-                if tri.min_depth > m.near || tri.max_depth > m.near {
-                    if tri.contains(q) {
-                        let d = tri.depth_at(q);
-                        let j = m.plan.layer_of(d);
-                        if j <= last_layer && d > m.near {
-                            out[j].add_caster(d);
-                        }
+                if tri.contains(q) {
+                    let d = tri.depth_at(q);
+                    if d > m.near {
+                        out[m.caster_layers[id] as usize].add_caster(d);
                     }
                 }
             } else {
                 let f = id - m.casters.len();
-                let j = m.fin_layers[f] as usize;
-                if j <= last_layer {
-                    if let Some(s) = m.fins[f].sample(q, perspective) {
-                        out[j].add_fin(m.fins[f].side, s);
-                    }
+                if let Some(s) = m.fins[f].sample(q, perspective) {
+                    out[m.fin_layers[f] as usize].add_fin(m.fins[f].side, s);
                 }
             }
         }
@@ -130,9 +149,12 @@ impl<'m, 'a> AnalyticIndex<'m, 'a> {
         if m.behind_light(p) {
             return 0.0;
         }
-        let k = m.plan.layer_of(p.z);
-        self.layer_texels(m.map(p), k, texels);
-        let slack = if receiver.normal == glam::Vec3::ZERO { eps } else { 0.0 };
+        self.layer_texels(m.map(p), texels);
+        let slack = if receiver.normal == glam::Vec3::ZERO {
+            eps
+        } else {
+            0.0
+        };
         m.visibility_from(texels, p.z, p.z * (1.0 - 1e-6) - slack)
     }
 }

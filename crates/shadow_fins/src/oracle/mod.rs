@@ -29,7 +29,7 @@ use crate::{
     light::LightFrame,
     refine::{Falloff, refine_weight},
     scene::{LightSpaceScene, Scene},
-    silhouette::{SilhouetteEdge, SilhouetteScratch, extract_object_silhouettes},
+    silhouette::{NO_PATCH, SilhouetteEdge, SilhouetteScratch, extract_object_silhouettes},
 };
 
 /// Which soft-shadow method to evaluate.
@@ -46,7 +46,12 @@ pub enum Method {
 }
 
 impl Method {
-    pub const ALL: [Method; 4] = [Method::Hard, Method::OuterFins, Method::SingleLayer, Method::MultiLayer];
+    pub const ALL: [Method; 4] = [
+        Method::Hard,
+        Method::OuterFins,
+        Method::SingleLayer,
+        Method::MultiLayer,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -77,7 +82,12 @@ pub struct FinSettings {
 
 impl Default for FinSettings {
     fn default() -> Self {
-        Self { layers: 16, sub_layers: 1024, refinement: true, falloff: Falloff::default() }
+        Self {
+            layers: 16,
+            sub_layers: 1024,
+            refinement: true,
+            falloff: Falloff::default(),
+        }
     }
 }
 
@@ -131,13 +141,17 @@ impl LayerTexel {
     pub fn add_fin(&mut self, side: FinSide, s: FinSample) {
         match side {
             FinSide::Inner => {
-                if s.weight < self.inner_weight || (s.weight == self.inner_weight && s.depth < self.inner_depth) {
+                if s.weight < self.inner_weight
+                    || (s.weight == self.inner_weight && s.depth < self.inner_depth)
+                {
                     self.inner_weight = s.weight;
                     self.inner_depth = s.depth;
                 }
             }
             FinSide::Outer => {
-                if s.weight > self.outer_weight || (s.weight == self.outer_weight && s.depth < self.outer_depth) {
+                if s.weight > self.outer_weight
+                    || (s.weight == self.outer_weight && s.depth < self.outer_depth)
+                {
                     self.outer_weight = s.weight;
                     self.outer_depth = s.depth;
                 }
@@ -146,11 +160,17 @@ impl LayerTexel {
     }
 
     pub fn inner(&self) -> Option<FinSample> {
-        self.inner_weight.is_finite().then_some(FinSample { weight: self.inner_weight, depth: self.inner_depth })
+        self.inner_weight.is_finite().then_some(FinSample {
+            weight: self.inner_weight,
+            depth: self.inner_depth,
+        })
     }
 
     pub fn outer(&self) -> Option<FinSample> {
-        self.outer_weight.is_finite().then_some(FinSample { weight: self.outer_weight, depth: self.outer_depth })
+        self.outer_weight.is_finite().then_some(FinSample {
+            weight: self.outer_weight,
+            depth: self.outer_depth,
+        })
     }
 }
 
@@ -162,23 +182,41 @@ pub struct CombineParams<'a> {
     pub refinement: bool,
 }
 
-/// The per-pixel combination of DESIGN §3 over layers `0..=k` (the receiver's
-/// layer last). Returns the illuminance `I ∈ [0, 1]` before the falloff.
+/// The per-pixel combination of DESIGN §3 over every layer. Returns the
+/// illuminance `I ∈ [0, 1]` before the falloff.
 ///
-/// For each layer: `base = 0` when the slab blocks the centre ray nearer than
-/// `blocking_limit`, else 1; `u = clamp(base + inner − outer, 0, 1)` with refined
-/// weights; penumbra (a fin applies): `I = min(I, u)`; umbra: `I = 0`; lit: keep.
-pub fn combine_layers(texels: &[LayerTexel], receiver_depth: f32, blocking_limit: f32, p: CombineParams) -> f32 {
+/// For each layer: `base = 0` when the layer's nearest caster blocks the centre
+/// ray nearer than `blocking_limit`, else 1; `u = clamp(base + inner − outer, 0, 1)`
+/// with refined weights of fins in front of the receiver; penumbra (a fin
+/// applies): `I = min(I, u)`; umbra: `I = 0`; lit: keep. The result is the
+/// minimum over layers, so their order does not matter; casters and fins behind
+/// the receiver drop out by their depth.
+pub fn combine_layers(
+    texels: &[LayerTexel],
+    receiver_depth: f32,
+    blocking_limit: f32,
+    p: CombineParams,
+) -> f32 {
     let refine = |s: FinSample| {
         if p.refinement {
-            refine_weight(p.frame, s.weight, s.depth, receiver_depth, p.reference_depth)
+            refine_weight(
+                p.frame,
+                s.weight,
+                s.depth,
+                receiver_depth,
+                p.reference_depth,
+            )
         } else {
             (s.depth < receiver_depth).then_some(s.weight)
         }
     };
     let mut illuminance = 1.0f32;
     for t in texels {
-        let base = if t.slab_depth < blocking_limit { 0.0 } else { 1.0 };
+        let base = if t.slab_depth < blocking_limit {
+            0.0
+        } else {
+            1.0
+        };
         let inner = t.inner().and_then(refine);
         let outer = t.outer().and_then(refine);
         if inner.is_some() || outer.is_some() {
@@ -198,14 +236,36 @@ pub struct Receiver {
     pub normal: Vec3,
 }
 
-/// Per-frame fin extraction: silhouettes, fins and the layer plan. Buffers are
-/// reused between calls; this is the stage the paper runs on the CPU.
+impl Receiver {
+    /// True when the light's centre is in front of the surface (or the normal is
+    /// unknown). Elsewhere the light's shading is zero, so visibility there is
+    /// never seen: error metrics skip such receivers.
+    pub fn faces_light(&self, frame: &LightFrame) -> bool {
+        if self.normal == Vec3::ZERO {
+            return true;
+        }
+        if frame.is_perspective() {
+            self.normal.dot(-self.position) > 0.0
+        } else {
+            self.normal.z < 0.0
+        }
+    }
+}
+
+/// Per-frame fin extraction: silhouettes, patches, fins and the layer plan.
+/// Buffers are reused between calls; this is the stage the paper runs on the CPU.
 #[derive(Debug, Default)]
 pub struct FinExtractor {
     scratch: SilhouetteScratch,
     builder: FinBuilder,
     depths: Vec<f32>,
+    patch_depth: Vec<(f32, u32)>,
     pub silhouettes: Vec<SilhouetteEdge>,
+    /// Per caster triangle (the order of [`LightSpaceScene::casters`]): its patch,
+    /// or [`NO_PATCH`] when it is not drawn into the maps.
+    pub face_patches: Vec<u32>,
+    /// Layer of each patch.
+    pub patch_layers: Vec<u32>,
     pub fins: Vec<Fin>,
     /// Layer of each fin (same order as `fins`).
     pub fin_layers: Vec<u32>,
@@ -213,39 +273,90 @@ pub struct FinExtractor {
 }
 
 impl FinExtractor {
-    /// Extracts silhouettes and fins of every casting object and assigns layers.
-    /// `layers == 1` gives the single-layered plan.
-    pub fn extract(&mut self, scene: &Scene, light_space: &LightSpaceScene, layers: u32, sub_layers: u32) {
+    /// Extracts silhouettes, patches and fins of every casting object and
+    /// assigns layers. `layers == 1` gives the single-layered plan.
+    ///
+    /// Layers (§4.1): the sub-layer histogram of silhouette-edge midpoints is cut
+    /// at its quantiles into depth planes; each patch goes, whole, to the layer of
+    /// the mean depth of its silhouette edges, and its fins with it. (The paper
+    /// clips casters into depth slabs instead; measured against ground truth,
+    /// that turns the inner penumbra of any occluder deeper than its own
+    /// silhouette — a box's sides, a wall standing on the floor — into umbra.)
+    pub fn extract(
+        &mut self,
+        scene: &Scene,
+        light_space: &LightSpaceScene,
+        layers: u32,
+        sub_layers: u32,
+    ) {
         self.silhouettes.clear();
+        self.face_patches.clear();
         let frame = &light_space.frame;
-        let mut vertex_base = 0u32;
+        let (mut vertex_base, mut patches) = (0u32, 0u32);
         for (object, to_frame) in scene.objects.iter().zip(&light_space.object_frames) {
             if object.casts_shadows {
                 let light = to_frame.light_in_object(frame);
-                extract_object_silhouettes(
+                patches += extract_object_silhouettes(
                     &object.topology,
                     to_frame,
                     light,
                     vertex_base,
+                    patches,
                     &mut self.scratch,
+                    &mut self.face_patches,
                     &mut self.silhouettes,
                 );
             }
             vertex_base += object.topology.positions.len() as u32;
         }
         let near = near_depth(light_space);
-        self.builder.build(&self.silhouettes, frame, light_space.reference_depth, near, &mut self.fins);
+        self.builder.build(
+            &self.silhouettes,
+            frame,
+            light_space.reference_depth,
+            near,
+            &mut self.fins,
+        );
         self.depths.clear();
-        self.depths.extend(self.silhouettes.iter().map(SilhouetteEdge::mid_depth));
+        self.depths
+            .extend(self.silhouettes.iter().map(SilhouetteEdge::mid_depth));
         self.plan = LayerPlan::from_edge_depths(&self.depths, sub_layers, layers);
+
+        // Patch layer: mean silhouette-edge depth; patches with no silhouette
+        // (a closed mesh seen from inside) go to the last layer.
+        self.patch_depth.clear();
+        self.patch_depth.resize(patches as usize, (0.0, 0));
+        for e in &self.silhouettes {
+            let (sum, n) = &mut self.patch_depth[e.patch as usize];
+            *sum += e.mid_depth();
+            *n += 1;
+        }
+        let last = self.plan.len() as u32 - 1;
+        self.patch_layers.clear();
+        self.patch_layers
+            .extend(self.patch_depth.iter().map(|&(sum, n)| {
+                if n == 0 {
+                    last
+                } else {
+                    self.plan.layer_of(sum / n as f32) as u32
+                }
+            }));
         self.fin_layers.clear();
-        self.fin_layers.extend(self.fins.iter().map(|f| self.plan.layer_of(f.layer_depth) as u32));
+        self.fin_layers.extend(
+            self.fins
+                .iter()
+                .map(|f| self.patch_layers[f.patch as usize]),
+        );
     }
 }
 
 /// Depth below which geometry is treated as at or behind the light plane.
 pub fn near_depth(light_space: &LightSpaceScene) -> f32 {
-    if light_space.frame.is_perspective() { light_space.reference_depth * 1e-5 } else { f32::NEG_INFINITY }
+    if light_space.frame.is_perspective() {
+        light_space.reference_depth * 1e-5
+    } else {
+        f32::NEG_INFINITY
+    }
 }
 
 /// One scene under one light, prepared for one method.
@@ -258,31 +369,49 @@ pub struct FinShadowModel<'a> {
     pub fin_layers: Vec<u32>,
     pub plan: LayerPlan,
     pub casters: Vec<MapTriangle>,
+    /// Layer of each map caster.
+    pub caster_layers: Vec<u32>,
     pub near: f32,
 }
 
 impl<'a> FinShadowModel<'a> {
     /// Extracts silhouettes and fins and plans layers as `method` asks.
-    pub fn new(scene: &Scene, light_space: &'a LightSpaceScene, method: Method, settings: FinSettings) -> Self {
+    pub fn new(
+        scene: &Scene,
+        light_space: &'a LightSpaceScene,
+        method: Method,
+        settings: FinSettings,
+    ) -> Self {
         let mut ex = FinExtractor::default();
-        let layers = if method == Method::MultiLayer { settings.layers } else { 1 };
+        let layers = if method == Method::MultiLayer {
+            settings.layers
+        } else {
+            1
+        };
         ex.extract(scene, light_space, layers, settings.sub_layers);
         let keep = |f: &Fin| match method {
             Method::Hard => false,
             Method::OuterFins => f.side == FinSide::Outer,
             Method::SingleLayer | Method::MultiLayer => true,
         };
-        let (fins, fin_layers): (Vec<Fin>, Vec<u32>) =
-            ex.fins.iter().zip(&ex.fin_layers).filter(|(f, _)| keep(f)).map(|(f, l)| (*f, *l)).unzip();
+        let (fins, fin_layers): (Vec<Fin>, Vec<u32>) = ex
+            .fins
+            .iter()
+            .zip(&ex.fin_layers)
+            .filter(|(f, _)| keep(f))
+            .map(|(f, l)| (*f, *l))
+            .unzip();
         let near = near_depth(light_space);
         let perspective = light_space.frame.is_perspective();
-        let casters = light_space
-            .casters
-            .iter()
-            .zip(&light_space.in_slab_maps)
-            .filter(|(_, in_maps)| **in_maps)
-            .flat_map(|(tri, _)| MapTriangle::clipped(tri, &light_space.frame, near, perspective))
-            .collect();
+        let (mut casters, mut caster_layers) = (Vec::new(), Vec::new());
+        for (tri, &patch) in light_space.casters.iter().zip(&ex.face_patches) {
+            if patch != NO_PATCH {
+                for t in MapTriangle::clipped(tri, &light_space.frame, near, perspective) {
+                    casters.push(t);
+                    caster_layers.push(ex.patch_layers[patch as usize]);
+                }
+            }
+        }
         Self {
             light_space,
             method,
@@ -292,6 +421,7 @@ impl<'a> FinShadowModel<'a> {
             fin_layers,
             plan: ex.plan,
             casters,
+            caster_layers,
             near,
         }
     }

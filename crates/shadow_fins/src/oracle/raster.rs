@@ -63,16 +63,18 @@ impl<'m, 'a> RasterMaps<'m, 'a> {
         let n = (resolution * resolution) as usize;
         let mut layers = vec![vec![LayerTexel::EMPTY; n]; model.plan.len()];
         let res = resolution as usize;
-        for tri in &model.casters {
+        for (tri, &layer) in model.casters.iter().zip(&model.caster_layers) {
             let (lo, hi) = tri.bounds();
-            let Some((x0, x1, y0, y1)) = region.texel_range(lo, hi) else { continue };
+            let Some((x0, x1, y0, y1)) = region.texel_range(lo, hi) else {
+                continue;
+            };
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     let q = region.texel_center(x, y);
                     if tri.contains(q) {
                         let d = tri.depth_at(q);
                         if d > model.near {
-                            layers[model.plan.layer_of(d)][y as usize * res + x as usize].add_caster(d);
+                            layers[layer as usize][y as usize * res + x as usize].add_caster(d);
                         }
                     }
                 }
@@ -81,7 +83,9 @@ impl<'m, 'a> RasterMaps<'m, 'a> {
         let perspective = model.frame().is_perspective();
         for (fin, &layer) in model.fins.iter().zip(&model.fin_layers) {
             let (lo, hi) = fin.bounds();
-            let Some((x0, x1, y0, y1)) = region.texel_range(lo, hi) else { continue };
+            let Some((x0, x1, y0, y1)) = region.texel_range(lo, hi) else {
+                continue;
+            };
             let map = &mut layers[layer as usize];
             for y in y0..=y1 {
                 for x in x0..=x1 {
@@ -91,13 +95,22 @@ impl<'m, 'a> RasterMaps<'m, 'a> {
                 }
             }
         }
-        Self { model, region, layers }
+        Self {
+            model,
+            region,
+            layers,
+        }
     }
 
     /// The square covering every caster and fin, clamped to ±83° off axis.
     fn covering_region(model: &FinShadowModel, resolution: u32) -> MapRegion {
         let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
-        for (a, b) in model.casters.iter().map(|c| c.bounds()).chain(model.fins.iter().map(|f| f.bounds())) {
+        for (a, b) in model
+            .casters
+            .iter()
+            .map(|c| c.bounds())
+            .chain(model.fins.iter().map(|f| f.bounds()))
+        {
             lo = lo.min(a);
             hi = hi.max(b);
         }
@@ -108,12 +121,20 @@ impl<'m, 'a> RasterMaps<'m, 'a> {
         }
         let size = (hi - lo).max_element().max(1e-9) * 1.001;
         let center = (lo + hi) * 0.5;
-        MapRegion { min: center - Vec2::splat(size * 0.5), texel: size / resolution as f32, resolution }
+        MapRegion {
+            min: center - Vec2::splat(size * 0.5),
+            texel: size / resolution as f32,
+            resolution,
+        }
     }
 
     /// World size of one texel at depth `z`.
     pub fn texel_world_size(&self, z: f32) -> f32 {
-        if self.model.frame().is_perspective() { self.region.texel * z } else { self.region.texel }
+        if self.model.frame().is_perspective() {
+            self.region.texel * z
+        } else {
+            self.region.texel
+        }
     }
 
     /// Visibility of the disk from a receiver, looked up at the nearest texel.
@@ -126,21 +147,27 @@ impl<'m, 'a> RasterMaps<'m, 'a> {
         if m.behind_light(p) {
             return 0.0;
         }
-        let k = m.plan.layer_of(p.z);
         match self.region.texel_of(m.map(p)) {
             Some((x, y)) => {
                 let idx = (y * self.region.resolution + x) as usize;
-                texels.extend(self.layers[..=k].iter().map(|l| l[idx]));
+                texels.extend(self.layers.iter().map(|l| l[idx]));
             }
-            None => texels.resize(k + 1, LayerTexel::EMPTY),
+            None => texels.resize(self.layers.len(), LayerTexel::EMPTY),
         }
         // Without a normal there is no offset: fall back to a slope-blind depth bias.
-        let slack = if receiver.normal == Vec3::ZERO { 2.0 * texel_world + m.surface_epsilon() } else { 0.0 };
+        let slack = if receiver.normal == Vec3::ZERO {
+            2.0 * texel_world + m.surface_epsilon()
+        } else {
+            0.0
+        };
         m.visibility_from(&texels, p.z, p.z * (1.0 - 1e-6) - slack)
     }
 
     /// Memory held by the maps, in bytes.
     pub fn memory_bytes(&self) -> usize {
-        self.layers.iter().map(|l| l.len() * std::mem::size_of::<LayerTexel>()).sum()
+        self.layers
+            .iter()
+            .map(|l| l.len() * std::mem::size_of::<LayerTexel>())
+            .sum()
     }
 }
