@@ -15,12 +15,8 @@ use shadow_fins::{
 };
 
 fn blob_scene(triangles: u32) -> (Scene, Light) {
-    let blob = SceneObject::new(
-        "blob",
-        shapes::bumpy_blob(triangles),
-        Affine3A::from_translation(Vec3::Y * 1.5),
-    )
-    .unwrap();
+    let blob =
+        SceneObject::new("blob", shapes::bumpy_blob(triangles), Affine3A::from_translation(Vec3::Y * 1.5)).unwrap();
     let light = Light::Disk(DiskLight::new(Vec3::new(0.4, 5.0, 0.0), Vec3::NEG_Y, 0.5).unwrap());
     (Scene::new(vec![blob]), light)
 }

@@ -34,20 +34,13 @@ const LEAF_SIZE: usize = 4;
 impl Bvh {
     pub fn new(triangles: &[[Vec3; 3]]) -> Self {
         let mut order: Vec<u32> = (0..triangles.len() as u32).collect();
-        let centroids: Vec<Vec3> = triangles
-            .iter()
-            .map(|t| (t[0] + t[1] + t[2]) / 3.0)
-            .collect();
+        let centroids: Vec<Vec3> = triangles.iter().map(|t| (t[0] + t[1] + t[2]) / 3.0).collect();
         let mut nodes = Vec::with_capacity(2 * triangles.len() / LEAF_SIZE + 1);
         if !triangles.is_empty() {
             build(&mut nodes, &mut order, 0, triangles, &centroids);
         }
         let tris = order.iter().map(|&i| triangles[i as usize]).collect();
-        Self {
-            nodes,
-            triangles: tris,
-            original: order,
-        }
+        Self { nodes, triangles: tris, original: order }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -106,10 +99,7 @@ impl Bvh {
             }
             if node.count > 0 {
                 let s = node.index as usize;
-                for (k, tri) in self.triangles[s..s + node.count as usize]
-                    .iter()
-                    .enumerate()
-                {
+                for (k, tri) in self.triangles[s..s + node.count as usize].iter().enumerate() {
                     if let Some(t) = intersect(tri, origin, dir) {
                         if t > t_min && best.is_none_or(|b| t < b.0) {
                             best = Some((t, s + k));
@@ -124,22 +114,12 @@ impl Bvh {
         }
         best.map(|(t, k)| {
             let [a, b, c] = self.triangles[k];
-            Hit {
-                t,
-                triangle: self.original[k],
-                normal: (b - a).cross(c - a).normalize_or_zero(),
-            }
+            Hit { t, triangle: self.original[k], normal: (b - a).cross(c - a).normalize_or_zero() }
         })
     }
 }
 
-fn build(
-    nodes: &mut Vec<Node>,
-    order: &mut [u32],
-    first: usize,
-    tris: &[[Vec3; 3]],
-    centroids: &[Vec3],
-) -> usize {
+fn build(nodes: &mut Vec<Node>, order: &mut [u32], first: usize, tris: &[[Vec3; 3]], centroids: &[Vec3]) -> usize {
     let (mut min, mut max) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     let (mut cmin, mut cmax) = (min, max);
     for &i in order.iter() {
@@ -151,12 +131,7 @@ fn build(
         cmax = cmax.max(centroids[i as usize]);
     }
     let me = nodes.len();
-    nodes.push(Node {
-        min,
-        max,
-        index: first as u32,
-        count: order.len() as u32,
-    });
+    nodes.push(Node { min, max, index: first as u32, count: order.len() as u32 });
     let extent = cmax - cmin;
     if order.len() <= LEAF_SIZE || extent.max_element() <= 0.0 {
         return me;
@@ -169,9 +144,7 @@ fn build(
         2
     };
     let mid = order.len() / 2;
-    order.select_nth_unstable_by(mid, |&a, &b| {
-        centroids[a as usize][axis].total_cmp(&centroids[b as usize][axis])
-    });
+    order.select_nth_unstable_by(mid, |&a, &b| centroids[a as usize][axis].total_cmp(&centroids[b as usize][axis]));
     let (left, right) = order.split_at_mut(mid);
     build(nodes, left, first, tris, centroids);
     let r = build(nodes, right, first + mid, tris, centroids);
@@ -219,8 +192,7 @@ mod tests {
     use super::*;
 
     fn brute_any(tris: &[[Vec3; 3]], o: Vec3, d: Vec3, t0: f32, t1: f32) -> bool {
-        tris.iter()
-            .any(|t| intersect(t, o, d).is_some_and(|t| t > t0 && t < t1))
+        tris.iter().any(|t| intersect(t, o, d).is_some_and(|t| t > t0 && t < t1))
     }
 
     #[test]
@@ -236,25 +208,16 @@ mod tests {
         let tris: Vec<[Vec3; 3]> = (0..300)
             .map(|_| {
                 let c = Vec3::new(rnd(), rnd(), rnd()) * 3.0;
-                [
-                    c,
-                    c + Vec3::new(rnd(), rnd(), rnd()) * 0.4,
-                    c + Vec3::new(rnd(), rnd(), rnd()) * 0.4,
-                ]
+                [c, c + Vec3::new(rnd(), rnd(), rnd()) * 0.4, c + Vec3::new(rnd(), rnd(), rnd()) * 0.4]
             })
             .collect();
         let bvh = Bvh::new(&tris);
         for _ in 0..2000 {
             let o = Vec3::new(rnd(), rnd(), rnd()) * 4.0;
             let d = Vec3::new(rnd(), rnd(), rnd());
-            assert_eq!(
-                bvh.any_hit(o, d, 1e-4, 2.0),
-                brute_any(&tris, o, d, 1e-4, 2.0)
-            );
-            let brute = tris
-                .iter()
-                .filter_map(|t| intersect(t, o, d).filter(|&t| t > 1e-4))
-                .fold(f32::INFINITY, f32::min);
+            assert_eq!(bvh.any_hit(o, d, 1e-4, 2.0), brute_any(&tris, o, d, 1e-4, 2.0));
+            let brute =
+                tris.iter().filter_map(|t| intersect(t, o, d).filter(|&t| t > 1e-4)).fold(f32::INFINITY, f32::min);
             match bvh.closest_hit(o, d, 1e-4) {
                 Some(h) => assert!((h.t - brute).abs() <= 1e-6 * brute.max(1.0)),
                 None => assert!(brute.is_infinite()),

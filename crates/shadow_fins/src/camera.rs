@@ -14,12 +14,7 @@ pub struct Camera {
 
 impl Camera {
     pub fn looking_at(position: Vec3, target: Vec3) -> Self {
-        Self {
-            position,
-            target,
-            up: Vec3::Y,
-            vertical_fov: 45.0,
-        }
+        Self { position, target, up: Vec3::Y, vertical_fov: 45.0 }
     }
 
     /// World-space ray (origin, unit direction) through the centre of pixel `(x, y)`

@@ -10,14 +10,8 @@ pub enum MeshError {
     #[error("index count {0} is not a multiple of 3: meshes must be triangle lists")]
     IndexCountNotTriangles(usize),
     #[error("index {index} at position {at} is out of range for {vertex_count} vertices")]
-    IndexOutOfRange {
-        at: usize,
-        index: u32,
-        vertex_count: usize,
-    },
-    #[error(
-        "vertex {vertex} has a non-finite position {position:?}: remove NaN/Inf vertices before use"
-    )]
+    IndexOutOfRange { at: usize, index: u32, vertex_count: usize },
+    #[error("vertex {vertex} has a non-finite position {position:?}: remove NaN/Inf vertices before use")]
     NonFinitePosition { vertex: usize, position: [f32; 3] },
     #[error("every triangle of the mesh has zero area: nothing can cast or receive a shadow")]
     AllDegenerate,
@@ -34,9 +28,7 @@ pub enum LightError {
     BadDirection([f32; 3]),
     #[error("light radius {0} is negative or not finite: use a radius >= 0 (0 gives hard shadows)")]
     BadRadius(f32),
-    #[error(
-        "sun angular radius {0} rad is outside [0, 1.4]: use a small angle (the real sun is 0.0047 rad)"
-    )]
+    #[error("sun angular radius {0} rad is outside [0, 1.4]: use a small angle (the real sun is 0.0047 rad)")]
     BadAngle(f32),
 }
 
@@ -57,20 +49,13 @@ pub enum SettingsError {
 #[derive(Debug, Error)]
 pub enum GltfError {
     #[error("cannot read glTF file {path}: {source}")]
-    Io {
-        path: String,
-        source: std::io::Error,
-    },
+    Io { path: String, source: std::io::Error },
     #[error("not a valid glTF/GLB file: {0}")]
     Parse(String),
     #[error("glTF buffer {index} is missing or unreadable: {reason}")]
     Buffer { index: usize, reason: String },
     #[error("glTF mesh '{mesh}' primitive {primitive} is unusable: {source}")]
-    Mesh {
-        mesh: String,
-        primitive: usize,
-        source: MeshError,
-    },
+    Mesh { mesh: String, primitive: usize, source: MeshError },
     #[error("glTF file has no triangle meshes: export the scene with triangulated meshes")]
     NoMeshes,
 }

@@ -8,12 +8,23 @@
 //!
 //! Fins are kept in map space, where the oracle and the GPU look them up, and
 //! carry their own geometry so that `t` (eq. 1) is exact:
-//! - a quad is the map trapezoid between the projected edge `m0 → m1` and its
-//!   offset by `w0, w1` along the edge's unit normal `d`; a point
-//!   `m0 + α(m1 − m0) + β d` has `t = β / lerp(w0, w1, α)` and depth `L_b` of the
-//!   edge point at `α` (`1/L` is linear in `α` under perspective);
+//! - a quad spans the projected edge `m0 → m1` and its far boundary
+//!   `m0 + w0 d0 → m1 + w1 d1`. A point is `lerp(m0, m1, α) + t · lerp(w0 d0, w1 d1, α)`
+//!   (inverse bilinear), with weight from `t` and depth `L_b` of the edge point at
+//!   `α` (`1/L` is linear in `α` under perspective). On a crease `d0 = d1` is the
+//!   edge's normal and the quad is the paper's trapezoid with `t = β / w(α)`;
 //! - a fan is a circular sector of radius `w` around a silhouette vertex, with
 //!   radial `t = r/w` and the vertex's depth.
+//!
+//! **Smooth silhouettes (beyond the paper).** A tessellated smooth surface has a
+//! staircase silhouette: its edges turn by up to 90° at every facet, and with
+//! per-edge normals the fins of neighbouring steps fan out in all directions;
+//! the min/max rules then pick the worst of them (measured: the ring and sphere
+//! shadows came out far too dark). Where both silhouette edges at a vertex are
+//! facet edges of a smooth surface (dihedral below
+//! [`crate::mesh::CREASE_ANGLE_DEG`]), both quads use the projected vertex
+//! normal there instead, so the fins form one smooth band with no fan. Creases
+//! keep the paper's construction.
 //!
 //! Fans close the gap on the outer side of convex turns and on the inner side of
 //! concave turns. Where three or more silhouette edges meet (or the loop is not
@@ -37,12 +48,13 @@ pub enum FinSide {
 /// A fin's shape in map space.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum FinShape {
-    /// Trapezoid on a silhouette edge.
+    /// Quad on a silhouette edge.
     Quad {
         m0: Vec2,
         m1: Vec2,
-        /// Unit map-space normal of the edge, pointing across the fin.
-        dir: Vec2,
+        /// Unit directions across the fin at `m0` and `m1`.
+        d0: Vec2,
+        d1: Vec2,
         /// Fin widths (map units) at `m0` and `m1`.
         w0: f32,
         w1: f32,
@@ -52,13 +64,7 @@ pub enum FinShape {
     },
     /// Circular sector around a silhouette vertex, from `from` to `to` (unit
     /// vectors, short arc, less than π apart).
-    Sector {
-        center: Vec2,
-        radius: f32,
-        from: Vec2,
-        to: Vec2,
-        depth: f32,
-    },
+    Sector { center: Vec2, radius: f32, from: Vec2, to: Vec2, depth: f32 },
 }
 
 /// One fin: shape, side, and the patch (occluder) it softens.
@@ -82,47 +88,18 @@ impl Fin {
     #[inline]
     pub fn sample(&self, q: Vec2, perspective: bool) -> Option<FinSample> {
         match self.shape {
-            FinShape::Quad {
-                m0,
-                m1,
-                dir,
-                w0,
-                w1,
-                z0,
-                z1,
-            } => {
-                let e = m1 - m0;
-                let rel = q - m0;
-                let alpha = rel.dot(e) / e.length_squared();
-                if !(0.0..=1.0).contains(&alpha) {
-                    return None;
-                }
-                let beta = rel.dot(dir);
-                let width = w0 + (w1 - w0) * alpha;
+            FinShape::Quad { m0, m1, d0, d1, w0, w1, z0, z1 } => {
+                let (alpha, t) = quad_coordinates(q, m0, m1, d0 * w0, d1 * w1)?;
                 // The edge line itself belongs to the inner fin only: there the
                 // caster blocks (base 0) and visibility must come out as 1/2.
-                let on_edge_ok = self.side == FinSide::Inner;
-                if !((beta > 0.0 || (beta == 0.0 && on_edge_ok)) && beta <= width && width > 0.0) {
+                if t == 0.0 && self.side == FinSide::Outer {
                     return None;
                 }
-                let t = beta / width;
-                let depth = if perspective {
-                    1.0 / (1.0 / z0 + (1.0 / z1 - 1.0 / z0) * alpha)
-                } else {
-                    z0 + (z1 - z0) * alpha
-                };
-                Some(FinSample {
-                    weight: 0.5 * (1.0 - t),
-                    depth,
-                })
+                let depth =
+                    if perspective { 1.0 / (1.0 / z0 + (1.0 / z1 - 1.0 / z0) * alpha) } else { z0 + (z1 - z0) * alpha };
+                Some(FinSample { weight: 0.5 * (1.0 - t), depth })
             }
-            FinShape::Sector {
-                center,
-                radius,
-                from,
-                to,
-                depth,
-            } => {
+            FinShape::Sector { center, radius, from, to, depth } => {
                 let rel = q - center;
                 let r2 = rel.length_squared();
                 if !(r2 <= radius * radius) || (r2 == 0.0 && self.side == FinSide::Outer) {
@@ -133,10 +110,7 @@ impl Fin {
                     return None;
                 }
                 let t = r2.sqrt() / radius;
-                Some(FinSample {
-                    weight: 0.5 * (1.0 - t),
-                    depth,
-                })
+                Some(FinSample { weight: 0.5 * (1.0 - t), depth })
             }
         }
     }
@@ -144,32 +118,76 @@ impl Fin {
     /// Map-space bounding box `(min, max)`.
     pub fn bounds(&self) -> (Vec2, Vec2) {
         match self.shape {
-            FinShape::Quad {
-                m0,
-                m1,
-                dir,
-                w0,
-                w1,
-                ..
-            } => {
-                let (p2, p3) = (m0 + dir * w0, m1 + dir * w1);
+            FinShape::Quad { m0, m1, d0, d1, w0, w1, .. } => {
+                let (p2, p3) = (m0 + d0 * w0, m1 + d1 * w1);
                 (m0.min(m1).min(p2).min(p3), m0.max(m1).max(p2).max(p3))
             }
-            FinShape::Sector { center, radius, .. } => {
-                (center - Vec2::splat(radius), center + Vec2::splat(radius))
-            }
+            FinShape::Sector { center, radius, .. } => (center - Vec2::splat(radius), center + Vec2::splat(radius)),
         }
     }
 }
 
-/// Builds every fin of a set of silhouette edges, reusing `out`.
+/// `(α, t)` of `q` in the quad `lerp(m0, m1, α) + t · lerp(a0, a1, α)`, both in
+/// `[0, 1]`, or `None` outside. Exact for the trapezoid (`a0 ∥ a1`) and an
+/// inverse bilinear map otherwise.
+#[inline]
+pub fn quad_coordinates(q: Vec2, m0: Vec2, m1: Vec2, a0: Vec2, a1: Vec2) -> Option<(f32, f32)> {
+    let e = m1 - m0;
+    let h = q - m0;
+    let g = a1 - a0;
+    // q − m0 = α e + t a0 + α t g, so (h − t a0) × (e + t g) = 0:
+    // k2 t² + k1 t + k0 = 0.
+    let k2 = g.perp_dot(a0);
+    let k1 = e.perp_dot(a0) + h.perp_dot(g);
+    let k0 = h.perp_dot(e);
+    let scale = e.length_squared().max(a0.length_squared()).max(a1.length_squared());
+    let solve_alpha = |t: f32| {
+        let dir = e + g * t;
+        let len2 = dir.length_squared();
+        (len2 > 0.0).then(|| (h - a0 * t).dot(dir) / len2)
+    };
+    // A little slack on α so that two quads sharing an end ray leave no crack.
+    let inside = |alpha: f32, t: f32| (-1e-5..=1.0 + 1e-5).contains(&alpha) && (0.0..=1.0 + 1e-5).contains(&t);
+    // Snap float noise on the edge line (t = 0) so the inner/outer split is exact.
+    let snap = |t: f32| if t.abs() <= 1e-6 { 0.0 } else { t };
+    if k2.abs() <= 1e-7 * scale * scale {
+        // Parallel directions: linear in t.
+        if k1 == 0.0 {
+            return None;
+        }
+        let t = snap(-k0 / k1);
+        let alpha = solve_alpha(t)?;
+        let back = m0 + e * alpha + (a0 + g * alpha) * t;
+        return (inside(alpha, t) && (back - q).length_squared() <= 1e-8 * scale)
+            .then_some((alpha.clamp(0.0, 1.0), t.min(1.0)));
+    }
+    let disc = k1 * k1 - 4.0 * k0 * k2;
+    if disc < 0.0 {
+        return None;
+    }
+    let root = disc.sqrt();
+    // Numerically stable roots.
+    let qq = -0.5 * (k1 + root.copysign(k1));
+    let candidates = [qq / k2, if qq != 0.0 { k0 / qq } else { f32::NAN }];
+    candidates.into_iter().filter(|t| t.is_finite()).map(snap).find_map(|t| {
+        let alpha = solve_alpha(t)?;
+        // Guard against a root that does not reproduce q (near-degenerate quads).
+        let back = m0 + e * alpha + (a0 + g * alpha) * t;
+        (inside(alpha, t) && (back - q).length_squared() <= 1e-8 * scale).then_some((alpha.clamp(0.0, 1.0), t.min(1.0)))
+    })
+}
+
+/// Builds every fin of a set of silhouette edges, reusing its buffers.
 ///
 /// `reference_depth` is `L0`. Fins of zero width (radius 0, or an edge on the
 /// reference plane) are not emitted, so radius 0 reproduces hard shadows exactly.
 #[derive(Debug, Default)]
 pub struct FinBuilder {
     incidences: Vec<(u32, u32, bool)>,
+    /// Per edge: projected endpoints and its unit normal (NaN when degenerate).
     mapped: Vec<(Vec2, Vec2, Vec2)>,
+    /// Per edge: fin directions at its two ends.
+    end_dirs: Vec<[Vec2; 2]>,
 }
 
 impl FinBuilder {
@@ -186,7 +204,6 @@ impl FinBuilder {
             return;
         }
         let width = |z: f32| frame.penumbra_half_width(z, reference_depth);
-        // Per edge: projected endpoints and outward normal; NaN normal = degenerate.
         let mapped = &mut self.mapped;
         mapped.clear();
         mapped.extend(edges.iter().map(|e| {
@@ -195,31 +212,8 @@ impl FinBuilder {
             (m0, m1, dir)
         }));
         let mapped = &*mapped;
-        for (e, &(m0, m1, dir)) in edges.iter().zip(mapped) {
-            if e.a.z <= near || e.b.z <= near || dir.is_nan() {
-                continue;
-            }
-            let (w0, w1) = (width(e.a.z), width(e.b.z));
-            if !(w0 > 0.0 || w1 > 0.0) {
-                continue;
-            }
-            for (side, d) in [(FinSide::Outer, dir), (FinSide::Inner, -dir)] {
-                let shape = FinShape::Quad {
-                    m0,
-                    m1,
-                    dir: d,
-                    w0,
-                    w1,
-                    z0: e.a.z,
-                    z1: e.b.z,
-                };
-                out.push(Fin {
-                    shape,
-                    side,
-                    patch: e.patch,
-                });
-            }
-        }
+        self.end_dirs.clear();
+        self.end_dirs.extend(mapped.iter().map(|m| [m.2, m.2]));
 
         // Vertex incidences: (vertex id, edge index, edge starts here).
         let inc = &mut self.incidences;
@@ -228,7 +222,7 @@ impl FinBuilder {
             inc.push((e.vertex_a, i as u32, true));
             inc.push((e.vertex_b, i as u32, false));
         }
-        inc.sort_unstable_by_key(|&(v, i, s)| (v, i, s));
+        inc.sort_unstable_by_key(|&(v, i, s)| (v as u64) << 33 | (i as u64) << 1 | s as u64);
         let mut k = 0;
         while k < inc.len() {
             let v = inc[k].0;
@@ -236,13 +230,30 @@ impl FinBuilder {
             let group = &inc[k..end];
             k = end;
             let (first_edge, first_starts) = (group[0].1 as usize, group[0].2);
-            let pos = if first_starts {
-                edges[first_edge].a
-            } else {
-                edges[first_edge].b
-            };
+            let pos = if first_starts { edges[first_edge].a } else { edges[first_edge].b };
             if pos.z <= near {
                 continue;
+            }
+            let ends = |starts: bool| group.iter().filter(move |x| x.2 == starts).map(|x| x.1 as usize);
+            let (n_in, n_out) = (ends(false).count(), ends(true).count());
+            let (first_in, first_out) = (ends(false).next(), ends(true).next());
+            let normal = if first_starts { edges[first_edge].normal_a } else { edges[first_edge].normal_b };
+            // Smooth vertex: one edge in, one out, both facet edges of a smooth surface.
+            if let (1, 1, Some(a), Some(b)) = (n_in, n_out, first_in, first_out) {
+                if !edges[a].crease && !edges[b].crease {
+                    let (da, db) = (mapped[a].2, mapped[b].2);
+                    let mut d = frame.map_direction(pos, normal).normalize_or(Vec2::NAN);
+                    // The projected normal must point out of the occluder, between the edges' normals.
+                    let mid = (da + db).normalize_or(Vec2::NAN);
+                    if !(d.dot(da) > 0.05 && d.dot(db) > 0.05) {
+                        d = mid;
+                    }
+                    if !d.is_nan() {
+                        self.end_dirs[a][1] = d;
+                        self.end_dirs[b][0] = d;
+                        continue;
+                    }
+                }
             }
             let radius = width(pos.z);
             if !(radius > 0.0) {
@@ -252,37 +263,15 @@ impl FinBuilder {
             let patch = edges[first_edge].patch;
             let mut sector = |from: Vec2, to: Vec2, side: FinSide| {
                 // Skip empty or degenerate sectors (collinear fins need no fan).
-                if from.is_nan()
-                    || to.is_nan()
-                    || from.perp_dot(to).abs() < 1e-6 && from.dot(to) > 0.0
-                {
+                if from.is_nan() || to.is_nan() || from.perp_dot(to).abs() < 1e-6 && from.dot(to) > 0.0 {
                     return;
                 }
-                out.push(Fin {
-                    shape: FinShape::Sector {
-                        center,
-                        radius,
-                        from,
-                        to,
-                        depth: pos.z,
-                    },
-                    side,
-                    patch,
-                });
+                out.push(Fin { shape: FinShape::Sector { center, radius, from, to, depth: pos.z }, side, patch });
             };
-            let ends = |starts: bool| {
-                group
-                    .iter()
-                    .filter(move |x| x.2 == starts)
-                    .map(|x| x.1 as usize)
-            };
-            let (n_in, n_out) = (ends(false).count(), ends(true).count());
-            let (first_in, first_out) = (ends(false).next(), ends(true).next());
             match (n_in, n_out, first_in, first_out) {
                 (1, 1, Some(a), Some(b)) => {
-                    let (a, b) = (&a, &b);
-                    let (ea, eb) = (mapped[*a].1 - mapped[*a].0, mapped[*b].1 - mapped[*b].0);
-                    let (da, db) = (mapped[*a].2, mapped[*b].2);
+                    let (ea, eb) = (mapped[a].1 - mapped[a].0, mapped[b].1 - mapped[b].0);
+                    let (da, db) = (mapped[a].2, mapped[b].2);
                     // Interior is on the right: a right turn (negative cross) is convex.
                     let turn = ea.perp_dot(eb);
                     if turn < 0.0 {
@@ -301,17 +290,6 @@ impl FinBuilder {
                 }
                 _ => {
                     // Junction: sectors from each fin to the projected averaged normal.
-                    let normal: glam::Vec3 = group
-                        .iter()
-                        .map(|&(_, i, s)| {
-                            if s {
-                                edges[i as usize].normal_a
-                            } else {
-                                edges[i as usize].normal_b
-                            }
-                        })
-                        .next()
-                        .unwrap_or_default();
                     let avg = frame.map_direction(pos, normal).normalize_or(Vec2::NAN);
                     for &(_, i, _) in group {
                         let d = mapped[i as usize].2;
@@ -321,6 +299,57 @@ impl FinBuilder {
                         }
                     }
                 }
+            }
+        }
+
+        for ((e, &(m0, m1, dir)), &[d0, d1]) in edges.iter().zip(mapped).zip(&self.end_dirs) {
+            if e.a.z <= near || e.b.z <= near || dir.is_nan() {
+                continue;
+            }
+            let (w0, w1) = (width(e.a.z), width(e.b.z));
+            if !(w0 > 0.0 || w1 > 0.0) {
+                continue;
+            }
+            // A staircase step almost along the fin direction spans no area; its
+            // neighbours' fins meet across it.
+            let along = (m1 - m0).normalize_or(Vec2::ZERO);
+            if along.perp_dot(d0).abs() < 0.05 || along.perp_dot(d1).abs() < 0.05 {
+                continue;
+            }
+            for (side, sign) in [(FinSide::Outer, 1.0), (FinSide::Inner, -1.0)] {
+                let shape = FinShape::Quad { m0, m1, d0: d0 * sign, d1: d1 * sign, w0, w1, z0: e.a.z, z1: e.b.z };
+                out.push(Fin { shape, side, patch: e.patch });
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn trapezoid_coordinates_are_distance_over_local_width() {
+        let (m0, m1) = (Vec2::ZERO, Vec2::new(2.0, 0.0));
+        let d = Vec2::Y;
+        let (alpha, t) = quad_coordinates(Vec2::new(0.5, 0.3), m0, m1, d * 1.0, d * 2.0).unwrap();
+        assert!((alpha - 0.25).abs() < 1e-6);
+        assert!((t - 0.3 / 1.25).abs() < 1e-6);
+        assert!(quad_coordinates(Vec2::new(0.5, -0.1), m0, m1, d, d * 2.0).is_none());
+        assert!(quad_coordinates(Vec2::new(2.5, 0.1), m0, m1, d, d * 2.0).is_none());
+        assert_eq!(quad_coordinates(Vec2::new(1.0, 0.0), m0, m1, d, d).map(|x| x.1), Some(0.0));
+    }
+
+    #[test]
+    fn bilinear_coordinates_invert_the_quad() {
+        let (m0, m1) = (Vec2::new(0.1, 0.2), Vec2::new(1.3, -0.1));
+        let (a0, a1) = (Vec2::new(-0.3, 0.9), Vec2::new(0.4, 1.1));
+        for i in 0..=10 {
+            for j in 0..=10 {
+                let (alpha, t) = (i as f32 / 10.0, j as f32 / 10.0);
+                let q = m0.lerp(m1, alpha) + a0.lerp(a1, alpha) * t;
+                let Some((ra, rt)) = quad_coordinates(q, m0, m1, a0, a1) else { panic!("({alpha},{t}) not found") };
+                assert!((ra - alpha).abs() < 1e-4 && (rt - t).abs() < 1e-4, "({alpha},{t}) -> ({ra},{rt})");
             }
         }
     }

@@ -29,10 +29,7 @@ pub struct GltfImport {
 /// Reads a glTF or GLB file. External buffers are resolved next to the file.
 pub fn load_gltf(path: impl AsRef<Path>) -> Result<GltfImport, GltfError> {
     let path = path.as_ref();
-    let bytes = std::fs::read(path).map_err(|source| GltfError::Io {
-        path: path.display().to_string(),
-        source,
-    })?;
+    let bytes = std::fs::read(path).map_err(|source| GltfError::Io { path: path.display().to_string(), source })?;
     parse_gltf(&bytes, path.parent())
 }
 
@@ -43,10 +40,9 @@ pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, G
     for buffer in gltf.buffers() {
         let index = buffer.index();
         let data = match buffer.source() {
-            gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| GltfError::Buffer {
-                index,
-                reason: "GLB has no BIN chunk".into(),
-            })?,
+            gltf::buffer::Source::Bin => {
+                gltf.blob.clone().ok_or_else(|| GltfError::Buffer { index, reason: "GLB has no BIN chunk".into() })?
+            }
             gltf::buffer::Source::Uri(uri) => {
                 read_uri(uri, base_dir).map_err(|reason| GltfError::Buffer { index, reason })?
             }
@@ -54,11 +50,7 @@ pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, G
         if data.len() < buffer.length() {
             return Err(GltfError::Buffer {
                 index,
-                reason: format!(
-                    "holds {} bytes, the file declares {}",
-                    data.len(),
-                    buffer.length()
-                ),
+                reason: format!("holds {} bytes, the file declares {}", data.len(), buffer.length()),
             });
         }
         buffers.push(data);
@@ -71,19 +63,14 @@ pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, G
         Some(s) => s.nodes().collect(),
         None => gltf.nodes().collect(),
     };
-    let mut stack: Vec<(gltf::Node, Mat4)> =
-        roots.into_iter().map(|n| (n, Mat4::IDENTITY)).collect();
+    let mut stack: Vec<(gltf::Node, Mat4)> = roots.into_iter().map(|n| (n, Mat4::IDENTITY)).collect();
     while let Some((node, parent)) = stack.pop() {
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
         stack.extend(node.children().map(|c| (c, world)));
         let Some(mesh) = node.mesh() else { continue };
         let mesh_name = mesh.name().unwrap_or("unnamed").to_string();
         for (pi, prim) in mesh.primitives().enumerate() {
-            let fail = |source: MeshError| GltfError::Mesh {
-                mesh: mesh_name.clone(),
-                primitive: pi,
-                source,
-            };
+            let fail = |source: MeshError| GltfError::Mesh { mesh: mesh_name.clone(), primitive: pi, source };
             let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
             let Some(positions) = reader.read_positions() else {
                 skipped.push(fail(MeshError::Empty));
@@ -102,9 +89,7 @@ pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, G
                 _ => continue,
             };
             let transform = Affine3A::from_mat4(world);
-            match Mesh::new(positions, indices)
-                .and_then(|m| SceneObject::new(mesh_name.clone(), m, transform))
-            {
+            match Mesh::new(positions, indices).and_then(|m| SceneObject::new(mesh_name.clone(), m, transform)) {
                 Ok(o) => objects.push(o),
                 Err(e) => skipped.push(fail(e)),
             }
@@ -113,21 +98,12 @@ pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, G
     if objects.is_empty() {
         return Err(skipped.into_iter().next().unwrap_or(GltfError::NoMeshes));
     }
-    Ok(GltfImport {
-        scene: Scene::new(objects),
-        skipped,
-    })
+    Ok(GltfImport { scene: Scene::new(objects), skipped })
 }
 
 fn strip_to_list(s: &[u32]) -> Vec<u32> {
     (2..s.len())
-        .flat_map(|i| {
-            if i % 2 == 0 {
-                [s[i - 2], s[i - 1], s[i]]
-            } else {
-                [s[i - 1], s[i - 2], s[i]]
-            }
-        })
+        .flat_map(|i| if i % 2 == 0 { [s[i - 2], s[i - 1], s[i]] } else { [s[i - 1], s[i - 2], s[i]] })
         .collect()
 }
 
@@ -137,9 +113,7 @@ fn fan_to_list(s: &[u32]) -> Vec<u32> {
 
 fn read_uri(uri: &str, base_dir: Option<&Path>) -> Result<Vec<u8>, String> {
     if let Some(rest) = uri.strip_prefix("data:") {
-        let (_, data) = rest
-            .split_once(";base64,")
-            .ok_or("data URI is not base64")?;
+        let (_, data) = rest.split_once(";base64,").ok_or("data URI is not base64")?;
         return base64_decode(data).ok_or_else(|| "data URI holds invalid base64".to_string());
     }
     let dir = base_dir.ok_or("external buffer but no directory to resolve it in")?;
@@ -194,10 +168,7 @@ fn base64_encode(data: &[u8]) -> String {
     const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let mut out = String::with_capacity(data.len().div_ceil(3) * 4);
     for chunk in data.chunks(3) {
-        let n = chunk
-            .iter()
-            .enumerate()
-            .fold(0u32, |a, (i, &b)| a | (b as u32) << (16 - 8 * i));
+        let n = chunk.iter().enumerate().fold(0u32, |a, (i, &b)| a | (b as u32) << (16 - 8 * i));
         for i in 0..4 {
             if i <= chunk.len() {
                 out.push(T[(n >> (18 - 6 * i) & 63) as usize] as char);
@@ -216,13 +187,8 @@ pub fn write_gltf(scene: &Scene) -> String {
     let mut bin: Vec<u8> = Vec::new();
     let (mut views, mut accessors, mut meshes, mut nodes) = (vec![], vec![], vec![], vec![]);
     for (i, o) in scene.objects.iter().enumerate() {
-        let (lo, hi) = o
-            .mesh
-            .positions()
-            .iter()
-            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), p| {
-                (a.min(*p), b.max(*p))
-            });
+        let (lo, hi) =
+            o.mesh.positions().iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
         let pos_offset = bin.len();
         for p in o.mesh.positions() {
             for c in p.to_array() {
@@ -245,7 +211,13 @@ pub fn write_gltf(scene: &Scene) -> String {
         let (pa, ia) = (accessors.len(), accessors.len() + 1);
         accessors.push(format!(
             r#"{{"bufferView":{pv},"componentType":5126,"count":{},"type":"VEC3","min":[{},{},{}],"max":[{},{},{}]}}"#,
-            o.mesh.positions().len(), lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+            o.mesh.positions().len(),
+            lo.x,
+            lo.y,
+            lo.z,
+            hi.x,
+            hi.y,
+            hi.z
         ));
         accessors.push(format!(
             r#"{{"bufferView":{iv},"componentType":5125,"count":{},"type":"SCALAR"}}"#,
@@ -257,11 +229,7 @@ pub fn write_gltf(scene: &Scene) -> String {
         ));
         let m = Mat4::from(o.transform).to_cols_array();
         let m: Vec<String> = m.iter().map(|v| format!("{v}")).collect();
-        nodes.push(format!(
-            r#"{{"name":"{}","mesh":{i},"matrix":[{}]}}"#,
-            json_escape(&o.name),
-            m.join(",")
-        ));
+        nodes.push(format!(r#"{{"name":"{}","mesh":{i},"matrix":[{}]}}"#, json_escape(&o.name), m.join(",")));
     }
     let node_ids: Vec<String> = (0..nodes.len()).map(|i| i.to_string()).collect();
     format!(

@@ -31,11 +31,7 @@ pub struct GroundTruth<'a> {
 
 impl<'a> GroundTruth<'a> {
     pub fn new(scene: &'a LightSpaceScene, samples: u32) -> Self {
-        Self {
-            scene,
-            bvh: Bvh::new(&scene.casters),
-            samples: disk_samples(samples),
-        }
+        Self { scene, bvh: Bvh::new(&scene.casters), samples: disk_samples(samples) }
     }
 
     /// The BVH over the casters (light frame), for primary rays.
@@ -98,10 +94,6 @@ impl<'a> GroundTruth<'a> {
                 }
             }
         }
-        if above == 0 {
-            0.0
-        } else {
-            visible as f32 / above as f32
-        }
+        if above == 0 { 0.0 } else { visible as f32 / above as f32 }
     }
 }

@@ -26,9 +26,7 @@ impl LayerPlan {
     pub fn from_edge_depths(edge_depths: &[f32], sub_layers: u32, layers: u32) -> Self {
         let (sub_layers, layers) = (sub_layers.max(1) as usize, layers.max(1) as usize);
         let finite = edge_depths.iter().copied().filter(|d| d.is_finite());
-        let (lo, hi) = finite.fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), d| {
-            (lo.min(d), hi.max(d))
-        });
+        let (lo, hi) = finite.fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), d| (lo.min(d), hi.max(d)));
         if layers == 1 || !(hi > lo) {
             return Self::single();
         }
@@ -75,11 +73,7 @@ impl LayerPlan {
 
     /// Depth interval `[near, far)` of layer `j` (infinite at the two ends).
     pub fn slab(&self, j: usize) -> (f32, f32) {
-        let near = if j == 0 {
-            f32::NEG_INFINITY
-        } else {
-            self.planes[j - 1]
-        };
+        let near = if j == 0 { f32::NEG_INFINITY } else { self.planes[j - 1] };
         let far = self.planes.get(j).copied().unwrap_or(f32::INFINITY);
         (near, far)
     }
@@ -109,10 +103,7 @@ mod tests {
             counts[plan.layer_of(d)] += 1;
         }
         for c in counts {
-            assert!(
-                (95..=105).contains(&c),
-                "layer holds {c} edges, expected ~100"
-            );
+            assert!((95..=105).contains(&c), "layer holds {c} edges, expected ~100");
         }
     }
 
@@ -125,20 +116,14 @@ mod tests {
         assert_eq!(plan.layer_of(1.0), 0);
         assert_eq!(plan.layer_of(5.0), 1);
         for j in 0..plan.len() {
-            assert!(
-                depths.iter().any(|&d| plan.layer_of(d) == j),
-                "layer {j} is empty"
-            );
+            assert!(depths.iter().any(|&d| plan.layer_of(d) == j), "layer {j} is empty");
         }
     }
 
     #[test]
     fn one_sub_layer_or_one_depth_gives_one_layer() {
         assert_eq!(LayerPlan::from_edge_depths(&[2.0; 10], 1024, 16).len(), 1);
-        assert_eq!(
-            LayerPlan::from_edge_depths(&[1.0, 2.0, 3.0], 1, 16).len(),
-            1
-        );
+        assert_eq!(LayerPlan::from_edge_depths(&[1.0, 2.0, 3.0], 1, 16).len(), 1);
         assert_eq!(LayerPlan::from_edge_depths(&[], 1024, 16).len(), 1);
         assert_eq!(LayerPlan::from_edge_depths(&[1.0, 2.0], 1024, 0).len(), 1);
     }

@@ -22,8 +22,8 @@
 //! let ls = LightSpaceScene::new(&s.scene, s.light);
 //! let model = FinShadowModel::new(&s.scene, &ls, Method::MultiLayer, FinSettings::default());
 //! let index = model.analytic();
-//! // A ground point right under the box is in the umbra.
-//! let p = ls.frame.to_frame(glam::Vec3::new(0.3, 0.0, 0.2));
+//! // The middle of the box's shadow on the ground is umbra.
+//! let p = ls.frame.to_frame(glam::Vec3::new(-0.24, 0.0, -0.16));
 //! let n = ls.frame.dir_to_frame(glam::Vec3::Y);
 //! assert!(index.visibility(Receiver { position: p, normal: n }) < 0.01);
 //! ```

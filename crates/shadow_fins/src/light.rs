@@ -32,17 +32,11 @@ impl DiskLight {
         if !center.is_finite() {
             return Err(LightError::NonFinitePosition(center.to_array()));
         }
-        let normal = normal
-            .try_normalize()
-            .ok_or(LightError::BadDirection(normal.to_array()))?;
+        let normal = normal.try_normalize().ok_or(LightError::BadDirection(normal.to_array()))?;
         if !(radius >= 0.0 && radius.is_finite()) {
             return Err(LightError::BadRadius(radius));
         }
-        Ok(Self {
-            center,
-            normal,
-            radius,
-        })
+        Ok(Self { center, normal, radius })
     }
 }
 
@@ -57,16 +51,11 @@ pub struct SunLight {
 
 impl SunLight {
     pub fn new(direction: Vec3, angular_radius: f32) -> Result<Self, LightError> {
-        let direction = direction
-            .try_normalize()
-            .ok_or(LightError::BadDirection(direction.to_array()))?;
+        let direction = direction.try_normalize().ok_or(LightError::BadDirection(direction.to_array()))?;
         if !(0.0..=1.4).contains(&angular_radius) {
             return Err(LightError::BadAngle(angular_radius));
         }
-        Ok(Self {
-            direction,
-            angular_radius,
-        })
+        Ok(Self { direction, angular_radius })
     }
 }
 
@@ -82,26 +71,17 @@ impl Light {
     pub fn with_zero_size(self) -> Self {
         match self {
             Light::Disk(d) => Light::Disk(DiskLight { radius: 0.0, ..d }),
-            Light::Sun(s) => Light::Sun(SunLight {
-                angular_radius: 0.0,
-                ..s
-            }),
+            Light::Sun(s) => Light::Sun(SunLight { angular_radius: 0.0, ..s }),
         }
     }
 
     /// The same light with its size scaled by `factor` (radius or `tan θ`).
     pub fn with_size_scaled(self, factor: f32) -> Self {
         match self {
-            Light::Disk(d) => Light::Disk(DiskLight {
-                radius: d.radius * factor,
-                ..d
-            }),
+            Light::Disk(d) => Light::Disk(DiskLight { radius: d.radius * factor, ..d }),
             Light::Sun(s) => {
                 let t = (s.angular_radius.tan() * factor).atan().min(1.4);
-                Light::Sun(SunLight {
-                    angular_radius: t,
-                    ..s
-                })
+                Light::Sun(SunLight { angular_radius: t, ..s })
             }
         }
     }
@@ -138,9 +118,7 @@ impl LightFrame {
         Self {
             origin: light.center.as_dvec3(),
             axes: orthonormal_axes(light.normal.as_dvec3()),
-            projection: Projection::Perspective {
-                radius: light.radius,
-            },
+            projection: Projection::Perspective { radius: light.radius },
         }
     }
 
@@ -153,9 +131,7 @@ impl LightFrame {
         Self {
             origin: center - n * (half * 1.01 + 1e-6 * center.length().max(1.0)),
             axes: orthonormal_axes(n),
-            projection: Projection::Orthographic {
-                tan_angle: light.angular_radius.tan(),
-            },
+            projection: Projection::Orthographic { tan_angle: light.angular_radius.tan() },
         }
     }
 
@@ -174,21 +150,13 @@ impl LightFrame {
     /// World point (in f64) → frame point.
     pub fn to_frame_f64(&self, p: DVec3) -> Vec3 {
         let d = p - self.origin;
-        Vec3::new(
-            d.dot(self.axes[0]) as f32,
-            d.dot(self.axes[1]) as f32,
-            d.dot(self.axes[2]) as f32,
-        )
+        Vec3::new(d.dot(self.axes[0]) as f32, d.dot(self.axes[1]) as f32, d.dot(self.axes[2]) as f32)
     }
 
     /// World direction → frame direction.
     pub fn dir_to_frame(&self, d: Vec3) -> Vec3 {
         let d = d.as_dvec3();
-        Vec3::new(
-            d.dot(self.axes[0]) as f32,
-            d.dot(self.axes[1]) as f32,
-            d.dot(self.axes[2]) as f32,
-        )
+        Vec3::new(d.dot(self.axes[0]) as f32, d.dot(self.axes[1]) as f32, d.dot(self.axes[2]) as f32)
     }
 
     /// Frame point → world point.
@@ -227,9 +195,7 @@ impl LightFrame {
     /// the frame direction `d` (used to project junction normals).
     pub fn map_direction(&self, p: Vec3, d: Vec3) -> Vec2 {
         match self.projection {
-            Projection::Perspective { .. } => {
-                (Vec2::new(d.x, d.y) - Vec2::new(p.x, p.y) / p.z * d.z) / p.z
-            }
+            Projection::Perspective { .. } => (Vec2::new(d.x, d.y) - Vec2::new(p.x, p.y) / p.z * d.z) / p.z,
             Projection::Orthographic { .. } => Vec2::new(d.x, d.y),
         }
     }
@@ -243,9 +209,7 @@ impl LightFrame {
     #[inline]
     pub fn penumbra_half_width(&self, edge_depth: f32, receiver_depth: f32) -> f32 {
         let w = match self.projection {
-            Projection::Perspective { radius } => {
-                radius * (1.0 / edge_depth - 1.0 / receiver_depth)
-            }
+            Projection::Perspective { radius } => radius * (1.0 / edge_depth - 1.0 / receiver_depth),
             Projection::Orthographic { tan_angle } => tan_angle * (receiver_depth - edge_depth),
         };
         if w > 0.0 { w } else { 0.0 }
@@ -256,9 +220,7 @@ impl LightFrame {
     /// builds its fins with; the oracle works with [`Self::penumbra_half_width`].
     pub fn fin_world_width(&self, edge_depth: f32, reference_depth: f32) -> f32 {
         let w = match self.projection {
-            Projection::Perspective { radius } => {
-                radius * (reference_depth - edge_depth) / reference_depth
-            }
+            Projection::Perspective { radius } => radius * (reference_depth - edge_depth) / reference_depth,
             Projection::Orthographic { tan_angle } => tan_angle * (reference_depth - edge_depth),
         };
         w.max(0.0)
@@ -285,33 +247,17 @@ mod tests {
 
     #[test]
     fn lights_reject_bad_input() {
-        assert!(matches!(
-            DiskLight::new(Vec3::ZERO, Vec3::Z, -1.0),
-            Err(LightError::BadRadius(_))
-        ));
-        assert!(matches!(
-            DiskLight::new(Vec3::ZERO, Vec3::Z, f32::NAN),
-            Err(LightError::BadRadius(_))
-        ));
-        assert!(matches!(
-            DiskLight::new(Vec3::ZERO, Vec3::ZERO, 1.0),
-            Err(LightError::BadDirection(_))
-        ));
-        assert!(matches!(
-            DiskLight::new(Vec3::splat(f32::INFINITY), Vec3::Z, 1.0),
-            Err(_)
-        ));
-        assert!(matches!(
-            SunLight::new(Vec3::Z, -0.1),
-            Err(LightError::BadAngle(_))
-        ));
+        assert!(matches!(DiskLight::new(Vec3::ZERO, Vec3::Z, -1.0), Err(LightError::BadRadius(_))));
+        assert!(matches!(DiskLight::new(Vec3::ZERO, Vec3::Z, f32::NAN), Err(LightError::BadRadius(_))));
+        assert!(matches!(DiskLight::new(Vec3::ZERO, Vec3::ZERO, 1.0), Err(LightError::BadDirection(_))));
+        assert!(matches!(DiskLight::new(Vec3::splat(f32::INFINITY), Vec3::Z, 1.0), Err(_)));
+        assert!(matches!(SunLight::new(Vec3::Z, -0.1), Err(LightError::BadAngle(_))));
         assert!(DiskLight::new(Vec3::ZERO, Vec3::Z, 0.0).is_ok());
     }
 
     #[test]
     fn frame_is_right_handed_and_round_trips() {
-        let light =
-            DiskLight::new(Vec3::new(1.0, 2.0, 3.0), Vec3::new(0.3, -1.0, 0.2), 0.5).unwrap();
+        let light = DiskLight::new(Vec3::new(1.0, 2.0, 3.0), Vec3::new(0.3, -1.0, 0.2), 0.5).unwrap();
         let f = LightFrame::disk(&light);
         let [u, v, n] = f.axes();
         assert!((u.cross(v) - n).length() < 1e-6);

@@ -15,6 +15,10 @@ use crate::error::MeshError;
 /// Marks "no face" in [`Edge::faces`] (a boundary edge has one face).
 pub const NO_FACE: u32 = u32::MAX;
 
+/// Dihedral angle above which an edge is a crease (a box's edge) rather than
+/// part of a tessellated smooth surface (a sphere's facet edge).
+pub const CREASE_ANGLE_DEG: f32 = 40.0;
+
 /// An indexed triangle mesh in its own object space.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Mesh {
@@ -36,27 +40,13 @@ impl Mesh {
             return Err(MeshError::IndexCountNotTriangles(indices.len()));
         }
         if let Some((vertex, p)) = positions.iter().enumerate().find(|(_, p)| !p.is_finite()) {
-            return Err(MeshError::NonFinitePosition {
-                vertex,
-                position: p.to_array(),
-            });
+            return Err(MeshError::NonFinitePosition { vertex, position: p.to_array() });
         }
-        if let Some((at, &index)) = indices
-            .iter()
-            .enumerate()
-            .find(|&(_, &i)| i as usize >= positions.len())
-        {
-            return Err(MeshError::IndexOutOfRange {
-                at,
-                index,
-                vertex_count: positions.len(),
-            });
+        if let Some((at, &index)) = indices.iter().enumerate().find(|&(_, &i)| i as usize >= positions.len()) {
+            return Err(MeshError::IndexOutOfRange { at, index, vertex_count: positions.len() });
         }
         let mesh = Self { positions, indices };
-        if mesh
-            .triangles()
-            .all(|[a, b, c]| triangle_is_degenerate(a, b, c))
-        {
+        if mesh.triangles().all(|[a, b, c]| triangle_is_degenerate(a, b, c)) {
             return Err(MeshError::AllDegenerate);
         }
         Ok(mesh)
@@ -76,23 +66,16 @@ impl Mesh {
 
     /// The corner positions of every triangle, in index order.
     pub fn triangles(&self) -> impl Iterator<Item = [Vec3; 3]> + '_ {
-        self.indices.chunks_exact(3).map(|t| {
-            [
-                self.positions[t[0] as usize],
-                self.positions[t[1] as usize],
-                self.positions[t[2] as usize],
-            ]
-        })
+        self.indices
+            .chunks_exact(3)
+            .map(|t| [self.positions[t[0] as usize], self.positions[t[1] as usize], self.positions[t[2] as usize]])
     }
 }
 
 /// True when the triangle has (numerically) zero area relative to its size.
 pub fn triangle_is_degenerate(a: Vec3, b: Vec3, c: Vec3) -> bool {
     let cross = (b - a).cross(c - a);
-    let scale = (b - a)
-        .length_squared()
-        .max((c - a).length_squared())
-        .max((c - b).length_squared());
+    let scale = (b - a).length_squared().max((c - a).length_squared()).max((c - b).length_squared());
     // Area² below (1e-7 · edge²)² is noise for f32 positions.
     !(cross.length_squared() > scale * scale * 1e-14)
 }
@@ -134,6 +117,10 @@ pub struct Topology {
     pub face_neighbors: Vec<[u32; 3]>,
     /// Edges with one or two faces.
     pub edges: Vec<Edge>,
+    /// Per edge in `edges`: true when it is a crease — its faces meet at more
+    /// than [`CREASE_ANGLE_DEG`], or it has one face. Fins of smooth edges bend
+    /// with the surface's vertex normals; fins of creases stay straight.
+    pub crease: Vec<bool>,
     /// Edges with three or more faces.
     pub non_manifold_edges: Vec<NonManifoldEdge>,
     /// Input triangles dropped for zero area (or for repeating a welded vertex).
@@ -149,11 +136,7 @@ impl Topology {
         let mut faces = Vec::with_capacity(mesh.triangle_count());
         let mut degenerate_faces = 0;
         for tri in mesh.indices().chunks_exact(3) {
-            let f = [
-                remap[tri[0] as usize],
-                remap[tri[1] as usize],
-                remap[tri[2] as usize],
-            ];
+            let f = [remap[tri[0] as usize], remap[tri[1] as usize], remap[tri[2] as usize]];
             let [a, b, c] = f.map(|i| positions[i as usize]);
             if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] || triangle_is_degenerate(a, b, c) {
                 degenerate_faces += 1;
@@ -177,8 +160,7 @@ impl Topology {
         }
 
         // (min, max) → list of (face, walks min→max)
-        let mut by_key: HashMap<(u32, u32), Vec<(u32, bool)>> =
-            HashMap::with_capacity(faces.len() * 3 / 2);
+        let mut by_key: HashMap<(u32, u32), Vec<(u32, bool)>> = HashMap::with_capacity(faces.len() * 3 / 2);
         for (fi, f) in faces.iter().enumerate() {
             for k in 0..3 {
                 let (a, b) = (f[k], f[(k + 1) % 3]);
@@ -192,10 +174,8 @@ impl Topology {
                 for (a, b) in [(*f0, *f1), (*f1, *f0)] {
                     let f = faces[a as usize];
                     // Which of a's edges is shared with b?
-                    let k = (0..3).find(|&k| {
-                        faces[b as usize].contains(&f[k])
-                            && faces[b as usize].contains(&f[(k + 1) % 3])
-                    });
+                    let k = (0..3)
+                        .find(|&k| faces[b as usize].contains(&f[k]) && faces[b as usize].contains(&f[(k + 1) % 3]));
                     if let Some(k) = k {
                         face_neighbors[a as usize][k] = b;
                     }
@@ -210,28 +190,28 @@ impl Topology {
         let mut inconsistent_edges = 0;
         for ((v0, v1), list) in keys {
             match list.as_slice() {
-                [(f, fw)] => edges.push(Edge {
-                    vertices: [v0, v1],
-                    faces: [*f, NO_FACE],
-                    forward: [*fw, false],
-                }),
+                [(f, fw)] => edges.push(Edge { vertices: [v0, v1], faces: [*f, NO_FACE], forward: [*fw, false] }),
                 [(f0, fw0), (f1, fw1)] => {
                     if fw0 == fw1 {
                         inconsistent_edges += 1;
                     }
-                    edges.push(Edge {
-                        vertices: [v0, v1],
-                        faces: [*f0, *f1],
-                        forward: [*fw0, *fw1],
-                    })
+                    edges.push(Edge { vertices: [v0, v1], faces: [*f0, *f1], forward: [*fw0, *fw1] })
                 }
-                _ => non_manifold_edges.push(NonManifoldEdge {
-                    vertices: [v0, v1],
-                    faces: list,
-                }),
+                _ => non_manifold_edges.push(NonManifoldEdge { vertices: [v0, v1], faces: list }),
             }
         }
+        let cos_crease = CREASE_ANGLE_DEG.to_radians().cos();
+        let crease = edges
+            .iter()
+            .map(|e| {
+                e.faces[1] == NO_FACE || {
+                    let (a, b) = (face_planes[e.faces[0] as usize].0, face_planes[e.faces[1] as usize].0);
+                    a.normalize_or_zero().dot(b.normalize_or_zero()) < cos_crease
+                }
+            })
+            .collect();
         Self {
+            crease,
             positions,
             faces,
             face_planes,
@@ -285,24 +265,12 @@ mod tests {
     fn rejects_bad_meshes_with_typed_errors() {
         let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
         assert_eq!(Mesh::new(p.clone(), vec![]), Err(MeshError::Empty));
-        assert_eq!(
-            Mesh::new(p.clone(), vec![0, 1]),
-            Err(MeshError::IndexCountNotTriangles(2))
-        );
-        assert!(matches!(
-            Mesh::new(p.clone(), vec![0, 1, 3]),
-            Err(MeshError::IndexOutOfRange { index: 3, .. })
-        ));
+        assert_eq!(Mesh::new(p.clone(), vec![0, 1]), Err(MeshError::IndexCountNotTriangles(2)));
+        assert!(matches!(Mesh::new(p.clone(), vec![0, 1, 3]), Err(MeshError::IndexOutOfRange { index: 3, .. })));
         let nan = vec![Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 0.0), Vec3::Y];
-        assert!(matches!(
-            Mesh::new(nan, vec![0, 1, 2]),
-            Err(MeshError::NonFinitePosition { vertex: 1, .. })
-        ));
+        assert!(matches!(Mesh::new(nan, vec![0, 1, 2]), Err(MeshError::NonFinitePosition { vertex: 1, .. })));
         let flat = vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0];
-        assert_eq!(
-            Mesh::new(flat, vec![0, 1, 2]),
-            Err(MeshError::AllDegenerate)
-        );
+        assert_eq!(Mesh::new(flat, vec![0, 1, 2]), Err(MeshError::AllDegenerate));
     }
 
     #[test]
@@ -316,14 +284,7 @@ mod tests {
     #[test]
     fn quad_has_one_interior_edge_and_four_boundary_edges() {
         // Split vertices (as a flat-shaded export would have them) still weld.
-        let p = vec![
-            Vec3::ZERO,
-            Vec3::X,
-            Vec3::new(1.0, 1.0, 0.0),
-            Vec3::ZERO,
-            Vec3::new(1.0, 1.0, 0.0),
-            Vec3::Y,
-        ];
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
         let t = Topology::build(&Mesh::new(p, vec![0, 1, 2, 3, 4, 5]).unwrap());
         assert_eq!(t.positions.len(), 4);
         assert_eq!(t.edges.len(), 5);
@@ -334,13 +295,7 @@ mod tests {
 
     #[test]
     fn three_faces_on_one_edge_are_non_manifold() {
-        let p = vec![
-            Vec3::ZERO,
-            Vec3::X,
-            Vec3::Y,
-            Vec3::Z,
-            Vec3::new(0.0, -1.0, 0.0),
-        ];
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(0.0, -1.0, 0.0)];
         let t = Topology::build(&Mesh::new(p, vec![0, 1, 2, 1, 0, 3, 0, 1, 4]).unwrap());
         assert_eq!(t.non_manifold_edges.len(), 1);
         assert_eq!(t.non_manifold_edges[0].faces.len(), 3);

@@ -28,11 +28,7 @@ impl ErrorMetrics {
     /// # Panics
     /// When the slices differ in length (a programming error, not user input).
     pub fn compute(method: &[f32], reference: &[f32]) -> Self {
-        assert_eq!(
-            method.len(),
-            reference.len(),
-            "method and reference must cover the same pixels"
-        );
+        assert_eq!(method.len(), reference.len(), "method and reference must cover the same pixels");
         let mut errors = Vec::new();
         let (mut over, mut leak, mut non_finite) = (0usize, 0usize, 0usize);
         for (&m, &r) in method.iter().zip(reference) {

@@ -48,18 +48,13 @@ impl Falloff {
     /// Applies the curve; the input is clamped to `[0, 1]` and NaN maps to 0.
     #[inline]
     pub fn apply(self, illuminance: f32) -> f32 {
-        let i = if illuminance > 0.0 {
-            illuminance.min(1.0)
-        } else {
-            0.0
-        };
+        let i = if illuminance > 0.0 { illuminance.min(1.0) } else { 0.0 };
         match self {
             Falloff::Linear => i,
             Falloff::Bernstein => i * i * (3.0 - 2.0 * i),
             Falloff::DiskSegment => {
                 let x = 2.0 * i - 1.0;
-                (0.5 + (x * (1.0 - x * x).max(0.0).sqrt() + x.asin()) / std::f32::consts::PI)
-                    .clamp(0.0, 1.0)
+                (0.5 + (x * (1.0 - x * x).max(0.0).sqrt() + x.asin()) / std::f32::consts::PI).clamp(0.0, 1.0)
             }
         }
     }

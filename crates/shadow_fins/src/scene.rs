@@ -26,11 +26,7 @@ pub struct SceneObject {
 
 impl SceneObject {
     /// Places a mesh; builds its topology. Errors on a non-finite or singular transform.
-    pub fn new(
-        name: impl Into<String>,
-        mesh: Mesh,
-        transform: Affine3A,
-    ) -> Result<Self, MeshError> {
+    pub fn new(name: impl Into<String>, mesh: Mesh, transform: Affine3A) -> Result<Self, MeshError> {
         let mesh = Arc::new(mesh);
         let topology = Arc::new(Topology::build(&mesh));
         Self::shared(name, mesh, topology, transform)
@@ -47,14 +43,7 @@ impl SceneObject {
         if !transform.is_finite() || !(det.abs() > 1e-20) {
             return Err(MeshError::BadTransform(det));
         }
-        Ok(Self {
-            name: name.into(),
-            mesh,
-            topology,
-            transform,
-            casts_shadows: true,
-            receives_shadows: true,
-        })
+        Ok(Self { name: name.into(), mesh, topology, transform, casts_shadows: true, receives_shadows: true })
     }
 
     /// The object → world transform in f64.
@@ -122,11 +111,7 @@ impl ObjectToFrame {
         let rows = glam::DMat3::from_cols(u, v, n).transpose();
         let linear = rows * m.matrix3;
         let translation = rows * (m.translation - frame.origin());
-        Self {
-            linear: linear.as_mat3(),
-            translation: translation.as_vec3(),
-            mirrors: linear.determinant() < 0.0,
-        }
+        Self { linear: linear.as_mat3(), translation: translation.as_vec3(), mirrors: linear.determinant() < 0.0 }
     }
 
     #[inline]
@@ -138,11 +123,7 @@ impl ObjectToFrame {
     pub fn normal(&self, n: Vec3) -> Vec3 {
         let c = self.linear;
         // Cofactor matrix = det · inverse-transpose: no division, sign kept for mirrors.
-        let cof = glam::Mat3::from_cols(
-            c.y_axis.cross(c.z_axis),
-            c.z_axis.cross(c.x_axis),
-            c.x_axis.cross(c.y_axis),
-        );
+        let cof = glam::Mat3::from_cols(c.y_axis.cross(c.z_axis), c.z_axis.cross(c.x_axis), c.x_axis.cross(c.y_axis));
         let n = cof * n;
         if self.mirrors { -n } else { n }
     }
@@ -189,20 +170,11 @@ impl LightSpaceScene {
         let (lo, hi) = scene.bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
         let frame = LightFrame::new(&light, lo, hi);
         let extent = (hi - lo).length().max(1e-30);
-        let object_frames: Vec<ObjectToFrame> = scene
-            .objects
-            .iter()
-            .map(|o| ObjectToFrame::new(o, &frame))
-            .collect();
+        let object_frames: Vec<ObjectToFrame> = scene.objects.iter().map(|o| ObjectToFrame::new(o, &frame)).collect();
         let mut casters = Vec::with_capacity(scene.triangle_count());
         let mut deepest = f32::NEG_INFINITY;
         for (o, to_frame) in scene.objects.iter().zip(&object_frames) {
-            let pts: Vec<Vec3> = o
-                .topology
-                .positions
-                .iter()
-                .map(|&p| to_frame.point(p))
-                .collect();
+            let pts: Vec<Vec3> = o.topology.positions.iter().map(|&p| to_frame.point(p)).collect();
             if o.receives_shadows || o.casts_shadows {
                 deepest = pts.iter().fold(deepest, |d, p| d.max(p.z));
             }
@@ -212,13 +184,6 @@ impl LightSpaceScene {
         }
         // A scene entirely behind the light still needs a positive L0.
         let reference_depth = if deepest > 0.0 { deepest } else { extent };
-        Self {
-            light,
-            frame,
-            casters,
-            object_frames,
-            reference_depth,
-            extent,
-        }
+        Self { light, frame, casters, object_frames, reference_depth, extent }
     }
 }

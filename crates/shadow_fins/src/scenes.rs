@@ -38,10 +38,14 @@ pub enum SceneId {
     SphereGrid,
     /// A ≥100k-triangle bumpy blob over the ground: scaling.
     DenseBlob,
+    /// The demo: the hard cases together under one large light — boxes in near
+    /// contact, a ramp (tilted receiver), spheres with overlapping penumbrae, a
+    /// ring over a star prism. Exported as `assets/demo.gltf`.
+    Demo,
 }
 
 impl SceneId {
-    pub const ALL: [SceneId; 8] = [
+    pub const ALL: [SceneId; 9] = [
         SceneId::BoxOverPlane,
         SceneId::NearContact,
         SceneId::RingPlate,
@@ -50,6 +54,7 @@ impl SceneId {
         SceneId::StarPrism,
         SceneId::SphereGrid,
         SceneId::DenseBlob,
+        SceneId::Demo,
     ];
 
     pub fn name(self) -> &'static str {
@@ -62,6 +67,7 @@ impl SceneId {
             SceneId::StarPrism => "star-prism",
             SceneId::SphereGrid => "sphere-grid",
             SceneId::DenseBlob => "dense-blob",
+            SceneId::Demo => "demo",
         }
     }
 
@@ -94,14 +100,7 @@ fn build(id: SceneId) -> BuiltinScene {
     let cam = Camera::looking_at;
     let (objects, light, camera) = match id {
         SceneId::BoxOverPlane => (
-            vec![
-                ground(10.0),
-                object(
-                    "box",
-                    shapes::cuboid(Vec3::splat(0.5)),
-                    at(Vec3::new(0.0, 1.5, 0.0)),
-                ),
-            ],
+            vec![ground(10.0), object("box", shapes::cuboid(Vec3::splat(0.5)), at(Vec3::new(0.0, 1.5, 0.0)))],
             disk(Vec3::new(0.3, 4.5, 0.2), 0.5),
             cam(Vec3::new(3.0, 4.0, 4.5), Vec3::new(0.0, 0.3, 0.0)),
         ),
@@ -110,16 +109,8 @@ fn build(id: SceneId) -> BuiltinScene {
             (
                 vec![
                     ground(10.0),
-                    object(
-                        "box-a",
-                        shapes::cuboid(half),
-                        at(Vec3::new(-0.525, 0.41, 0.0)),
-                    ),
-                    object(
-                        "box-b",
-                        shapes::cuboid(half),
-                        at(Vec3::new(0.525, 0.41, 0.0)),
-                    ),
+                    object("box-a", shapes::cuboid(half), at(Vec3::new(-0.525, 0.41, 0.0))),
+                    object("box-b", shapes::cuboid(half), at(Vec3::new(0.525, 0.41, 0.0))),
                 ],
                 disk(Vec3::new(0.8, 4.0, 0.6), 0.6),
                 cam(Vec3::new(-2.5, 3.5, 4.0), Vec3::new(0.0, 0.2, -0.5)),
@@ -128,29 +119,14 @@ fn build(id: SceneId) -> BuiltinScene {
         SceneId::RingPlate => (
             vec![
                 ground(12.0),
-                object(
-                    "plate",
-                    shapes::cuboid(Vec3::new(2.1, 0.03, 2.1)),
-                    at(Vec3::new(0.0, 1.0, 0.0)),
-                ),
-                object(
-                    "ring",
-                    shapes::torus(1.2, 0.15, 96, 16),
-                    at(Vec3::new(0.0, 2.0, 0.0)),
-                ),
+                object("plate", shapes::cuboid(Vec3::new(2.1, 0.03, 2.1)), at(Vec3::new(0.0, 1.0, 0.0))),
+                object("ring", shapes::torus(1.2, 0.15, 96, 16), at(Vec3::new(0.0, 2.0, 0.0))),
             ],
             disk(Vec3::new(0.0, 5.0, 0.0), 1.0),
             cam(Vec3::new(0.0, 5.5, 4.5), Vec3::new(0.0, 0.8, 0.0)),
         ),
         SceneId::LargeLight => (
-            vec![
-                ground(10.0),
-                object(
-                    "ball",
-                    shapes::uv_sphere(0.3, 24, 48),
-                    at(Vec3::new(0.0, 1.0, 0.0)),
-                ),
-            ],
+            vec![ground(10.0), object("ball", shapes::uv_sphere(0.3, 24, 48), at(Vec3::new(0.0, 1.0, 0.0)))],
             disk(Vec3::new(0.0, 3.0, 0.0), 1.5),
             cam(Vec3::new(0.0, 3.0, 3.5), Vec3::new(0.0, 0.2, 0.0)),
         ),
@@ -159,29 +135,15 @@ fn build(id: SceneId) -> BuiltinScene {
                 object(
                     "tilted-ground",
                     shapes::plane(8.0, 4),
-                    Affine3A::from_rotation_translation(
-                        Quat::from_rotation_z(25f32.to_radians()),
-                        Vec3::ZERO,
-                    ),
+                    Affine3A::from_rotation_translation(Quat::from_rotation_z(25f32.to_radians()), Vec3::ZERO),
                 ),
-                object(
-                    "box",
-                    shapes::cuboid(Vec3::new(0.6, 0.3, 0.4)),
-                    at(Vec3::new(0.0, 1.6, 0.0)),
-                ),
+                object("box", shapes::cuboid(Vec3::new(0.6, 0.3, 0.4)), at(Vec3::new(0.0, 1.6, 0.0))),
             ],
             disk(Vec3::new(0.5, 4.5, 0.0), 0.6),
             cam(Vec3::new(0.0, 4.5, 5.0), Vec3::new(0.0, 0.3, 0.0)),
         ),
         SceneId::StarPrism => (
-            vec![
-                ground(10.0),
-                object(
-                    "star",
-                    shapes::star_prism(5, 0.35, 1.2, 0.2),
-                    at(Vec3::new(0.0, 1.0, 0.0)),
-                ),
-            ],
+            vec![ground(10.0), object("star", shapes::star_prism(5, 0.35, 1.2, 0.2), at(Vec3::new(0.0, 1.0, 0.0)))],
             disk(Vec3::new(0.0, 4.0, 0.0), 0.5),
             cam(Vec3::new(0.0, 5.0, 3.5), Vec3::new(0.0, 0.3, 0.0)),
         ),
@@ -193,39 +155,42 @@ fn build(id: SceneId) -> BuiltinScene {
                 for j in 0..4 {
                     let p = Vec3::new((i as f32 - 1.5) * 0.75, 1.0, (j as f32 - 1.5) * 0.75);
                     objects.push(
-                        SceneObject::shared(
-                            format!("sphere-{i}-{j}"),
-                            sphere.clone(),
-                            topology.clone(),
-                            at(p),
-                        )
-                        .expect("valid"),
+                        SceneObject::shared(format!("sphere-{i}-{j}"), sphere.clone(), topology.clone(), at(p))
+                            .expect("valid"),
                     );
                 }
             }
-            (
-                objects,
-                disk(Vec3::new(0.0, 4.5, 0.0), 0.8),
-                cam(Vec3::new(0.0, 5.0, 4.5), Vec3::new(0.0, 0.0, 0.0)),
-            )
+            (objects, disk(Vec3::new(0.0, 4.5, 0.0), 0.8), cam(Vec3::new(0.0, 5.0, 4.5), Vec3::new(0.0, 0.0, 0.0)))
         }
         SceneId::DenseBlob => (
-            vec![
-                ground(10.0),
-                object(
-                    "blob",
-                    shapes::bumpy_blob(100_000),
-                    at(Vec3::new(0.0, 1.5, 0.0)),
-                ),
-            ],
+            vec![ground(10.0), object("blob", shapes::bumpy_blob(100_000), at(Vec3::new(0.0, 1.5, 0.0)))],
             disk(Vec3::new(0.4, 5.0, 0.0), 0.5),
             cam(Vec3::new(3.0, 4.0, 4.5), Vec3::new(0.0, 0.5, 0.0)),
         ),
+        SceneId::Demo => demo(),
     };
-    BuiltinScene {
-        id,
-        scene: Scene::new(objects),
-        light,
-        camera,
+    BuiltinScene { id, scene: Scene::new(objects), light, camera }
+}
+
+fn demo() -> (Vec<SceneObject>, Light, Camera) {
+    let half = Vec3::new(0.45, 0.35, 0.45);
+    let sphere = shapes::uv_sphere(0.35, 16, 32);
+    let mut objects = vec![
+        ground(12.0),
+        object("box-a", shapes::cuboid(half), at(Vec3::new(-2.2 - 0.47, 0.36, 0.6))),
+        object("box-b", shapes::cuboid(half), at(Vec3::new(-2.2 + 0.47, 0.36, 0.6))),
+        object(
+            "ramp",
+            shapes::cuboid(Vec3::new(1.3, 0.05, 1.0)),
+            Affine3A::from_rotation_translation(Quat::from_rotation_z(-20f32.to_radians()), Vec3::new(2.3, 0.5, 0.8)),
+        ),
+        object("post", shapes::cuboid(Vec3::new(0.12, 0.6, 0.12)), at(Vec3::new(2.0, 1.6, 0.8))),
+        object("ring", shapes::torus(0.7, 0.1, 64, 12), at(Vec3::new(0.0, 1.9, -1.6))),
+        object("star", shapes::star_prism(5, 0.25, 0.8, 0.15), at(Vec3::new(0.0, 0.6, -1.6))),
+    ];
+    for (i, x) in [-0.75f32, 0.0, 0.75].iter().enumerate() {
+        objects.push(object(&format!("sphere-{i}"), sphere.clone(), at(Vec3::new(*x, 1.2, 1.6))));
     }
+    let camera = Camera::looking_at(Vec3::new(0.5, 6.5, 7.5), Vec3::new(0.0, 0.2, 0.0));
+    (objects, disk(Vec3::new(0.2, 5.0, 0.3), 0.8), camera)
 }

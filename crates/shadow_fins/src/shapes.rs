@@ -25,8 +25,7 @@ impl Builder {
     }
 
     fn finish(self) -> Mesh {
-        Mesh::new(self.positions, self.indices)
-            .expect("procedural meshes are valid by construction")
+        Mesh::new(self.positions, self.indices).expect("procedural meshes are valid by construction")
     }
 }
 
@@ -44,14 +43,7 @@ pub fn cuboid(half: Vec3) -> Mesh {
         })
         .collect();
     // Faces as (corner indices) counter-clockwise from outside.
-    for [a, bb, c, d] in [
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-    ] {
+    for [a, bb, c, d] in [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]] {
         b.quad(v[a], v[bb], v[c], v[d]);
     }
     b.finish()
@@ -96,11 +88,7 @@ pub fn displaced_sphere(rings: u32, segments: u32, radius: impl Fn(f32, f32) -> 
             } else if i == rings {
                 Vec3::NEG_Y * radius(PI, 0.0)
             } else {
-                Vec3::new(
-                    theta.sin() * phi.cos(),
-                    theta.cos(),
-                    theta.sin() * phi.sin(),
-                ) * radius(theta, phi)
+                Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()) * radius(theta, phi)
             };
             b.vertex(p);
         }
@@ -108,12 +96,7 @@ pub fn displaced_sphere(rings: u32, segments: u32, radius: impl Fn(f32, f32) -> 
     for i in 0..rings {
         for j in 0..segments {
             let k = (j + 1) % segments;
-            let (a, bb, c, d) = (
-                i * segments + j,
-                (i + 1) * segments + j,
-                (i + 1) * segments + k,
-                i * segments + k,
-            );
+            let (a, bb, c, d) = (i * segments + j, (i + 1) * segments + j, (i + 1) * segments + k, i * segments + k);
             b.quad(a, d, c, bb);
         }
     }
@@ -177,9 +160,7 @@ pub fn bumpy_blob(triangles: u32) -> Mesh {
 
 /// Signed volume (positive when faces wind outward); for tests.
 pub fn signed_volume(mesh: &Mesh) -> f32 {
-    mesh.triangles()
-        .map(|[a, b, c]| a.dot(b.cross(c)) / 6.0)
-        .sum()
+    mesh.triangles().map(|[a, b, c]| a.dot(b.cross(c)) / 6.0).sum()
 }
 
 #[cfg(test)]
@@ -200,10 +181,7 @@ mod tests {
             let v = signed_volume(&mesh);
             assert!(v > 0.0, "{name} winds inward");
             if volume > 0.0 {
-                assert!(
-                    (v - volume).abs() < 0.02 * volume,
-                    "{name} volume {v} vs {volume}"
-                );
+                assert!((v - volume).abs() < 0.02 * volume, "{name} volume {v} vs {volume}");
             }
             let t = Topology::build(&mesh);
             assert!(t.is_closed_manifold(), "{name} is not a closed manifold");

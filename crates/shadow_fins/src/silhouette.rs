@@ -47,6 +47,9 @@ pub struct SilhouetteEdge {
     pub normal_b: Vec3,
     /// Scene-wide id of the patch whose outline this edge is.
     pub patch: u32,
+    /// The edge is a crease (see [`crate::mesh::CREASE_ANGLE_DEG`]), not a facet
+    /// edge of a smooth surface.
+    pub crease: bool,
 }
 
 impl SilhouetteEdge {
@@ -87,18 +90,10 @@ pub fn extract_object_silhouettes(
     facing.clear();
     let flip = to_frame.mirrors;
     match light {
-        LightInObject::Point(c) => facing.extend(
-            topology
-                .face_planes
-                .iter()
-                .map(|&(n, d)| (n.dot(c) > d) != flip),
-        ),
-        LightInObject::Direction(dir) => facing.extend(
-            topology
-                .face_planes
-                .iter()
-                .map(|&(n, _)| (n.dot(dir) < 0.0) != flip),
-        ),
+        LightInObject::Point(c) => facing.extend(topology.face_planes.iter().map(|&(n, d)| (n.dot(c) > d) != flip)),
+        LightInObject::Direction(dir) => {
+            facing.extend(topology.face_planes.iter().map(|&(n, _)| (n.dot(dir) < 0.0) != flip))
+        }
     }
 
     // Patches: flood fill over map faces across non-silhouette edges.
@@ -128,7 +123,7 @@ pub fn extract_object_silhouettes(
     }
     let face_patches = &face_patches[first..];
 
-    let mut emit = |v0: u32, v1: u32, forward: bool, face: u32| {
+    let mut emit = |v0: u32, v1: u32, forward: bool, face: u32, crease: bool| {
         // Orient along the light-facing face's winding.
         let (va, vb) = if forward { (v0, v1) } else { (v1, v0) };
         out.push(SilhouetteEdge {
@@ -139,27 +134,28 @@ pub fn extract_object_silhouettes(
             normal_a: to_frame.normal(topology.vertex_normals[va as usize]),
             normal_b: to_frame.normal(topology.vertex_normals[vb as usize]),
             patch: face_patches[face as usize],
+            crease,
         });
     };
-    for e in &topology.edges {
+    for (e, &crease) in topology.edges.iter().zip(&topology.crease) {
         let f0 = facing[e.faces[0] as usize];
         if e.faces[1] == NO_FACE {
             if f0 {
-                emit(e.vertices[0], e.vertices[1], e.forward[0], e.faces[0]);
+                emit(e.vertices[0], e.vertices[1], e.forward[0], e.faces[0], true);
             }
             continue;
         }
         let f1 = facing[e.faces[1] as usize];
         if f0 != f1 {
             let k = if f0 { 0 } else { 1 };
-            emit(e.vertices[0], e.vertices[1], e.forward[k], e.faces[k]);
+            emit(e.vertices[0], e.vertices[1], e.forward[k], e.faces[k], crease);
         }
     }
     for e in &topology.non_manifold_edges {
         let first_facing = e.faces.iter().find(|(f, _)| facing[*f as usize]);
         let any_back = e.faces.iter().any(|(f, _)| !facing[*f as usize]);
         if let (Some(&(face, forward)), true) = (first_facing, any_back) {
-            emit(e.vertices[0], e.vertices[1], forward, face);
+            emit(e.vertices[0], e.vertices[1], forward, face, true);
         }
     }
     patches
@@ -190,9 +186,7 @@ pub fn trace_loops(edges: &[SilhouetteEdge]) -> (Vec<Vec<usize>>, Vec<usize>) {
             if at == edges[start].vertex_a {
                 break true;
             }
-            let next = outgoing
-                .get(&at)
-                .and_then(|l| l.iter().copied().find(|&i| !used[i]));
+            let next = outgoing.get(&at).and_then(|l| l.iter().copied().find(|&i| !used[i]));
             match next {
                 Some(n) => {
                     used[n] = true;
@@ -202,11 +196,7 @@ pub fn trace_loops(edges: &[SilhouetteEdge]) -> (Vec<Vec<usize>>, Vec<usize>) {
                 None => break false,
             }
         };
-        if closed {
-            loops.push(chain)
-        } else {
-            open.extend(chain)
-        }
+        if closed { loops.push(chain) } else { open.extend(chain) }
     }
     (loops, open)
 }

@@ -22,22 +22,12 @@ pub struct Config {
 impl Config {
     pub fn new(method: Method, settings: FinSettings) -> Self {
         let label = match method {
-            Method::MultiLayer => format!(
-                "fins {}L{}",
-                settings.layers,
-                if settings.refinement {
-                    ""
-                } else {
-                    " no-refine"
-                }
-            ),
+            Method::MultiLayer => {
+                format!("fins {}L{}", settings.layers, if settings.refinement { "" } else { " no-refine" })
+            }
             m => m.name().to_string(),
         };
-        Self {
-            label,
-            method,
-            settings,
-        }
+        Self { label, method, settings }
     }
 
     pub fn labelled(mut self, label: impl Into<String>) -> Self {
@@ -52,20 +42,8 @@ pub fn standard_configs(base: FinSettings) -> Vec<Config> {
         Config::new(Method::Hard, base),
         Config::new(Method::OuterFins, base),
         Config::new(Method::SingleLayer, base),
-        Config::new(
-            Method::MultiLayer,
-            FinSettings {
-                refinement: false,
-                ..base
-            },
-        ),
-        Config::new(
-            Method::MultiLayer,
-            FinSettings {
-                refinement: true,
-                ..base
-            },
-        ),
+        Config::new(Method::MultiLayer, FinSettings { refinement: false, ..base }),
+        Config::new(Method::MultiLayer, FinSettings { refinement: true, ..base }),
     ]
 }
 
@@ -93,10 +71,7 @@ impl Comparison {
     /// background, `Some(None)` for surfaces facing away from the light.
     pub fn pixels(&self, values: &[f32]) -> Vec<Option<Option<f32>>> {
         let mut it = values.iter().zip(&self.lit_side);
-        self.receivers
-            .iter()
-            .map(|r| r.and_then(|_| it.next().map(|(v, lit)| lit.then_some(*v))))
-            .collect()
+        self.receivers.iter().map(|r| r.and_then(|_| it.next().map(|(v, lit)| lit.then_some(*v)))).collect()
     }
 }
 
@@ -112,53 +87,22 @@ pub fn compare(
     let ls = LightSpaceScene::new(&loaded.scene, loaded.light);
     let receivers = camera_receivers(&loaded.camera, width, height, &ls);
     let hits: Vec<Receiver> = receivers.iter().flatten().copied().collect();
-    let reference = evaluate(
-        &loaded.scene,
-        &ls,
-        Measured::GroundTruth,
-        FinSettings::default(),
-        None,
-        samples,
-        &hits,
-    );
+    let reference = evaluate(&loaded.scene, &ls, Measured::GroundTruth, FinSettings::default(), None, samples, &hits);
     let lit_side: Vec<bool> = hits.iter().map(|r| r.faces_light(&ls.frame)).collect();
     let scored = |values: &[f32]| -> Vec<f32> {
-        values
-            .iter()
-            .zip(&lit_side)
-            .filter(|(_, lit)| **lit)
-            .map(|(v, _)| *v)
-            .collect()
+        values.iter().zip(&lit_side).filter(|(_, lit)| **lit).map(|(v, _)| *v).collect()
     };
     let reference_scored = scored(&reference.values);
     let rows = configs
         .iter()
         .map(|c| {
-            let evaluation = evaluate(
-                &loaded.scene,
-                &ls,
-                Measured::Method(c.method),
-                c.settings,
-                map_resolution,
-                samples,
-                &hits,
-            );
+            let evaluation =
+                evaluate(&loaded.scene, &ls, Measured::Method(c.method), c.settings, map_resolution, samples, &hits);
             let metrics = ErrorMetrics::compute(&scored(&evaluation.values), &reference_scored);
-            Row {
-                config: c.clone(),
-                evaluation,
-                metrics,
-            }
+            Row { config: c.clone(), evaluation, metrics }
         })
         .collect();
-    Comparison {
-        width,
-        height,
-        receivers,
-        lit_side,
-        reference,
-        rows,
-    }
+    Comparison { width, height, receivers, lit_side, reference, rows }
 }
 
 /// A markdown table of the rows.

@@ -49,19 +49,11 @@ pub fn evaluate(
             let prepare_ms = ms(start);
             let t = Instant::now();
             let values = receivers.par_iter().map(|r| gt.visibility(*r)).collect();
-            Evaluation {
-                values,
-                prepare_ms,
-                evaluate_ms: ms(t),
-                silhouettes: 0,
-                fins: 0,
-                layers: 0,
-            }
+            Evaluation { values, prepare_ms, evaluate_ms: ms(t), silhouettes: 0, fins: 0, layers: 0 }
         }
         Measured::Method(method) => {
             let model = FinShadowModel::new(scene, light_space, method, settings);
-            let (silhouettes, fins, layers) =
-                (model.silhouettes.len(), model.fins.len(), model.plan.len());
+            let (silhouettes, fins, layers) = (model.silhouettes.len(), model.fins.len(), model.plan.len());
             let (values, prepare_ms, evaluate_ms) = match map_resolution {
                 Some(res) => {
                     let maps = model.raster(res);
@@ -74,21 +66,11 @@ pub fn evaluate(
                     let index = model.analytic();
                     let prepare_ms = ms(start);
                     let t = Instant::now();
-                    let v = receivers
-                        .par_iter()
-                        .map_init(Vec::new, |buf, r| index.visibility_with(*r, buf))
-                        .collect();
+                    let v = receivers.par_iter().map_init(Vec::new, |buf, r| index.visibility_with(*r, buf)).collect();
                     (v, prepare_ms, ms(t))
                 }
             };
-            Evaluation {
-                values,
-                prepare_ms,
-                evaluate_ms,
-                silhouettes,
-                fins,
-                layers,
-            }
+            Evaluation { values, prepare_ms, evaluate_ms, silhouettes, fins, layers }
         }
     }
 }
@@ -113,15 +95,8 @@ pub fn camera_receivers(
             let (o, d) = camera.ray(i % width, i / width, width, height);
             let (o, d) = (frame.to_frame(o), frame.dir_to_frame(d));
             bvh.closest_hit(o, d, 0.0).map(|h| {
-                let n = if h.normal.dot(d) > 0.0 {
-                    -h.normal
-                } else {
-                    h.normal
-                };
-                Receiver {
-                    position: o + d * h.t,
-                    normal: n,
-                }
+                let n = if h.normal.dot(d) > 0.0 { -h.normal } else { h.normal };
+                Receiver { position: o + d * h.t, normal: n }
             })
         })
         .collect()

@@ -130,13 +130,7 @@ fn main() {
 
 fn run(command: Command) -> Result<(), LabError> {
     match command {
-        Command::Visibility {
-            scene,
-            fins,
-            points,
-            method,
-            out,
-        } => {
+        Command::Visibility { scene, fins, points, method, out } => {
             let loaded = scene.load()?;
             let settings = fins.settings()?;
             let measured = parse_measured(&method)?;
@@ -149,15 +143,7 @@ fn run(command: Command) -> Result<(), LabError> {
                     normal: ls.frame.dir_to_frame(n.normalize_or_zero()),
                 })
                 .collect();
-            let ev = evaluate(
-                &loaded.scene,
-                &ls,
-                measured,
-                settings,
-                fins.map_resolution,
-                fins.samples,
-                &receivers,
-            );
+            let ev = evaluate(&loaded.scene, &ls, measured, settings, fins.map_resolution, fins.samples, &receivers);
             let mut text = String::from("x,y,z,visibility\n");
             for ((p, _), v) in pts.iter().zip(&ev.values) {
                 text += &format!("{},{},{},{v:.6}\n", p.x, p.y, p.z);
@@ -165,15 +151,7 @@ fn run(command: Command) -> Result<(), LabError> {
             write_text(out.as_deref(), &text)?;
             eprintln!("{method}: {} points in {:.1} ms", pts.len(), ev.total_ms());
         }
-        Command::Image {
-            scene,
-            fins,
-            camera_position,
-            camera_target,
-            width,
-            height,
-            out,
-        } => {
+        Command::Image { scene, fins, camera_position, camera_target, width, height, out } => {
             let mut loaded = scene.load()?;
             if let Some(p) = camera_position {
                 loaded.camera.position = p;
@@ -196,35 +174,20 @@ fn run(command: Command) -> Result<(), LabError> {
             strip(&c).save_png(&out)?;
             eprintln!("wrote {}", out.display());
         }
-        Command::Report {
-            fins,
-            scenes,
-            width,
-            height,
-            images,
-        } => {
+        Command::Report { fins, scenes, width, height, images } => {
             let settings = fins.settings()?;
             let ids: Vec<SceneId> = if scenes.is_empty() {
-                SceneId::ALL
-                    .into_iter()
-                    .filter(|s| *s != SceneId::DenseBlob)
-                    .collect()
+                SceneId::ALL.into_iter().filter(|s| *s != SceneId::DenseBlob).collect()
             } else {
                 scenes
                     .iter()
-                    .map(|s| {
-                        SceneId::parse(s)
-                            .ok_or_else(|| LabError::Usage(format!("unknown scene '{s}'")))
-                    })
+                    .map(|s| SceneId::parse(s).ok_or_else(|| LabError::Usage(format!("unknown scene '{s}'"))))
                     .collect::<Result<_, _>>()?
             };
             let mut configs = standard_configs(settings);
             for f in shadow_fins::refine::Falloff::ALL {
                 if f != settings.falloff {
-                    let s = FinSettings {
-                        falloff: f,
-                        ..settings
-                    };
+                    let s = FinSettings { falloff: f, ..settings };
                     configs.push(Config::new(Method::MultiLayer, s).labelled(format!(
                         "fins {}L {}",
                         s.layers,
@@ -243,14 +206,7 @@ fn run(command: Command) -> Result<(), LabError> {
                     sun_angle: 0.05,
                 };
                 let loaded = args.load()?;
-                let c = compare(
-                    &loaded,
-                    width,
-                    height,
-                    &configs,
-                    fins.map_resolution,
-                    fins.samples,
-                );
+                let c = compare(&loaded, width, height, &configs, fins.map_resolution, fins.samples);
                 println!("### {}\n", title(&loaded.name, &loaded.light, &fins));
                 println!("{}", markdown_table(&c));
                 std::io::stdout().flush().ok();
@@ -260,8 +216,7 @@ fn run(command: Command) -> Result<(), LabError> {
             }
         }
         Command::ExportGltf { scene, out } => {
-            let id = SceneId::parse(&scene)
-                .ok_or_else(|| LabError::Usage(format!("unknown scene '{scene}'")))?;
+            let id = SceneId::parse(&scene).ok_or_else(|| LabError::Usage(format!("unknown scene '{scene}'")))?;
             let text = shadow_fins::gltf_import::write_gltf(&id.build().scene);
             write_text(Some(&out), &text)?;
             eprintln!("wrote {}", out.display());
@@ -279,10 +234,7 @@ fn title(name: &str, light: &shadow_fins::light::Light, fins: &FinArgs) -> Strin
         Some(r) => format!("raster oracle {r}²"),
         None => "analytic oracle".into(),
     };
-    format!(
-        "{name}: {light}, {oracle}, ground truth {} samples",
-        fins.samples
-    )
+    format!("{name}: {light}, {oracle}, ground truth {} samples", fins.samples)
 }
 
 /// Top row: visibility per method and the ground truth; bottom row: error maps.
@@ -297,29 +249,13 @@ fn strip(c: &Comparison) -> Picture {
         let values = c.pixels(&row.evaluation.values);
         pic.blit(&Picture::visibility(w, h, &values), x, label_h);
         pic.text(&row.config.label, x + 2, 3, 2, [230, 230, 230]);
-        pic.blit(
-            &Picture::error_map(w, h, &values, &reference, 0.5),
-            x,
-            2 * label_h + h + 4,
-        );
-        pic.text(
-            &format!("mae {:.3}", row.metrics.mae),
-            x + 2,
-            label_h + h + 5,
-            2,
-            [230, 230, 230],
-        );
+        pic.blit(&Picture::error_map(w, h, &values, &reference, 0.5), x, 2 * label_h + h + 4);
+        pic.text(&format!("mae {:.3}", row.metrics.mae), x + 2, label_h + h + 5, 2, [230, 230, 230]);
     }
     let x = c.rows.len() as u32 * (w + 4);
     pic.blit(&Picture::visibility(w, h, &reference), x, label_h);
     pic.text("ground truth", x + 2, 3, 2, [230, 230, 230]);
-    pic.text(
-        "error: red bright",
-        x + 2,
-        label_h + h + 5,
-        2,
-        [230, 120, 60],
-    );
+    pic.text("error: red bright", x + 2, label_h + h + 5, 2, [230, 120, 60]);
     pic.text("cyan dark", x + 2, 2 * label_h + h + 8, 2, [60, 220, 220]);
     pic
 }
@@ -327,8 +263,7 @@ fn strip(c: &Comparison) -> Picture {
 use compare::Comparison;
 
 fn read_points(path: &std::path::Path) -> Result<Vec<(Vec3, Vec3)>, LabError> {
-    let text =
-        std::fs::read_to_string(path).map_err(|e| LabError::Io(path.display().to_string(), e))?;
+    let text = std::fs::read_to_string(path).map_err(|e| LabError::Io(path.display().to_string(), e))?;
     let mut out = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let line = line.trim();
@@ -341,10 +276,7 @@ fn read_points(path: &std::path::Path) -> Result<Vec<(Vec3, Vec3)>, LabError> {
             Ok(n) => n,
             Err(_) if i == 0 => continue, // header
             Err(_) => {
-                return Err(LabError::Points {
-                    line: i + 1,
-                    reason: format!("'{line}' is not numbers"),
-                });
+                return Err(LabError::Points { line: i + 1, reason: format!("'{line}' is not numbers") });
             }
         };
         if !(nums.len() == 3 || nums.len() == 6) || nums.iter().any(|v| !v.is_finite()) {
@@ -353,11 +285,7 @@ fn read_points(path: &std::path::Path) -> Result<Vec<(Vec3, Vec3)>, LabError> {
                 reason: "need 3 or 6 finite numbers: x,y,z[,nx,ny,nz]".into(),
             });
         }
-        let n = if nums.len() == 6 {
-            Vec3::new(nums[3], nums[4], nums[5])
-        } else {
-            Vec3::ZERO
-        };
+        let n = if nums.len() == 6 { Vec3::new(nums[3], nums[4], nums[5]) } else { Vec3::ZERO };
         out.push((Vec3::new(nums[0], nums[1], nums[2]), n));
     }
     Ok(out)
@@ -367,8 +295,7 @@ fn write_text(path: Option<&std::path::Path>, text: &str) -> Result<(), LabError
     match path {
         Some(p) => {
             if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-                std::fs::create_dir_all(dir)
-                    .map_err(|e| LabError::Io(dir.display().to_string(), e))?;
+                std::fs::create_dir_all(dir).map_err(|e| LabError::Io(dir.display().to_string(), e))?;
             }
             std::fs::write(p, text).map_err(|e| LabError::Io(p.display().to_string(), e))
         }

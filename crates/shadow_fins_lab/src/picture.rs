@@ -21,11 +21,7 @@ pub type Pixel = Option<Option<f32>>;
 
 impl Picture {
     pub fn new(width: u32, height: u32, fill: [u8; 3]) -> Self {
-        Self {
-            width,
-            height,
-            pixels: vec![fill; (width * height) as usize],
-        }
+        Self { width, height, pixels: vec![fill; (width * height) as usize] }
     }
 
     /// Visibility as grey (sRGB-encoded so mid-greys look mid).
@@ -38,23 +34,13 @@ impl Picture {
                 None => BACKGROUND,
             })
             .collect();
-        Self {
-            width,
-            height,
-            pixels,
-        }
+        Self { width, height, pixels }
     }
 
     /// Signed error heat map: black where exact, red where the method is too
     /// bright (leaks), cyan where too dark (umbra over-estimation), saturating at
     /// `full_scale`.
-    pub fn error_map(
-        width: u32,
-        height: u32,
-        method: &[Pixel],
-        reference: &[Pixel],
-        full_scale: f32,
-    ) -> Self {
+    pub fn error_map(width: u32, height: u32, method: &[Pixel], reference: &[Pixel], full_scale: f32) -> Self {
         let pixels = method
             .iter()
             .zip(reference)
@@ -74,18 +60,13 @@ impl Picture {
                 _ => BACKGROUND,
             })
             .collect();
-        Self {
-            width,
-            height,
-            pixels,
-        }
+        Self { width, height, pixels }
     }
 
     pub fn blit(&mut self, other: &Picture, x0: u32, y0: u32) {
         for y in 0..other.height.min(self.height.saturating_sub(y0)) {
             for x in 0..other.width.min(self.width.saturating_sub(x0)) {
-                self.pixels[((y0 + y) * self.width + x0 + x) as usize] =
-                    other.pixels[(y * other.width + x) as usize];
+                self.pixels[((y0 + y) * self.width + x0 + x) as usize] = other.pixels[(y * other.width + x) as usize];
             }
         }
     }
@@ -121,26 +102,15 @@ impl Picture {
         let mut enc = png::Encoder::new(BufWriter::new(file), self.width, self.height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
-        let mut w = enc
-            .write_header()
-            .map_err(|e| LabError::Png(e.to_string()))?;
+        let mut w = enc.write_header().map_err(|e| LabError::Png(e.to_string()))?;
         let data: Vec<u8> = self.pixels.iter().flatten().copied().collect();
-        w.write_image_data(&data)
-            .map_err(|e| LabError::Png(e.to_string()))
+        w.write_image_data(&data).map_err(|e| LabError::Png(e.to_string()))
     }
 }
 
 fn srgb(v: f32) -> u8 {
-    let v = if v.is_finite() {
-        v.clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    let s = if v <= 0.0031308 {
-        v * 12.92
-    } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
-    };
+    let v = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
+    let s = if v <= 0.0031308 { v * 12.92 } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 };
     (s * 255.0 + 0.5) as u8
 }
 

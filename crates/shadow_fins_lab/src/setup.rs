@@ -67,10 +67,7 @@ pub struct FinArgs {
 impl FinArgs {
     pub fn settings(&self) -> Result<FinSettings, LabError> {
         let falloff = Falloff::parse(&self.falloff).ok_or_else(|| {
-            LabError::Usage(format!(
-                "unknown falloff '{}': use linear, bernstein or disk-segment",
-                self.falloff
-            ))
+            LabError::Usage(format!("unknown falloff '{}': use linear, bernstein or disk-segment", self.falloff))
         })?;
         if let Some(r) = self.map_resolution {
             if !(16..=8192).contains(&r) {
@@ -80,13 +77,8 @@ impl FinArgs {
         if !(1..=1 << 20).contains(&self.samples) {
             return Err(shadow_fins::SettingsError::Samples(self.samples).into());
         }
-        Ok(FinSettings {
-            layers: self.layers,
-            sub_layers: self.sub_layers,
-            refinement: !self.no_refinement,
-            falloff,
-        }
-        .validate()?)
+        Ok(FinSettings { layers: self.layers, sub_layers: self.sub_layers, refinement: !self.no_refinement, falloff }
+            .validate()?)
     }
 }
 
@@ -102,9 +94,7 @@ pub fn parse_measured(s: &str) -> Result<Measured, LabError> {
         return Ok(Measured::GroundTruth);
     }
     Method::parse(s).map(Measured::Method).ok_or_else(|| {
-        LabError::Usage(format!(
-            "unknown method '{s}': use ground-truth, fins, hard, outer-fins or single-layer"
-        ))
+        LabError::Usage(format!("unknown method '{s}': use ground-truth, fins, hard, outer-fins or single-layer"))
     })
 }
 
@@ -127,34 +117,21 @@ impl SceneArgs {
                 let (lo, hi) = import.scene.bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
                 let center = (lo + hi) * 0.5;
                 let size = (hi - lo).length().max(1e-6);
-                let camera = Camera::looking_at(
-                    center + Vec3::new(0.6, 0.7, 0.9).normalize() * size * 1.2,
-                    center,
-                );
-                let light = DiskLight::new(center + Vec3::Y * size, Vec3::NEG_Y, size * 0.05)
-                    .map(Light::Disk)?;
+                let camera = Camera::looking_at(center + Vec3::new(0.6, 0.7, 0.9).normalize() * size * 1.2, center);
+                let light = DiskLight::new(center + Vec3::Y * size, Vec3::NEG_Y, size * 0.05).map(Light::Disk)?;
                 (path.display().to_string(), import.scene, light, camera)
             }
             None => {
                 let id = SceneId::parse(&self.scene).ok_or_else(|| {
                     let names: Vec<_> = SceneId::ALL.iter().map(|s| s.name()).collect();
-                    LabError::Usage(format!(
-                        "unknown scene '{}': use one of {}",
-                        self.scene,
-                        names.join(", ")
-                    ))
+                    LabError::Usage(format!("unknown scene '{}': use one of {}", self.scene, names.join(", ")))
                 })?;
                 let b = id.build();
                 (id.name().to_string(), b.scene, b.light, b.camera)
             }
         };
         let light = self.light(default_light)?;
-        Ok(Loaded {
-            name,
-            scene,
-            light,
-            camera,
-        })
+        Ok(Loaded { name, scene, light, camera })
     }
 
     fn light(&self, default: Light) -> Result<Light, LabError> {

@@ -28,38 +28,25 @@ impl<'m, 'a> AnalyticIndex<'m, 'a> {
             .iter()
             .map(|c| c.bounds())
             .chain(model.fins.iter().map(|f| f.bounds()))
-            .map(|(lo, hi)| {
-                (
-                    lo.max(Vec2::splat(-MAP_LIMIT)),
-                    hi.min(Vec2::splat(MAP_LIMIT)),
-                )
-            })
+            .map(|(lo, hi)| (lo.max(Vec2::splat(-MAP_LIMIT)), hi.min(Vec2::splat(MAP_LIMIT))))
             .collect();
-        let (mut min, mut max) = bounds.iter().fold(
-            (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)),
-            |(a, b), (lo, hi)| (a.min(*lo), b.max(*hi)),
-        );
+        let (mut min, mut max) =
+            bounds.iter().fold((Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)), |(a, b), (lo, hi)| {
+                (a.min(*lo), b.max(*hi))
+            });
         if !(min.x <= max.x && min.y <= max.y) {
             (min, max) = (Vec2::ZERO, Vec2::ONE);
         }
         let size = (max - min).max(Vec2::splat(1e-12));
         let n = (bounds.len() as f32).sqrt().clamp(1.0, 1024.0);
         let aspect = (size.x / size.y).clamp(1e-3, 1e3).sqrt();
-        let dims = [
-            ((n * aspect).ceil() as usize).clamp(1, 2048),
-            ((n / aspect).ceil() as usize).clamp(1, 2048),
-        ];
+        let dims = [((n * aspect).ceil() as usize).clamp(1, 2048), ((n / aspect).ceil() as usize).clamp(1, 2048)];
         let inv_cell = Vec2::new(dims[0] as f32, dims[1] as f32) / size;
         let cell_range = |lo: Vec2, hi: Vec2| {
             let a = ((lo - min) * inv_cell).floor();
             let b = ((hi - min) * inv_cell).floor();
             let clamp = |v: f32, d: usize| (v.max(0.0) as usize).min(d - 1);
-            (
-                clamp(a.x, dims[0]),
-                clamp(b.x, dims[0]),
-                clamp(a.y, dims[1]),
-                clamp(b.y, dims[1]),
-            )
+            (clamp(a.x, dims[0]), clamp(b.x, dims[0]), clamp(a.y, dims[1]), clamp(b.y, dims[1]))
         };
         let mut counts = vec![0u32; dims[0] * dims[1] + 1];
         for &(lo, hi) in &bounds {
@@ -92,14 +79,7 @@ impl<'m, 'a> AnalyticIndex<'m, 'a> {
                 }
             }
         }
-        Self {
-            model,
-            min,
-            inv_cell,
-            dims,
-            starts,
-            items,
-        }
+        Self { model, min, inv_cell, dims, starts, items }
     }
 
     /// Every layer's texel at map point `q`.
@@ -107,11 +87,7 @@ impl<'m, 'a> AnalyticIndex<'m, 'a> {
         out.clear();
         out.resize(self.model.plan.len(), LayerTexel::EMPTY);
         let c = (q - self.min) * self.inv_cell;
-        if !(c.x >= 0.0
-            && c.y >= 0.0
-            && (c.x as usize) < self.dims[0]
-            && (c.y as usize) < self.dims[1])
-        {
+        if !(c.x >= 0.0 && c.y >= 0.0 && (c.x as usize) < self.dims[0] && (c.y as usize) < self.dims[1]) {
             return;
         }
         let cell = c.y as usize * self.dims[0] + c.x as usize;
@@ -150,11 +126,7 @@ impl<'m, 'a> AnalyticIndex<'m, 'a> {
             return 0.0;
         }
         self.layer_texels(m.map(p), texels);
-        let slack = if receiver.normal == glam::Vec3::ZERO {
-            eps
-        } else {
-            0.0
-        };
+        let slack = if receiver.normal == glam::Vec3::ZERO { eps } else { 0.0 };
         m.visibility_from(texels, p.z, p.z * (1.0 - 1e-6) - slack)
     }
 }

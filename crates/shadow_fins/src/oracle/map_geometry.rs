@@ -22,21 +22,13 @@ impl MapTriangle {
     /// Projects a light-frame triangle, clipped to `z >= near` under perspective
     /// (a caster through the light plane keeps only its part in front of the
     /// light). Returns 0, 1 or 2 triangles; edge-on ones are dropped.
-    pub fn clipped(
-        tri: &[Vec3; 3],
-        frame: &LightFrame,
-        near: f32,
-        perspective: bool,
-    ) -> Vec<MapTriangle> {
+    pub fn clipped(tri: &[Vec3; 3], frame: &LightFrame, near: f32, perspective: bool) -> Vec<MapTriangle> {
         let normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
         let offset = normal.dot(tri[0]);
         let make = |p: [Vec3; 3]| {
             let corners = p.map(|v| frame.map(v));
             let area = (corners[1] - corners[0]).perp_dot(corners[2] - corners[0]);
-            let (min_depth, max_depth) = (
-                p[0].z.min(p[1].z).min(p[2].z),
-                p[0].z.max(p[1].z).max(p[2].z),
-            );
+            let (min_depth, max_depth) = (p[0].z.min(p[1].z).min(p[2].z), p[0].z.max(p[1].z).max(p[2].z));
             (area.abs() > 0.0 && area.is_finite()).then_some(MapTriangle {
                 corners,
                 normal,
@@ -62,9 +54,7 @@ impl MapTriangle {
                 poly.push(a + (b - a) * t);
             }
         }
-        (1..poly.len().saturating_sub(1))
-            .filter_map(|i| make([poly[0], poly[i], poly[i + 1]]))
-            .collect()
+        (1..poly.len().saturating_sub(1)).filter_map(|i| make([poly[0], poly[i], poly[i + 1]])).collect()
     }
 
     /// True when `q` lies inside or on the triangle.
@@ -86,11 +76,7 @@ impl MapTriangle {
             (self.offset - self.normal.x * q.x - self.normal.y * q.y) / self.normal.z
         };
         // Float error near edge-on planes: keep the depth within the triangle's own range.
-        if z.is_finite() {
-            z.clamp(self.min_depth, self.max_depth)
-        } else {
-            self.min_depth
-        }
+        if z.is_finite() { z.clamp(self.min_depth, self.max_depth) } else { self.min_depth }
     }
 
     pub fn bounds(&self) -> (Vec2, Vec2) {

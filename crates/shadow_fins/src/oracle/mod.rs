@@ -46,12 +46,7 @@ pub enum Method {
 }
 
 impl Method {
-    pub const ALL: [Method; 4] = [
-        Method::Hard,
-        Method::OuterFins,
-        Method::SingleLayer,
-        Method::MultiLayer,
-    ];
+    pub const ALL: [Method; 4] = [Method::Hard, Method::OuterFins, Method::SingleLayer, Method::MultiLayer];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -82,12 +77,7 @@ pub struct FinSettings {
 
 impl Default for FinSettings {
     fn default() -> Self {
-        Self {
-            layers: 16,
-            sub_layers: 1024,
-            refinement: true,
-            falloff: Falloff::default(),
-        }
+        Self { layers: 16, sub_layers: 1024, refinement: true, falloff: Falloff::default() }
     }
 }
 
@@ -141,17 +131,13 @@ impl LayerTexel {
     pub fn add_fin(&mut self, side: FinSide, s: FinSample) {
         match side {
             FinSide::Inner => {
-                if s.weight < self.inner_weight
-                    || (s.weight == self.inner_weight && s.depth < self.inner_depth)
-                {
+                if s.weight < self.inner_weight || (s.weight == self.inner_weight && s.depth < self.inner_depth) {
                     self.inner_weight = s.weight;
                     self.inner_depth = s.depth;
                 }
             }
             FinSide::Outer => {
-                if s.weight > self.outer_weight
-                    || (s.weight == self.outer_weight && s.depth < self.outer_depth)
-                {
+                if s.weight > self.outer_weight || (s.weight == self.outer_weight && s.depth < self.outer_depth) {
                     self.outer_weight = s.weight;
                     self.outer_depth = s.depth;
                 }
@@ -160,17 +146,11 @@ impl LayerTexel {
     }
 
     pub fn inner(&self) -> Option<FinSample> {
-        self.inner_weight.is_finite().then_some(FinSample {
-            weight: self.inner_weight,
-            depth: self.inner_depth,
-        })
+        self.inner_weight.is_finite().then_some(FinSample { weight: self.inner_weight, depth: self.inner_depth })
     }
 
     pub fn outer(&self) -> Option<FinSample> {
-        self.outer_weight.is_finite().then_some(FinSample {
-            weight: self.outer_weight,
-            depth: self.outer_depth,
-        })
+        self.outer_weight.is_finite().then_some(FinSample { weight: self.outer_weight, depth: self.outer_depth })
     }
 }
 
@@ -191,32 +171,17 @@ pub struct CombineParams<'a> {
 /// applies): `I = min(I, u)`; umbra: `I = 0`; lit: keep. The result is the
 /// minimum over layers, so their order does not matter; casters and fins behind
 /// the receiver drop out by their depth.
-pub fn combine_layers(
-    texels: &[LayerTexel],
-    receiver_depth: f32,
-    blocking_limit: f32,
-    p: CombineParams,
-) -> f32 {
+pub fn combine_layers(texels: &[LayerTexel], receiver_depth: f32, blocking_limit: f32, p: CombineParams) -> f32 {
     let refine = |s: FinSample| {
         if p.refinement {
-            refine_weight(
-                p.frame,
-                s.weight,
-                s.depth,
-                receiver_depth,
-                p.reference_depth,
-            )
+            refine_weight(p.frame, s.weight, s.depth, receiver_depth, p.reference_depth)
         } else {
             (s.depth < receiver_depth).then_some(s.weight)
         }
     };
     let mut illuminance = 1.0f32;
     for t in texels {
-        let base = if t.slab_depth < blocking_limit {
-            0.0
-        } else {
-            1.0
-        };
+        let base = if t.slab_depth < blocking_limit { 0.0 } else { 1.0 };
         let inner = t.inner().and_then(refine);
         let outer = t.outer().and_then(refine);
         if inner.is_some() || outer.is_some() {
@@ -244,11 +209,7 @@ impl Receiver {
         if self.normal == Vec3::ZERO {
             return true;
         }
-        if frame.is_perspective() {
-            self.normal.dot(-self.position) > 0.0
-        } else {
-            self.normal.z < 0.0
-        }
+        if frame.is_perspective() { self.normal.dot(-self.position) > 0.0 } else { self.normal.z < 0.0 }
     }
 }
 
@@ -282,13 +243,7 @@ impl FinExtractor {
     /// clips casters into depth slabs instead; measured against ground truth,
     /// that turns the inner penumbra of any occluder deeper than its own
     /// silhouette — a box's sides, a wall standing on the floor — into umbra.)
-    pub fn extract(
-        &mut self,
-        scene: &Scene,
-        light_space: &LightSpaceScene,
-        layers: u32,
-        sub_layers: u32,
-    ) {
+    pub fn extract(&mut self, scene: &Scene, light_space: &LightSpaceScene, layers: u32, sub_layers: u32) {
         self.silhouettes.clear();
         self.face_patches.clear();
         let frame = &light_space.frame;
@@ -310,16 +265,9 @@ impl FinExtractor {
             vertex_base += object.topology.positions.len() as u32;
         }
         let near = near_depth(light_space);
-        self.builder.build(
-            &self.silhouettes,
-            frame,
-            light_space.reference_depth,
-            near,
-            &mut self.fins,
-        );
+        self.builder.build(&self.silhouettes, frame, light_space.reference_depth, near, &mut self.fins);
         self.depths.clear();
-        self.depths
-            .extend(self.silhouettes.iter().map(SilhouetteEdge::mid_depth));
+        self.depths.extend(self.silhouettes.iter().map(SilhouetteEdge::mid_depth));
         self.plan = LayerPlan::from_edge_depths(&self.depths, sub_layers, layers);
 
         // Patch layer: mean silhouette-edge depth; patches with no silhouette
@@ -333,30 +281,21 @@ impl FinExtractor {
         }
         let last = self.plan.len() as u32 - 1;
         self.patch_layers.clear();
-        self.patch_layers
-            .extend(self.patch_depth.iter().map(|&(sum, n)| {
-                if n == 0 {
-                    last
-                } else {
-                    self.plan.layer_of(sum / n as f32) as u32
-                }
-            }));
-        self.fin_layers.clear();
-        self.fin_layers.extend(
-            self.fins
-                .iter()
-                .map(|f| self.patch_layers[f.patch as usize]),
+        self.patch_layers.extend(
+            self.patch_depth.iter().map(
+                |&(sum, n)| {
+                    if n == 0 { last } else { self.plan.layer_of(sum / n as f32) as u32 }
+                },
+            ),
         );
+        self.fin_layers.clear();
+        self.fin_layers.extend(self.fins.iter().map(|f| self.patch_layers[f.patch as usize]));
     }
 }
 
 /// Depth below which geometry is treated as at or behind the light plane.
 pub fn near_depth(light_space: &LightSpaceScene) -> f32 {
-    if light_space.frame.is_perspective() {
-        light_space.reference_depth * 1e-5
-    } else {
-        f32::NEG_INFINITY
-    }
+    if light_space.frame.is_perspective() { light_space.reference_depth * 1e-5 } else { f32::NEG_INFINITY }
 }
 
 /// One scene under one light, prepared for one method.
@@ -376,31 +315,17 @@ pub struct FinShadowModel<'a> {
 
 impl<'a> FinShadowModel<'a> {
     /// Extracts silhouettes and fins and plans layers as `method` asks.
-    pub fn new(
-        scene: &Scene,
-        light_space: &'a LightSpaceScene,
-        method: Method,
-        settings: FinSettings,
-    ) -> Self {
+    pub fn new(scene: &Scene, light_space: &'a LightSpaceScene, method: Method, settings: FinSettings) -> Self {
         let mut ex = FinExtractor::default();
-        let layers = if method == Method::MultiLayer {
-            settings.layers
-        } else {
-            1
-        };
+        let layers = if method == Method::MultiLayer { settings.layers } else { 1 };
         ex.extract(scene, light_space, layers, settings.sub_layers);
         let keep = |f: &Fin| match method {
             Method::Hard => false,
             Method::OuterFins => f.side == FinSide::Outer,
             Method::SingleLayer | Method::MultiLayer => true,
         };
-        let (fins, fin_layers): (Vec<Fin>, Vec<u32>) = ex
-            .fins
-            .iter()
-            .zip(&ex.fin_layers)
-            .filter(|(f, _)| keep(f))
-            .map(|(f, l)| (*f, *l))
-            .unzip();
+        let (fins, fin_layers): (Vec<Fin>, Vec<u32>) =
+            ex.fins.iter().zip(&ex.fin_layers).filter(|(f, _)| keep(f)).map(|(f, l)| (*f, *l)).unzip();
         let near = near_depth(light_space);
         let perspective = light_space.frame.is_perspective();
         let (mut casters, mut caster_layers) = (Vec::new(), Vec::new());

@@ -95,22 +95,13 @@ impl<'m, 'a> RasterMaps<'m, 'a> {
                 }
             }
         }
-        Self {
-            model,
-            region,
-            layers,
-        }
+        Self { model, region, layers }
     }
 
     /// The square covering every caster and fin, clamped to ±83° off axis.
     fn covering_region(model: &FinShadowModel, resolution: u32) -> MapRegion {
         let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
-        for (a, b) in model
-            .casters
-            .iter()
-            .map(|c| c.bounds())
-            .chain(model.fins.iter().map(|f| f.bounds()))
-        {
+        for (a, b) in model.casters.iter().map(|c| c.bounds()).chain(model.fins.iter().map(|f| f.bounds())) {
             lo = lo.min(a);
             hi = hi.max(b);
         }
@@ -121,20 +112,12 @@ impl<'m, 'a> RasterMaps<'m, 'a> {
         }
         let size = (hi - lo).max_element().max(1e-9) * 1.001;
         let center = (lo + hi) * 0.5;
-        MapRegion {
-            min: center - Vec2::splat(size * 0.5),
-            texel: size / resolution as f32,
-            resolution,
-        }
+        MapRegion { min: center - Vec2::splat(size * 0.5), texel: size / resolution as f32, resolution }
     }
 
     /// World size of one texel at depth `z`.
     pub fn texel_world_size(&self, z: f32) -> f32 {
-        if self.model.frame().is_perspective() {
-            self.region.texel * z
-        } else {
-            self.region.texel
-        }
+        if self.model.frame().is_perspective() { self.region.texel * z } else { self.region.texel }
     }
 
     /// Visibility of the disk from a receiver, looked up at the nearest texel.
@@ -155,19 +138,12 @@ impl<'m, 'a> RasterMaps<'m, 'a> {
             None => texels.resize(self.layers.len(), LayerTexel::EMPTY),
         }
         // Without a normal there is no offset: fall back to a slope-blind depth bias.
-        let slack = if receiver.normal == Vec3::ZERO {
-            2.0 * texel_world + m.surface_epsilon()
-        } else {
-            0.0
-        };
+        let slack = if receiver.normal == Vec3::ZERO { 2.0 * texel_world + m.surface_epsilon() } else { 0.0 };
         m.visibility_from(&texels, p.z, p.z * (1.0 - 1e-6) - slack)
     }
 
     /// Memory held by the maps, in bytes.
     pub fn memory_bytes(&self) -> usize {
-        self.layers
-            .iter()
-            .map(|l| l.len() * std::mem::size_of::<LayerTexel>())
-            .sum()
+        self.layers.iter().map(|l| l.len() * std::mem::size_of::<LayerTexel>()).sum()
     }
 }

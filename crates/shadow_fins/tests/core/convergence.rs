@@ -27,15 +27,8 @@ pub fn view_receivers(
         let (o, d) = camera.ray(i % w, i / w, w, h);
         let (o, d) = (ls.frame.to_frame(o), ls.frame.dir_to_frame(d));
         if let Some(hit) = bvh.closest_hit(o, d, 0.0) {
-            let n = if hit.normal.dot(d) > 0.0 {
-                -hit.normal
-            } else {
-                hit.normal
-            };
-            out.push(Receiver {
-                position: o + d * hit.t,
-                normal: n,
-            });
+            let n = if hit.normal.dot(d) > 0.0 { -hit.normal } else { hit.normal };
+            out.push(Receiver { position: o + d * hit.t, normal: n });
         }
     }
     (ls, out)
@@ -43,11 +36,7 @@ pub fn view_receivers(
 
 #[test]
 fn raster_converges_to_analytic_as_resolution_doubles() {
-    for id in [
-        SceneId::BoxOverPlane,
-        SceneId::RingPlate,
-        SceneId::SphereGrid,
-    ] {
+    for id in [SceneId::BoxOverPlane, SceneId::RingPlate, SceneId::SphereGrid] {
         let s = id.build();
         let (ls, receivers) = view_receivers(&s.scene, s.light, &s.camera, 64, 48);
         let model = FinShadowModel::new(&s.scene, &ls, Method::MultiLayer, FinSettings::default());
@@ -62,37 +51,23 @@ fn raster_converges_to_analytic_as_resolution_doubles() {
             })
             .collect();
         for w in errors.windows(2) {
-            assert!(
-                w[1] < w[0] * 0.9 || w[1] < 2e-3,
-                "{}: raster error does not shrink: {errors:?}",
-                id.name()
-            );
+            assert!(w[1] < w[0] * 0.9 || w[1] < 2e-3, "{}: raster error does not shrink: {errors:?}", id.name());
         }
         // What remains at 1024² is texel-sized: terminators of the spheres, where
         // the raster's one-texel normal offset moves a receiver across an edge.
-        assert!(
-            errors[3] < 0.015,
-            "{}: raster at 1024² still off by {errors:?}",
-            id.name()
-        );
+        assert!(errors[3] < 0.015, "{}: raster at 1024² still off by {errors:?}", id.name());
     }
 }
 
 #[test]
 fn radius_zero_equals_the_hard_shadow_exactly() {
-    for id in SceneId::ALL
-        .into_iter()
-        .filter(|s| *s != SceneId::DenseBlob)
-    {
+    for id in SceneId::ALL.into_iter().filter(|s| *s != SceneId::DenseBlob) {
         let s = id.build();
         let light = s.light.with_zero_size();
         let (ls, receivers) = view_receivers(&s.scene, light, &s.camera, 48, 36);
         let hard = FinShadowModel::new(&s.scene, &ls, Method::Hard, FinSettings::default());
         let hard_index = hard.analytic();
-        let hard_v: Vec<f32> = receivers
-            .iter()
-            .map(|r| hard_index.visibility(*r))
-            .collect();
+        let hard_v: Vec<f32> = receivers.iter().map(|r| hard_index.visibility(*r)).collect();
         assert!(
             hard_v.iter().any(|v| *v == 0.0) && hard_v.iter().any(|v| *v == 1.0),
             "{}: no shadow in view",
@@ -103,13 +78,7 @@ fn radius_zero_equals_the_hard_shadow_exactly() {
             assert!(model.fins.is_empty(), "radius 0 must build no fins");
             let index = model.analytic();
             let v: Vec<f32> = receivers.iter().map(|r| index.visibility(*r)).collect();
-            assert_eq!(
-                v,
-                hard_v,
-                "{} / {}: radius 0 differs from hard shadows",
-                id.name(),
-                method.name()
-            );
+            assert_eq!(v, hard_v, "{} / {}: radius 0 differs from hard shadows", id.name(), method.name());
         }
     }
 }

@@ -30,25 +30,13 @@ fn the_committed_demo_asset_loads() {
 
 #[test]
 fn broken_files_give_typed_errors() {
-    assert!(matches!(
-        parse_gltf(b"not a gltf at all", None),
-        Err(GltfError::Parse(_))
-    ));
+    assert!(matches!(parse_gltf(b"not a gltf at all", None), Err(GltfError::Parse(_))));
     let good = write_gltf(&SceneId::BoxOverPlane.build().scene);
     let truncated = &good.as_bytes()[..good.len() / 2];
-    assert!(matches!(
-        parse_gltf(truncated, None),
-        Err(GltfError::Parse(_))
-    ));
+    assert!(matches!(parse_gltf(truncated, None), Err(GltfError::Parse(_))));
     let missing = good.replace("data:application/octet-stream;base64,", "missing.bin#");
-    assert!(matches!(
-        parse_gltf(missing.as_bytes(), None),
-        Err(GltfError::Buffer { .. })
-    ));
-    assert!(matches!(
-        shadow_fins::gltf_import::load_gltf("/nonexistent/file.gltf"),
-        Err(GltfError::Io { .. })
-    ));
+    assert!(matches!(parse_gltf(missing.as_bytes(), None), Err(GltfError::Buffer { .. })));
+    assert!(matches!(shadow_fins::gltf_import::load_gltf("/nonexistent/file.gltf"), Err(GltfError::Io { .. })));
 }
 
 #[test]
@@ -62,29 +50,18 @@ fn a_mesh_with_nan_positions_is_skipped_with_its_reason() {
     let b64 = |bytes: &[u8]| {
         const T: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
         let n = (bytes[0] as u32) << 16 | (bytes[1] as u32) << 8 | bytes[2] as u32;
-        (0..4)
-            .map(|i| T[(n >> (18 - 6 * i) & 63) as usize] as char)
-            .collect::<String>()
+        (0..4).map(|i| T[(n >> (18 - 6 * i) & 63) as usize] as char).collect::<String>()
     };
     // Re-encode the first 6 bytes (two base64 quads) with the NaN float in front.
     let decoded_rest = &text[start + 4..start + 8];
     let _ = decoded_rest;
     let mut bytes = nan.to_vec();
     bytes.extend([0u8, 0]);
-    let poisoned = format!(
-        "{}{}{}{}",
-        &text[..start],
-        b64(&bytes[0..3]),
-        b64(&bytes[3..6]),
-        &text[start + 8..]
-    );
+    let poisoned = format!("{}{}{}{}", &text[..start], b64(&bytes[0..3]), b64(&bytes[3..6]), &text[start + 8..]);
     let import = parse_gltf(poisoned.as_bytes(), None).unwrap();
     assert_eq!(import.scene.objects.len(), s.scene.objects.len() - 1);
     assert!(matches!(
         import.skipped.as_slice(),
-        [GltfError::Mesh {
-            source: MeshError::NonFinitePosition { vertex: 0, .. },
-            ..
-        }]
+        [GltfError::Mesh { source: MeshError::NonFinitePosition { vertex: 0, .. }, .. }]
     ));
 }

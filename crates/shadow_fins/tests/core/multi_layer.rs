@@ -27,33 +27,12 @@ fn single_layer_leaks_under_the_plate_and_multi_layer_does_not() {
     let s = SceneId::RingPlate.build();
     let pts = points_under_the_ring();
     let gt = ground_truth(&s.scene, s.light, 1024, &pts);
-    assert!(
-        gt.iter().all(|v| *v < 0.005),
-        "ground truth says umbra here"
-    );
-    let single = method_visibility(
-        &s.scene,
-        s.light,
-        Method::SingleLayer,
-        FinSettings::default(),
-        &pts,
-    );
-    let multi = method_visibility(
-        &s.scene,
-        s.light,
-        Method::MultiLayer,
-        FinSettings::default(),
-        &pts,
-    );
+    assert!(gt.iter().all(|v| *v < 0.005), "ground truth says umbra here");
+    let single = method_visibility(&s.scene, s.light, Method::SingleLayer, FinSettings::default(), &pts);
+    let multi = method_visibility(&s.scene, s.light, Method::MultiLayer, FinSettings::default(), &pts);
     // The ring's inner fins reach 0.12..0.24 here through a single layer.
-    assert!(
-        single.iter().all(|v| *v > 0.1),
-        "single layer should leak at every point: {single:?}"
-    );
-    assert!(
-        multi.iter().all(|v| *v < 0.02),
-        "multi-layer must keep the umbra: {multi:?}"
-    );
+    assert!(single.iter().all(|v| *v > 0.1), "single layer should leak at every point: {single:?}");
+    assert!(multi.iter().all(|v| *v < 0.02), "multi-layer must keep the umbra: {multi:?}");
 }
 
 #[test]

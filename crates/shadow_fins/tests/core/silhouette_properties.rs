@@ -18,11 +18,7 @@ fn unwelded(mesh: &Mesh) -> Mesh {
     Mesh::new(positions, indices).unwrap()
 }
 
-fn silhouettes(
-    mesh: Mesh,
-    transform: Affine3A,
-    light: Light,
-) -> Vec<shadow_fins::silhouette::SilhouetteEdge> {
+fn silhouettes(mesh: Mesh, transform: Affine3A, light: Light) -> Vec<shadow_fins::silhouette::SilhouetteEdge> {
     let scene = Scene::new(vec![SceneObject::new("m", mesh, transform).unwrap()]);
     let ls = LightSpaceScene::new(&scene, light);
     let mut ex = FinExtractor::default();
@@ -102,49 +98,29 @@ proptest! {
 fn a_box_lit_from_above_has_its_top_rim_as_silhouette_and_fins_point_outward() {
     use shadow_fins::fins::{FinShape, FinSide};
     let light = Light::Disk(DiskLight::new(Vec3::new(0.1, 5.0, 0.05), Vec3::NEG_Y, 0.5).unwrap());
-    let scene = Scene::new(vec![
-        SceneObject::new("box", shapes::cuboid(Vec3::splat(0.5)), Affine3A::IDENTITY).unwrap(),
-    ]);
+    let scene =
+        Scene::new(vec![SceneObject::new("box", shapes::cuboid(Vec3::splat(0.5)), Affine3A::IDENTITY).unwrap()]);
     let ls = LightSpaceScene::new(&scene, light);
     let mut ex = FinExtractor::default();
     ex.extract(&scene, &ls, 16, 1024);
     assert_eq!(ex.silhouettes.len(), 4);
-    assert!(
-        ex.silhouettes
-            .iter()
-            .all(|e| (ls.frame.to_world(e.a).y - 0.5).abs() < 1e-5)
-    );
+    assert!(ex.silhouettes.iter().all(|e| (ls.frame.to_world(e.a).y - 0.5).abs() < 1e-5));
     let centre = ls.frame.map(ls.frame.to_frame(Vec3::new(0.0, 0.5, 0.0)));
     for f in &ex.fins {
-        if let FinShape::Quad { m0, m1, dir, .. } = f.shape {
+        if let FinShape::Quad { m0, m1, d0: dir, .. } = f.shape {
             let mid = (m0 + m1) * 0.5;
             let outward = (mid - centre).dot(dir) > 0.0;
-            assert_eq!(
-                outward,
-                f.side == FinSide::Outer,
-                "fin side and direction disagree"
-            );
+            assert_eq!(outward, f.side == FinSide::Outer, "fin side and direction disagree");
         }
     }
-    let fans = ex
-        .fins
-        .iter()
-        .filter(|f| matches!(f.shape, FinShape::Sector { .. }))
-        .count();
+    let fans = ex.fins.iter().filter(|f| matches!(f.shape, FinShape::Sector { .. })).count();
     assert_eq!(fans, 4, "one outer fan per convex corner");
 }
 
 #[test]
 fn non_manifold_and_degenerate_meshes_do_not_crash() {
     // Three fins sharing one edge, plus a zero-area triangle.
-    let p = vec![
-        Vec3::ZERO,
-        Vec3::X,
-        Vec3::Y,
-        Vec3::Z,
-        Vec3::new(0.5, -1.0, 0.3),
-        Vec3::X * 2.0,
-    ];
+    let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(0.5, -1.0, 0.3), Vec3::X * 2.0];
     let mesh = Mesh::new(p, vec![0, 1, 2, 1, 0, 3, 0, 1, 4, 0, 1, 5]).unwrap();
     let t = Topology::build(&mesh);
     assert_eq!(t.non_manifold_edges.len(), 1);

@@ -10,21 +10,13 @@ use shadow_fins::{
 
 use super::convergence::view_receivers;
 
-fn assert_all_sane(
-    scene: &Scene,
-    light: shadow_fins::light::Light,
-    camera: &shadow_fins::camera::Camera,
-    what: &str,
-) {
+fn assert_all_sane(scene: &Scene, light: shadow_fins::light::Light, camera: &shadow_fins::camera::Camera, what: &str) {
     let (ls, receivers) = view_receivers(scene, light, camera, 20, 15);
     assert!(!receivers.is_empty(), "{what}: camera sees nothing");
     let gt = GroundTruth::new(&ls, 64);
     for r in &receivers {
         let v = gt.visibility(*r);
-        assert!(
-            v.is_finite() && (0.0..=1.0).contains(&v),
-            "{what}: ground truth {v}"
-        );
+        assert!(v.is_finite() && (0.0..=1.0).contains(&v), "{what}: ground truth {v}");
     }
     for method in Method::ALL {
         let model = FinShadowModel::new(scene, &ls, method, FinSettings::default());
@@ -32,11 +24,7 @@ fn assert_all_sane(
         let maps = model.raster(64);
         for r in &receivers {
             for v in [index.visibility(*r), maps.visibility(*r)] {
-                assert!(
-                    v.is_finite() && (0.0..=1.0).contains(&v),
-                    "{what} {}: visibility {v}",
-                    method.name()
-                );
+                assert!(v.is_finite() && (0.0..=1.0).contains(&v), "{what} {}: visibility {v}", method.name());
             }
         }
     }
@@ -44,10 +32,7 @@ fn assert_all_sane(
 
 #[test]
 fn every_scene_stays_finite_for_every_light_size() {
-    for id in SceneId::ALL
-        .into_iter()
-        .filter(|s| *s != SceneId::DenseBlob)
-    {
+    for id in SceneId::ALL.into_iter().filter(|s| *s != SceneId::DenseBlob) {
         let s = id.build();
         let (lo, hi) = s.scene.bounds().unwrap();
         let size = (hi - lo).length();
@@ -58,12 +43,7 @@ fn every_scene_stays_finite_for_every_light_size() {
                 ),
                 sun => sun,
             };
-            assert_all_sane(
-                &s.scene,
-                light,
-                &s.camera,
-                &format!("{} radius {factor}×", id.name()),
-            );
+            assert_all_sane(&s.scene, light, &s.camera, &format!("{} radius {factor}×", id.name()));
         }
     }
 }
@@ -71,11 +51,7 @@ fn every_scene_stays_finite_for_every_light_size() {
 #[test]
 fn a_scene_offset_by_1e5_stays_finite_and_close() {
     let offset = shadow_fins::glam::Vec3::new(1e5, -1e5, 1e5);
-    for id in [
-        SceneId::BoxOverPlane,
-        SceneId::NearContact,
-        SceneId::RingPlate,
-    ] {
+    for id in [SceneId::BoxOverPlane, SceneId::NearContact, SceneId::RingPlate] {
         let s = id.build();
         let moved = s.scene.translated(offset);
         let light = match s.light {
@@ -91,10 +67,7 @@ fn a_scene_offset_by_1e5_stays_finite_and_close() {
         // Light space is relative to the light in f64: the answer barely moves.
         let near = view_receivers(&s.scene, s.light, &s.camera, 20, 15);
         let far = view_receivers(&moved, light, &camera, 20, 15);
-        let eval = |(ls, r): &(
-            shadow_fins::scene::LightSpaceScene,
-            Vec<shadow_fins::oracle::Receiver>,
-        ),
+        let eval = |(ls, r): &(shadow_fins::scene::LightSpaceScene, Vec<shadow_fins::oracle::Receiver>),
                     scene: &Scene| {
             let m = FinShadowModel::new(scene, ls, Method::MultiLayer, FinSettings::default());
             let i = m.analytic();
@@ -103,11 +76,7 @@ fn a_scene_offset_by_1e5_stays_finite_and_close() {
         let (a, b) = (eval(&near, &s.scene), eval(&far, &moved));
         if a.len() == b.len() {
             let diff = super::common::mean_abs_diff(&a, &b);
-            assert!(
-                diff < 0.02,
-                "{}: offset changed visibility by {diff} on average",
-                id.name()
-            );
+            assert!(diff < 0.02, "{}: offset changed visibility by {diff} on average", id.name());
         }
     }
 }

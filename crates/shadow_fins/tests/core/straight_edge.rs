@@ -16,13 +16,7 @@ const HALF_WIDTH: f32 = 0.5 * (5.0 - 2.0) / 2.0;
 
 fn visibility_at(x: f32, settings: FinSettings) -> f32 {
     let (scene, light) = straight_edge_scene(3.0, 5.0, 0.5);
-    method_visibility(
-        &scene,
-        light,
-        Method::MultiLayer,
-        settings,
-        &[Vec3::new(x, 0.0, 0.3)],
-    )[0]
+    method_visibility(&scene, light, Method::MultiLayer, settings, &[Vec3::new(x, 0.0, 0.3)])[0]
 }
 
 /// Smallest x with `pred(V(x))` true, by bisection on `[lo, hi]` (pred false at lo).
@@ -30,11 +24,7 @@ fn bisect(lo: f32, hi: f32, settings: FinSettings, pred: impl Fn(f32) -> bool) -
     let (mut a, mut b) = (lo, hi);
     for _ in 0..40 {
         let m = 0.5 * (a + b);
-        if pred(visibility_at(m, settings)) {
-            b = m
-        } else {
-            a = m
-        }
+        if pred(visibility_at(m, settings)) { b = m } else { a = m }
     }
     b
 }
@@ -42,13 +32,7 @@ fn bisect(lo: f32, hi: f32, settings: FinSettings, pred: impl Fn(f32) -> bool) -
 #[test]
 fn visibility_is_one_half_on_the_hard_shadow_boundary() {
     for falloff in Falloff::ALL {
-        let v = visibility_at(
-            0.0,
-            FinSettings {
-                falloff,
-                ..FinSettings::default()
-            },
-        );
+        let v = visibility_at(0.0, FinSettings { falloff, ..FinSettings::default() });
         assert!((v - 0.5).abs() < 1e-3, "{falloff:?}: V(0) = {v}");
     }
 }
@@ -60,39 +44,20 @@ fn penumbra_half_width_matches_similar_triangles_within_two_percent() {
     let outer = bisect(0.0, 2.0, s, |v| v >= 1.0);
     let inner = -bisect(-2.0, 0.0, s, |v| v > 0.0).abs();
     for (name, w) in [("outer", outer), ("inner", -inner)] {
-        assert!(
-            (w - HALF_WIDTH).abs() < 0.02 * HALF_WIDTH,
-            "{name} half-width {w}, expected {HALF_WIDTH}"
-        );
+        assert!((w - HALF_WIDTH).abs() < 0.02 * HALF_WIDTH, "{name} half-width {w}, expected {HALF_WIDTH}");
     }
 }
 
 #[test]
 fn disk_segment_falloff_is_exact_for_a_straight_edge_and_matches_ground_truth() {
     let (scene, light) = straight_edge_scene(3.0, 5.0, 0.5);
-    let xs: Vec<Vec3> = (-20..=20)
-        .map(|i| Vec3::new(i as f32 * 0.045, 0.0, 0.3))
-        .collect();
-    let fins = method_visibility(
-        &scene,
-        light,
-        Method::MultiLayer,
-        FinSettings::default(),
-        &xs,
-    );
+    let xs: Vec<Vec3> = (-20..=20).map(|i| Vec3::new(i as f32 * 0.045, 0.0, 0.3)).collect();
+    let fins = method_visibility(&scene, light, Method::MultiLayer, FinSettings::default(), &xs);
     let gt = ground_truth(&scene, light, 1024, &xs);
     for ((p, f), g) in xs.iter().zip(&fins).zip(&gt) {
         let exact = disk_segment_fraction(p.x / HALF_WIDTH);
-        assert!(
-            (f - exact).abs() < 2e-3,
-            "x {}: fins {f} vs exact {exact}",
-            p.x
-        );
-        assert!(
-            (g - exact).abs() < 0.01,
-            "x {}: ground truth {g} vs exact {exact}",
-            p.x
-        );
+        assert!((f - exact).abs() < 2e-3, "x {}: fins {f} vs exact {exact}", p.x);
+        assert!((g - exact).abs() < 0.01, "x {}: ground truth {g} vs exact {exact}", p.x);
     }
 }
 
@@ -104,36 +69,15 @@ fn refinement_makes_a_nearer_receiver_penumbra_narrower() {
     let scene = shadow_fins::scene::Scene::new(objects);
     let light = down_light(Vec3::new(0.0, 5.0, 0.0), 0.5);
     let expected = 0.5 * (3.5 - 2.0) / 2.0;
-    let xs: Vec<Vec3> = (0..=400)
-        .map(|i| Vec3::new(i as f32 * 0.005, 1.5, 2.0))
-        .collect();
+    let xs: Vec<Vec3> = (0..=400).map(|i| Vec3::new(i as f32 * 0.005, 1.5, 2.0)).collect();
     let width = |refinement: bool| {
-        let v = method_visibility(
-            &scene,
-            light,
-            Method::MultiLayer,
-            FinSettings {
-                refinement,
-                ..linear()
-            },
-            &xs,
-        );
-        xs.iter()
-            .zip(&v)
-            .find(|(_, v)| **v >= 1.0)
-            .map(|(p, _)| p.x)
-            .unwrap_or(2.0)
+        let v = method_visibility(&scene, light, Method::MultiLayer, FinSettings { refinement, ..linear() }, &xs);
+        xs.iter().zip(&v).find(|(_, v)| **v >= 1.0).map(|(p, _)| p.x).unwrap_or(2.0)
     };
     let refined = width(true);
-    assert!(
-        (refined - expected).abs() < 0.02,
-        "refined outer half-width {refined}, expected {expected}"
-    );
+    assert!((refined - expected).abs() < 0.02, "refined outer half-width {refined}, expected {expected}");
     // Without refinement the fin keeps its map width from the reference plane
     // (L0 = 5): R (1/L_b − 1/L0) · L_r = 0.525 world units on the plate.
     let unrefined = width(false);
-    assert!(
-        (unrefined - 0.525).abs() < 0.02,
-        "unrefined outer half-width {unrefined}"
-    );
+    assert!((unrefined - 0.525).abs() < 0.02, "unrefined outer half-width {unrefined}");
 }
