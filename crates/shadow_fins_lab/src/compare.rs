@@ -2,7 +2,7 @@
 
 use shadow_fins::{
     metrics::ErrorMetrics,
-    oracle::{FinSettings, Method, Receiver},
+    oracle::{FinSettings, Method, Overlap, Receiver},
     scene::LightSpaceScene,
 };
 
@@ -37,13 +37,17 @@ impl Config {
 }
 
 /// The methods the paper compares, with `base` settings for the fin ones.
+/// The paper's own combination rule is used for its methods (hard, outer fins,
+/// single layer, and the paper's 16 layers); the last row is ours.
 pub fn standard_configs(base: FinSettings) -> Vec<Config> {
+    let paper = FinSettings { overlap: Overlap::MinMax, ..base };
     vec![
-        Config::new(Method::Hard, base),
-        Config::new(Method::OuterFins, base),
-        Config::new(Method::SingleLayer, base),
-        Config::new(Method::MultiLayer, FinSettings { refinement: false, ..base }),
-        Config::new(Method::MultiLayer, FinSettings { refinement: true, ..base }),
+        Config::new(Method::Hard, paper),
+        Config::new(Method::OuterFins, paper),
+        Config::new(Method::SingleLayer, paper),
+        Config::new(Method::MultiLayer, FinSettings { refinement: false, ..paper }),
+        Config::new(Method::MultiLayer, paper).labelled(format!("fins {}L paper", paper.layers)),
+        Config::new(Method::MultiLayer, base),
     ]
 }
 

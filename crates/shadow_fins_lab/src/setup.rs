@@ -6,7 +6,7 @@ use shadow_fins::{
     glam::Vec3,
     gltf_import::load_gltf,
     light::{DiskLight, Light, SunLight},
-    oracle::{FinSettings, Method},
+    oracle::{FinSettings, Method, Overlap},
     refine::Falloff,
     scene::Scene,
     scenes::SceneId,
@@ -56,6 +56,9 @@ pub struct FinArgs {
     /// Falloff: linear, bernstein, disk-segment.
     #[arg(long, default_value = "disk-segment")]
     pub falloff: String,
+    /// How overlapping fins and layers combine: union (ours) or min-max (the paper).
+    #[arg(long, default_value = "union")]
+    pub overlap: String,
     /// Evaluate on light-space maps of this resolution (as the GPU does) instead of exactly.
     #[arg(long)]
     pub map_resolution: Option<u32>,
@@ -77,8 +80,16 @@ impl FinArgs {
         if !(1..=1 << 20).contains(&self.samples) {
             return Err(shadow_fins::SettingsError::Samples(self.samples).into());
         }
-        Ok(FinSettings { layers: self.layers, sub_layers: self.sub_layers, refinement: !self.no_refinement, falloff }
-            .validate()?)
+        let overlap = Overlap::parse(&self.overlap)
+            .ok_or_else(|| LabError::Usage(format!("unknown overlap rule '{}': use union or min-max", self.overlap)))?;
+        Ok(FinSettings {
+            layers: self.layers,
+            sub_layers: self.sub_layers,
+            refinement: !self.no_refinement,
+            falloff,
+            overlap,
+        }
+        .validate()?)
     }
 }
 

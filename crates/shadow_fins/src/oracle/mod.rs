@@ -73,11 +73,19 @@ pub struct FinSettings {
     /// Refine fin weights to the real receiver depth (eq. 5).
     pub refinement: bool,
     pub falloff: Falloff,
+    /// How overlapping fins and layers combine.
+    pub overlap: Overlap,
 }
 
 impl Default for FinSettings {
     fn default() -> Self {
-        Self { layers: 16, sub_layers: 1024, refinement: true, falloff: Falloff::default() }
+        Self {
+            layers: 16,
+            sub_layers: 1024,
+            refinement: true,
+            falloff: Falloff::default(),
+            overlap: Overlap::default(),
+        }
     }
 }
 
@@ -94,28 +102,66 @@ impl FinSettings {
     }
 }
 
-/// One layer's light-map contents at one map point: the slab depth and the
-/// winning inner and outer fins.
+/// The fins of one side (inner or outer) at one texel: the lowest and highest
+/// weight, each with the depth of the fin that gave it, and how many fins.
+///
+/// The paper keeps only the minimum (inner) or maximum (outer); keeping both
+/// ends and a count lets [`Overlap::Union`] combine two overlapping fins. On a
+/// GPU these are min/max blends and an additive count.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SideTexel {
+    pub min_weight: f32,
+    pub min_depth: f32,
+    pub max_weight: f32,
+    pub max_depth: f32,
+    pub count: u32,
+}
+
+impl SideTexel {
+    pub const EMPTY: Self = Self {
+        min_weight: f32::INFINITY,
+        min_depth: f32::INFINITY,
+        max_weight: f32::NEG_INFINITY,
+        max_depth: f32::INFINITY,
+        count: 0,
+    };
+
+    /// Ties go to the nearer fin, so weight and depth of one winner stay together
+    /// (the plateau trick).
+    #[inline]
+    pub fn add(&mut self, s: FinSample) {
+        if s.weight < self.min_weight || (s.weight == self.min_weight && s.depth < self.min_depth) {
+            self.min_weight = s.weight;
+            self.min_depth = s.depth;
+        }
+        if s.weight > self.max_weight || (s.weight == self.max_weight && s.depth < self.max_depth) {
+            self.max_weight = s.weight;
+            self.max_depth = s.depth;
+        }
+        self.count += 1;
+    }
+
+    pub fn min(&self) -> Option<FinSample> {
+        (self.count > 0).then_some(FinSample { weight: self.min_weight, depth: self.min_depth })
+    }
+
+    pub fn max(&self) -> Option<FinSample> {
+        (self.count > 0).then_some(FinSample { weight: self.max_weight, depth: self.max_depth })
+    }
+}
+
+/// One layer's light-map contents at one map point: the nearest caster and the
+/// inner and outer fins.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LayerTexel {
-    /// Nearest caster depth within the layer's slab; `+∞` when none.
+    /// Nearest caster depth in the layer; `+∞` when none.
     pub slab_depth: f32,
-    /// Minimum inner weight (`+∞` when none) and the depth of the fin that gave it.
-    pub inner_weight: f32,
-    pub inner_depth: f32,
-    /// Maximum outer weight (`−∞` when none) and the depth of the fin that gave it.
-    pub outer_weight: f32,
-    pub outer_depth: f32,
+    pub inner: SideTexel,
+    pub outer: SideTexel,
 }
 
 impl LayerTexel {
-    pub const EMPTY: Self = Self {
-        slab_depth: f32::INFINITY,
-        inner_weight: f32::INFINITY,
-        inner_depth: f32::INFINITY,
-        outer_weight: f32::NEG_INFINITY,
-        outer_depth: f32::INFINITY,
-    };
+    pub const EMPTY: Self = Self { slab_depth: f32::INFINITY, inner: SideTexel::EMPTY, outer: SideTexel::EMPTY };
 
     /// Keeps the nearest caster.
     #[inline]
@@ -125,32 +171,44 @@ impl LayerTexel {
         }
     }
 
-    /// Inner: minimum weight wins; outer: maximum. Ties go to the nearer fin.
-    /// Weight and depth of the same winner stay together (the plateau trick).
     #[inline]
     pub fn add_fin(&mut self, side: FinSide, s: FinSample) {
         match side {
-            FinSide::Inner => {
-                if s.weight < self.inner_weight || (s.weight == self.inner_weight && s.depth < self.inner_depth) {
-                    self.inner_weight = s.weight;
-                    self.inner_depth = s.depth;
-                }
-            }
-            FinSide::Outer => {
-                if s.weight > self.outer_weight || (s.weight == self.outer_weight && s.depth < self.outer_depth) {
-                    self.outer_weight = s.weight;
-                    self.outer_depth = s.depth;
-                }
-            }
+            FinSide::Inner => self.inner.add(s),
+            FinSide::Outer => self.outer.add(s),
+        }
+    }
+}
+
+/// How overlapping fins and layers combine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Overlap {
+    /// The paper (§3.3, §4.2): minimum inner weight, maximum outer weight in a
+    /// layer; the minimum illuminance over layers. Too dark where penumbrae of
+    /// one occluder overlap (§7.2: `min` where `+` is right), too bright where
+    /// penumbrae of different occluders overlap.
+    MinMax,
+    /// Ours: overlapping fins reveal (inner) or hide (outer) different parts of
+    /// the disk, so two fins of a side combine as a union `1 − (1 − a)(1 − b)`
+    /// (exact for a thin strip's two edges up to their overlap, and for a
+    /// corner of a square light), and layers — different occluders — multiply,
+    /// as independent blockers do.
+    #[default]
+    Union,
+}
+
+impl Overlap {
+    pub const ALL: [Overlap; 2] = [Overlap::MinMax, Overlap::Union];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Overlap::MinMax => "min-max",
+            Overlap::Union => "union",
         }
     }
 
-    pub fn inner(&self) -> Option<FinSample> {
-        self.inner_weight.is_finite().then_some(FinSample { weight: self.inner_weight, depth: self.inner_depth })
-    }
-
-    pub fn outer(&self) -> Option<FinSample> {
-        self.outer_weight.is_finite().then_some(FinSample { weight: self.outer_weight, depth: self.outer_depth })
+    pub fn parse(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|o| o.name() == s)
     }
 }
 
@@ -160,6 +218,7 @@ pub struct CombineParams<'a> {
     pub frame: &'a LightFrame,
     pub reference_depth: f32,
     pub refinement: bool,
+    pub overlap: Overlap,
 }
 
 /// The per-pixel combination of DESIGN §3 over every layer. Returns the
@@ -179,14 +238,31 @@ pub fn combine_layers(texels: &[LayerTexel], receiver_depth: f32, blocking_limit
             (s.depth < receiver_depth).then_some(s.weight)
         }
     };
+    // One side's refined weight at this texel, or None when no fin applies.
+    let side = |t: &SideTexel, paper_pick_min: bool| -> Option<f32> {
+        match p.overlap {
+            Overlap::MinMax => (if paper_pick_min { t.min() } else { t.max() }).and_then(refine),
+            Overlap::Union => {
+                let lo = t.min().and_then(refine);
+                let hi = if t.count >= 2 { t.max().and_then(refine) } else { None };
+                match (lo, hi) {
+                    (Some(a), Some(b)) => Some(1.0 - (1.0 - a) * (1.0 - b)),
+                    (a, b) => a.or(b),
+                }
+            }
+        }
+    };
     let mut illuminance = 1.0f32;
     for t in texels {
         let base = if t.slab_depth < blocking_limit { 0.0 } else { 1.0 };
-        let inner = t.inner().and_then(refine);
-        let outer = t.outer().and_then(refine);
+        let inner = side(&t.inner, true);
+        let outer = side(&t.outer, false);
         if inner.is_some() || outer.is_some() {
             let u = (base + inner.unwrap_or(0.0) - outer.unwrap_or(0.0)).clamp(0.0, 1.0);
-            illuminance = illuminance.min(u);
+            illuminance = match p.overlap {
+                Overlap::MinMax => illuminance.min(u),
+                Overlap::Union => illuminance * u,
+            };
         } else if base == 0.0 {
             illuminance = 0.0;
         }
@@ -360,6 +436,7 @@ impl<'a> FinShadowModel<'a> {
             frame: &self.light_space.frame,
             reference_depth: self.light_space.reference_depth,
             refinement: self.settings.refinement,
+            overlap: self.settings.overlap,
         }
     }
 

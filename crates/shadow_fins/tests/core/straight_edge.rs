@@ -81,3 +81,43 @@ fn refinement_makes_a_nearer_receiver_penumbra_narrower() {
     let unrefined = width(false);
     assert!((unrefined - 0.525).abs() < 0.02, "unrefined outer half-width {unrefined}");
 }
+
+#[test]
+fn a_thin_strip_under_a_wide_penumbra_needs_the_union_of_its_two_inner_fins() {
+    // Strip |x| < 0.15 at height 3: both edges' inner fins cover the whole strip
+    // shadow. The paper's min keeps one edge's light; the union keeps both.
+    use shadow_fins::oracle::Overlap;
+    let scene = shadow_fins::scene::Scene::new(vec![ground(), object("strip", quad(-0.15, 0.15, -20.0, 20.0, 3.0))]);
+    let light = down_light(Vec3::new(0.0, 5.0, 0.0), 0.5);
+    let xs: Vec<Vec3> = (-30..=30).map(|i| Vec3::new(i as f32 * 0.04, 0.0, 0.2)).collect();
+    let gt = ground_truth(&scene, light, 1024, &xs);
+    let error = |overlap| {
+        let v = method_visibility(
+            &scene,
+            light,
+            Method::MultiLayer,
+            FinSettings { overlap, ..FinSettings::default() },
+            &xs,
+        );
+        mean_abs_diff(&v, &gt)
+    };
+    let (paper, union) = (error(Overlap::MinMax), error(Overlap::Union));
+    assert!(union < 0.5 * paper, "union {union} vs min-max {paper}");
+    assert!(union < 0.03, "union mean error {union}");
+}
+
+#[test]
+fn a_sun_casts_penumbrae_of_tan_theta_times_distance() {
+    // Sun straight down, θ = 0.1: half-width tan θ · (L_r − L_b) = tan(0.1) · 3.
+    let scene = shadow_fins::scene::Scene::new(vec![ground(), object("edge", quad(-40.0, 0.0, -20.0, 20.0, 3.0))]);
+    let sun = shadow_fins::light::Light::Sun(shadow_fins::light::SunLight::new(Vec3::NEG_Y, 0.1).unwrap());
+    let half = 0.1f32.tan() * 3.0;
+    let xs: Vec<Vec3> = (-20..=20).map(|i| Vec3::new(i as f32 * half / 16.0, 0.0, 0.3)).collect();
+    let fins = method_visibility(&scene, sun, Method::MultiLayer, FinSettings::default(), &xs);
+    let gt = ground_truth(&scene, sun, 1024, &xs);
+    for ((p, f), g) in xs.iter().zip(&fins).zip(&gt) {
+        let exact = disk_segment_fraction(p.x / half);
+        assert!((f - exact).abs() < 3e-3, "x {}: fins {f} vs exact {exact}", p.x);
+        assert!((g - exact).abs() < 0.01, "x {}: ground truth {g} vs exact {exact}", p.x);
+    }
+}
