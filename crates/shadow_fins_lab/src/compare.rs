@@ -22,9 +22,12 @@ pub struct Config {
 impl Config {
     pub fn new(method: Method, settings: FinSettings) -> Self {
         let label = match method {
-            Method::MultiLayer => {
-                format!("fins {}L{}", settings.layers, if settings.refinement { "" } else { " no-refine" })
-            }
+            Method::MultiLayer => format!(
+                "fins {}L{}{}",
+                settings.layers,
+                if settings.overlap == Overlap::MinMax { " paper" } else { "" },
+                if settings.refinement { "" } else { " no-refine" }
+            ),
             m => m.name().to_string(),
         };
         Self { label, method, settings }
@@ -46,7 +49,7 @@ pub fn standard_configs(base: FinSettings) -> Vec<Config> {
         Config::new(Method::OuterFins, paper),
         Config::new(Method::SingleLayer, paper),
         Config::new(Method::MultiLayer, FinSettings { refinement: false, ..paper }),
-        Config::new(Method::MultiLayer, paper).labelled(format!("fins {}L paper", paper.layers)),
+        Config::new(Method::MultiLayer, paper),
         Config::new(Method::MultiLayer, base),
     ]
 }

@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# The whole test suite: unit, integration, doc and CLI tests, and every bench
+# run once in test mode. This is what CI (.ci/run) runs.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+cargo test --workspace --locked --all-targets
+cargo test --workspace --locked --doc
