@@ -195,6 +195,9 @@ fn run(command: Command) -> Result<(), LabError> {
                     )));
                 }
             }
+            let mut targets = String::from(
+                "| scene | hard MAE | outer-fins MAE | fins 16L paper MAE | fins 16L MAE | beats hard & outer (paper / ours) | umbra over (paper / ours) |\n|---|---|---|---|---|---|---|\n",
+            );
             for id in ids {
                 let args = SceneArgs {
                     scene: id.name().into(),
@@ -213,7 +216,28 @@ fn run(command: Command) -> Result<(), LabError> {
                 if let Some(dir) = &images {
                     strip(&c).save_png(&dir.join(format!("{}.png", id.name())))?;
                 }
+                let mae = |label: &str| c.rows.iter().find(|r| r.config.label == label).map(|r| r.metrics);
+                let fins_label = format!("fins {}L", settings.layers);
+                let paper_label = format!("fins {}L paper", settings.layers);
+                if let (Some(h), Some(o), Some(p), Some(f)) =
+                    (mae("hard"), mae("outer-fins"), mae(&paper_label), mae(&fins_label))
+                {
+                    let beats = |m: f32| if m < h.mae && m < o.mae { "yes" } else { "**no**" };
+                    targets += &format!(
+                        "| {} | {:.4} | {:.4} | {:.4} | {:.4} | {} / {} | {:.2}% / {:.2}% |\n",
+                        id.name(),
+                        h.mae,
+                        o.mae,
+                        p.mae,
+                        f.mae,
+                        beats(p.mae),
+                        beats(f.mae),
+                        p.umbra_over * 100.0,
+                        f.umbra_over * 100.0
+                    );
+                }
             }
+            println!("### Targets\n\n{targets}");
         }
         Command::ExportGltf { scene, out } => {
             let id = SceneId::parse(&scene).ok_or_else(|| LabError::Usage(format!("unknown scene '{scene}'")))?;

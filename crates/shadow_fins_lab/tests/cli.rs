@@ -18,7 +18,8 @@ fn visibility_writes_one_row_per_point_and_methods_agree_where_they_must() {
     // Under the box's shadow centre (umbra), and far away (lit).
     std::fs::write(&points, "x,y,z,nx,ny,nz\n-0.24,0,-0.16,0,1,0\n4,0,4,0,1,0\n").unwrap();
     for method in ["ground-truth", "fins", "hard", "outer-fins", "single-layer"] {
-        let out = lab(&["visibility", "--scene", "box-over-plane", "--points", points.to_str().unwrap(), "--method", method]);
+        let out =
+            lab(&["visibility", "--scene", "box-over-plane", "--points", points.to_str().unwrap(), "--method", method]);
         assert!(out.status.success(), "{method}: {}", String::from_utf8_lossy(&out.stderr));
         let text = String::from_utf8(out.stdout).unwrap();
         let values: Vec<f32> = text.lines().skip(1).map(|l| l.rsplit(',').next().unwrap().parse().unwrap()).collect();
@@ -32,12 +33,28 @@ fn the_raster_oracle_and_settings_flags_are_accepted() {
     let points = temp("points2.csv");
     std::fs::write(&points, "0.9,0,0.7\n").unwrap();
     let out = lab(&[
-        "visibility", "--scene", "box-over-plane", "--points", points.to_str().unwrap(), "--method", "fins",
-        "--map-resolution", "256", "--layers", "4", "--sub-layers", "64", "--no-refinement", "--falloff", "bernstein",
-        "--overlap", "min-max",
+        "visibility",
+        "--scene",
+        "box-over-plane",
+        "--points",
+        points.to_str().unwrap(),
+        "--method",
+        "fins",
+        "--map-resolution",
+        "256",
+        "--layers",
+        "4",
+        "--sub-layers",
+        "64",
+        "--no-refinement",
+        "--falloff",
+        "bernstein",
+        "--overlap",
+        "min-max",
     ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let v: f32 = String::from_utf8(out.stdout).unwrap().lines().nth(1).unwrap().rsplit(',').next().unwrap().parse().unwrap();
+    let v: f32 =
+        String::from_utf8(out.stdout).unwrap().lines().nth(1).unwrap().rsplit(',').next().unwrap().parse().unwrap();
     assert!((0.0..=1.0).contains(&v));
 }
 
@@ -72,10 +89,25 @@ fn bad_input_gets_a_clear_error_and_a_non_zero_exit() {
 #[test]
 fn image_writes_a_png_strip_that_is_not_blank() {
     let png = temp("strip.png");
-    let out = lab(&["image", "--scene", "box-over-plane", "--width", "48", "--height", "36", "--samples", "64", "--out", png.to_str().unwrap()]);
+    let out = lab(&[
+        "image",
+        "--scene",
+        "box-over-plane",
+        "--width",
+        "48",
+        "--height",
+        "36",
+        "--samples",
+        "64",
+        "--out",
+        png.to_str().unwrap(),
+    ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let table = String::from_utf8(out.stdout).unwrap();
-    assert!(table.contains("| hard |") && table.contains("| fins 16L |") && table.contains("| fins 16L paper |"), "{table}");
+    assert!(
+        table.contains("| hard |") && table.contains("| fins 16L |") && table.contains("| fins 16L paper |"),
+        "{table}"
+    );
     let bytes = std::fs::read(&png).unwrap();
     assert_eq!(&bytes[1..4], b"PNG");
     // Decode and check the picture has both dark and bright pixels (not a black image).
@@ -96,11 +128,21 @@ fn exported_gltf_round_trips_through_the_cli() {
     let points = temp("points4.csv");
     std::fs::write(&points, "0,0,0,0,1,0\n").unwrap();
     let out = lab(&[
-        "visibility", "--gltf", gltf.to_str().unwrap(), "--light-center", "0,4,0", "--radius", "0.5", "--points",
-        points.to_str().unwrap(), "--method", "fins",
+        "visibility",
+        "--gltf",
+        gltf.to_str().unwrap(),
+        "--light-center",
+        "0,4,0",
+        "--radius",
+        "0.5",
+        "--points",
+        points.to_str().unwrap(),
+        "--method",
+        "fins",
     ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     // The star's centre is right above the origin: full umbra there.
-    let v: f32 = String::from_utf8(out.stdout).unwrap().lines().nth(1).unwrap().rsplit(',').next().unwrap().parse().unwrap();
+    let v: f32 =
+        String::from_utf8(out.stdout).unwrap().lines().nth(1).unwrap().rsplit(',').next().unwrap().parse().unwrap();
     assert!(v < 0.01, "{v}");
 }

@@ -82,3 +82,21 @@ fn radius_zero_equals_the_hard_shadow_exactly() {
         }
     }
 }
+
+#[test]
+fn a_sun_of_zero_angle_equals_the_hard_shadow_exactly() {
+    use shadow_fins::light::SunLight;
+    for id in [SceneId::BoxOverPlane, SceneId::SphereGrid, SceneId::TiltedReceiver] {
+        let s = id.build();
+        let sun = Light::Sun(SunLight::new(shadow_fins::glam::Vec3::new(0.2, -1.0, 0.1), 0.0).unwrap());
+        let (ls, receivers) = view_receivers(&s.scene, sun, &s.camera, 48, 36);
+        let eval = |method| {
+            let m = FinShadowModel::new(&s.scene, &ls, method, FinSettings::default());
+            let i = m.analytic();
+            receivers.iter().map(|r| i.visibility(*r)).collect::<Vec<f32>>()
+        };
+        let hard = eval(Method::Hard);
+        assert!(hard.iter().any(|v| *v == 0.0), "{}: no shadow in view", id.name());
+        assert_eq!(eval(Method::MultiLayer), hard, "{}", id.name());
+    }
+}
