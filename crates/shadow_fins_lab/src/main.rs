@@ -272,7 +272,9 @@ fn strip(c: &Comparison) -> Picture {
         let x = i as u32 * (w + 4);
         let values = c.pixels(&row.evaluation.values);
         pic.blit(&Picture::visibility(w, h, &values), x, label_h);
-        pic.text(&row.config.label, x + 2, 3, 2, [230, 230, 230]);
+        // Long labels drop to the small font rather than run into the next panel.
+        let scale = if row.config.label.len() as u32 * 8 + 4 <= w { 2 } else { 1 };
+        pic.text(&row.config.label, x + 2, 3, scale, [230, 230, 230]);
         pic.blit(&Picture::error_map(w, h, &values, &reference, 0.5), x, 2 * label_h + h + 4);
         pic.text(&format!("mae {:.3}", row.metrics.mae), x + 2, label_h + h + 5, 2, [230, 230, 230]);
     }
