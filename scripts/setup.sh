@@ -9,6 +9,10 @@ need_pkg() { dpkg -s "$1" >/dev/null 2>&1 || missing+=("$1"); }
 # A C toolchain for crates with build scripts; pkg-config for -sys crates.
 need_pkg build-essential
 need_pkg pkg-config
+# Headless rendering on the CPU (Mesa's lavapipe Vulkan driver) for the plugin's
+# tests and examples; a real GPU's driver is used instead where there is one.
+need_pkg libvulkan1
+need_pkg mesa-vulkan-drivers
 
 if [ ${#missing[@]} -gt 0 ]; then
   echo "setup: installing ${missing[*]}"

@@ -99,7 +99,7 @@ impl<'m, 'a> RasterMaps<'m, 'a> {
     }
 
     /// The square covering every caster and fin, clamped to ±83° off axis.
-    fn covering_region(model: &FinShadowModel, resolution: u32) -> MapRegion {
+    pub fn covering_region(model: &FinShadowModel, resolution: u32) -> MapRegion {
         let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
         for (a, b) in model.casters.iter().map(|c| c.bounds()).chain(model.fins.iter().map(|f| f.bounds())) {
             lo = lo.min(a);

@@ -1,0 +1,144 @@
+//! The fin light, its settings, the camera opt-in and the caster/receiver markers.
+
+use bevy::prelude::*;
+use shadow_fins::{
+    oracle::{FinSettings, Method, Overlap},
+    refine::Falloff,
+};
+
+/// A disk light whose shadows are soft and physically sized by its radius.
+///
+/// The disk faces along the entity's forward direction (−Z), like a
+/// `SpotLight`: point it at the scene with `Transform::looking_at`. It lights
+/// the half-space in front of it.
+///
+/// Values outside their range are clamped, never a panic: a negative or
+/// non-finite radius is 0 (hard shadows), a non-finite intensity is 0.
+#[derive(Component, Debug, Clone, Copy, Reflect)]
+#[reflect(Component, Default, Debug, Clone)]
+#[require(Transform, Visibility, FinShadowSettings)]
+pub struct FinLight {
+    pub color: Color,
+    /// Luminous power in lumens, as for Bevy's `PointLight`.
+    pub intensity: f32,
+    /// Distance beyond which the light has no effect.
+    pub range: f32,
+    /// Radius `R` of the disk in world units: the size of the penumbrae.
+    pub radius: f32,
+}
+
+impl Default for FinLight {
+    fn default() -> Self {
+        Self { color: Color::WHITE, intensity: 1_000_000.0, range: 20.0, radius: 0.25 }
+    }
+}
+
+impl FinLight {
+    /// The radius actually used: `radius` clamped to `[0, ∞)`, NaN → 0.
+    pub fn effective_radius(&self) -> f32 {
+        if self.radius.is_finite() && self.radius > 0.0 { self.radius } else { 0.0 }
+    }
+}
+
+/// Which shadow method renders the fin light.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Reflect)]
+pub enum FinMethod {
+    /// A shadow map from the light's centre.
+    Hard,
+    /// Hard shadow plus outer fins (smoothies / penumbra maps).
+    OuterFins,
+    /// Inner and outer fins in one layer (the paper's §3).
+    SingleLayer,
+    /// Inner and outer fins in layers (the paper's §4).
+    #[default]
+    MultiLayer,
+}
+
+impl From<FinMethod> for Method {
+    fn from(m: FinMethod) -> Self {
+        match m {
+            FinMethod::Hard => Method::Hard,
+            FinMethod::OuterFins => Method::OuterFins,
+            FinMethod::SingleLayer => Method::SingleLayer,
+            FinMethod::MultiLayer => Method::MultiLayer,
+        }
+    }
+}
+
+/// Settings of the fin light's shadows, on the [`FinLight`] entity. Every field
+/// can change at runtime and takes effect the next frame.
+///
+/// Out-of-range values are clamped (see [`FinShadowSettings::clamped`]).
+#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
+#[reflect(Component, Default, Debug, Clone)]
+pub struct FinShadowSettings {
+    pub method: FinMethod,
+    /// Layers `N`, 1..=32 (default 16). Empty layers cost nothing.
+    pub layers: u32,
+    /// Sub-layers `S` of the depth histogram, 1..=65536 (default 1024).
+    pub sub_layers: u32,
+    /// Light-space map resolution (square), 16..=4096 (default 1024).
+    pub map_resolution: u32,
+    /// Refine fin weights to the receiver's depth (eq. 5).
+    pub refinement: bool,
+    #[reflect(ignore)]
+    pub falloff: Falloff,
+    #[reflect(ignore)]
+    pub overlap: Overlap,
+}
+
+impl Default for FinShadowSettings {
+    fn default() -> Self {
+        let core = FinSettings::default();
+        Self {
+            method: FinMethod::MultiLayer,
+            layers: core.layers,
+            sub_layers: core.sub_layers,
+            map_resolution: 1024,
+            refinement: core.refinement,
+            falloff: core.falloff,
+            overlap: core.overlap,
+        }
+    }
+}
+
+impl FinShadowSettings {
+    /// Every field clamped into its documented range.
+    pub fn clamped(self) -> Self {
+        Self {
+            layers: self.layers.clamp(1, 32),
+            sub_layers: self.sub_layers.clamp(1, 65536),
+            map_resolution: self.map_resolution.clamp(16, 4096),
+            ..self
+        }
+    }
+
+    /// The core crate's settings for these.
+    pub fn core(self) -> FinSettings {
+        let s = self.clamped();
+        FinSettings {
+            layers: s.layers,
+            sub_layers: s.sub_layers,
+            refinement: s.refinement,
+            falloff: s.falloff,
+            overlap: s.overlap,
+        }
+    }
+}
+
+/// Put on a `Camera3d` to render the fin light's shadows for it. Requires (and
+/// adds) the depth and normal prepasses the visibility pass reads.
+#[derive(Component, Debug, Clone, Default, Reflect)]
+#[reflect(Component, Default, Debug, Clone)]
+#[require(bevy::core_pipeline::prepass::DepthPrepass, bevy::core_pipeline::prepass::NormalPrepass)]
+pub struct FinShadowView {
+    /// When set, the camera's visibility (illuminance) buffer, `R32Float` at the
+    /// camera's size, is copied into this image every frame: read it back with
+    /// `Readback::texture`, or show it.
+    pub visibility_target: Option<Handle<Image>>,
+}
+
+/// Keeps a mesh from casting fin shadows (like Bevy's `NotShadowCaster`).
+#[derive(Component, Debug, Clone, Copy, Default, Reflect)]
+#[reflect(Component, Default, Debug, Clone)]
+pub struct NotFinShadowCaster;

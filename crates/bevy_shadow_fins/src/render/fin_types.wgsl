@@ -1,0 +1,71 @@
+// Shared types and helpers of the fin-shadow passes. The math mirrors the core
+// crate's oracle (`shadow_fins::oracle`), function for function.
+#define_import_path bevy_shadow_fins::fin_types
+
+struct FinParams {
+    // (map min x, map min y, texel size, reference depth L0)
+    map: vec4<f32>,
+    // (resolution, layers, caster count, fin count)
+    counts: vec4<u32>,
+    // (light radius R, near depth, surface epsilon, unused)
+    light: vec4<f32>,
+    // (refinement 0/1, falloff 0 linear 1 bernstein 2 disk-segment, overlap 0 min-max 1 union, unused)
+    flags: vec4<u32>,
+    origin: vec4<f32>,
+    axis_u: vec4<f32>,
+    axis_v: vec4<f32>,
+    axis_n: vec4<f32>,
+}
+
+// Five channels per layer texel: slab depth (f32 bits, atomicMin), inner min
+// key, inner max key, outer min key, outer max key. Keys pack a fin's weight
+// (15 bits, high) and depth (16 bits) so that one atomicMin/Max keeps the weight
+// and the depth of the same winning fin (the plateau trick); 0 / 0xffffffff = none.
+const CHANNELS: u32 = 5u;
+const NO_MIN: u32 = 0xffffffffu;
+const NO_MAX: u32 = 0u;
+const INF_BITS: u32 = 0x7f800000u;
+
+fn texel_index(params: FinParams, layer: u32, x: u32, y: u32) -> u32 {
+    let res = params.counts.x;
+    return ((layer * res + y) * res + x) * CHANNELS;
+}
+
+fn weight_code(w: f32) -> u32 {
+    return u32(round(clamp(w, 0.0, 0.5) * 2.0 * 32767.0));
+}
+
+fn depth_code(params: FinParams, z: f32) -> u32 {
+    return u32(round(clamp(z / params.map.w, 0.0, 1.0) * 65535.0));
+}
+
+fn min_key(params: FinParams, w: f32, z: f32) -> u32 {
+    return 1u + ((weight_code(w) << 16u) | depth_code(params, z));
+}
+
+fn max_key(params: FinParams, w: f32, z: f32) -> u32 {
+    return 1u + ((weight_code(w) << 16u) | (65535u - depth_code(params, z)));
+}
+
+struct FinSample {
+    weight: f32,
+    depth: f32,
+}
+
+fn decode_min_key(params: FinParams, k: u32) -> FinSample {
+    let v = k - 1u;
+    return FinSample(f32(v >> 16u) / (2.0 * 32767.0), f32(v & 0xffffu) / 65535.0 * params.map.w);
+}
+
+fn decode_max_key(params: FinParams, k: u32) -> FinSample {
+    let v = k - 1u;
+    return FinSample(f32(v >> 16u) / (2.0 * 32767.0), f32(65535u - (v & 0xffffu)) / 65535.0 * params.map.w);
+}
+
+fn texel_center(params: FinParams, x: u32, y: u32) -> vec2<f32> {
+    return params.map.xy + (vec2<f32>(f32(x), f32(y)) + 0.5) * params.map.z;
+}
+
+fn cross2(a: vec2<f32>, b: vec2<f32>) -> f32 {
+    return a.x * b.y - a.y * b.x;
+}

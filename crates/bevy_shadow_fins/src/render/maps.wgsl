@@ -1,0 +1,222 @@
+// Penumbra-map passes: every layer's slab depth and inner/outer fin extremes,
+// evaluated at texel centres exactly as `shadow_fins::oracle::RasterMaps` does.
+// One workgroup per primitive; its threads stride over the primitive's texels.
+#import bevy_shadow_fins::fin_types::{
+    FinParams, CHANNELS, NO_MIN, NO_MAX, INF_BITS, texel_index, min_key, max_key, texel_center, cross2,
+}
+
+struct Caster {
+    corners: array<f32, 6>,
+    normal: array<f32, 3>,
+    offset: f32,
+    min_depth: f32,
+    max_depth: f32,
+    layer: u32,
+    pad: u32,
+}
+
+struct Fin {
+    header: vec4<u32>,
+    data: array<f32, 12>,
+}
+
+@group(0) @binding(0) var<uniform> params: FinParams;
+@group(0) @binding(1) var<storage, read_write> maps: array<atomic<u32>>;
+@group(0) @binding(2) var<storage, read> casters: array<Caster>;
+@group(0) @binding(3) var<storage, read> fins: array<Fin>;
+
+const WORKGROUP: u32 = 64u;
+
+@compute @workgroup_size(64, 1, 1)
+fn clear_maps(@builtin(global_invocation_id) id: vec3<u32>) {
+    let res = params.counts.x;
+    let texels = params.counts.y * res * res;
+    let t = id.x + id.y * 65535u * WORKGROUP;
+    if (t >= texels) {
+        return;
+    }
+    let base = t * CHANNELS;
+    atomicStore(&maps[base + 0u], INF_BITS);
+    atomicStore(&maps[base + 1u], NO_MIN);
+    atomicStore(&maps[base + 2u], NO_MAX);
+    atomicStore(&maps[base + 3u], NO_MIN);
+    atomicStore(&maps[base + 4u], NO_MAX);
+}
+
+// Inclusive texel range whose centres may lie in [lo, hi]; empty when x0 > x1.
+fn texel_range(lo: vec2<f32>, hi: vec2<f32>) -> vec4<i32> {
+    let r = f32(params.counts.x) - 1.0;
+    let a = ceil((lo - params.map.xy) / params.map.z - 0.5);
+    let b = floor((hi - params.map.xy) / params.map.z - 0.5);
+    return vec4<i32>(i32(max(a.x, 0.0)), i32(min(b.x, r)), i32(max(a.y, 0.0)), i32(min(b.y, r)));
+}
+
+fn primitive_index(wg: vec3<u32>) -> u32 {
+    return wg.x + wg.y * 65535u;
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn raster_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = primitive_index(wg);
+    if (i >= params.counts.z) {
+        return;
+    }
+    let c = casters[i];
+    let a = vec2<f32>(c.corners[0], c.corners[1]);
+    let b = vec2<f32>(c.corners[2], c.corners[3]);
+    let d = vec2<f32>(c.corners[4], c.corners[5]);
+    let range = texel_range(min(a, min(b, d)), max(a, max(b, d)));
+    if (range.x > range.y || range.z > range.w) {
+        return;
+    }
+    let w = u32(range.y - range.x + 1);
+    let count = w * u32(range.w - range.z + 1);
+    let n = vec3<f32>(c.normal[0], c.normal[1], c.normal[2]);
+    for (var k = lane; k < count; k += WORKGROUP) {
+        let x = u32(range.x) + k % w;
+        let y = u32(range.z) + k / w;
+        let q = texel_center(params, x, y);
+        let w0 = cross2(b - a, q - a);
+        let w1 = cross2(d - b, q - b);
+        let w2 = cross2(a - d, q - d);
+        let inside = (w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0) || (w0 <= 0.0 && w1 <= 0.0 && w2 <= 0.0);
+        if (!inside) {
+            continue;
+        }
+        // Perspective: the plane n·X = offset along the ray X = z (q, 1).
+        var z = c.offset / dot(n, vec3<f32>(q, 1.0));
+        if (z != z || abs(z) > 3.0e38) {
+            z = c.min_depth;
+        }
+        z = clamp(z, c.min_depth, c.max_depth);
+        if (z > params.light.y) {
+            atomicMin(&maps[texel_index(params, c.layer, x, y)], bitcast<u32>(z));
+        }
+    }
+}
+
+// (α, t) of q in the quad lerp(m0, m1, α) + t · lerp(a0, a1, α), or (-1, -1) outside.
+// Mirrors `shadow_fins::fins::quad_coordinates`.
+fn quad_coordinates(q: vec2<f32>, m0: vec2<f32>, m1: vec2<f32>, a0: vec2<f32>, a1: vec2<f32>) -> vec2<f32> {
+    let e = m1 - m0;
+    let h = q - m0;
+    let g = a1 - a0;
+    let k2 = cross2(g, a0);
+    let k1 = cross2(e, a0) + cross2(h, g);
+    let k0 = cross2(h, e);
+    let scale = max(dot(e, e), max(dot(a0, a0), dot(a1, a1)));
+    var ts = vec2<f32>(-1.0, -1.0);
+    if (abs(k2) <= 1e-7 * scale * scale) {
+        if (k1 == 0.0) {
+            return vec2<f32>(-1.0);
+        }
+        ts = vec2<f32>(-k0 / k1, 1e30);
+    } else {
+        let disc = k1 * k1 - 4.0 * k0 * k2;
+        if (disc < 0.0) {
+            return vec2<f32>(-1.0);
+        }
+        let root = sqrt(disc);
+        let qq = -0.5 * (k1 + select(-root, root, k1 >= 0.0));
+        var second = 1e30;
+        if (qq != 0.0) {
+            second = k0 / qq;
+        }
+        ts = vec2<f32>(qq / k2, second);
+    }
+    for (var i = 0; i < 2; i++) {
+        var t = ts[i];
+        if (abs(t) <= 1e-6) {
+            t = 0.0;
+        }
+        if (!(t >= 0.0 && t <= 1.0 + 1e-5)) {
+            continue;
+        }
+        let dir = e + g * t;
+        let len2 = dot(dir, dir);
+        if (len2 <= 0.0) {
+            continue;
+        }
+        let alpha = dot(h - a0 * t, dir) / len2;
+        let back = m0 + e * alpha + (a0 + g * alpha) * t;
+        let miss = back - q;
+        if (alpha >= -1e-5 && alpha <= 1.0 + 1e-5 && dot(miss, miss) <= 1e-8 * scale) {
+            return vec2<f32>(clamp(alpha, 0.0, 1.0), min(t, 1.0));
+        }
+    }
+    return vec2<f32>(-1.0);
+}
+
+// Weight s0 = (1 − t)/2 (eq. 1) and depth L_b of a fin at q; weight < 0 outside.
+fn fin_sample(f: Fin, q: vec2<f32>) -> vec2<f32> {
+    let outer = f.header.y == 1u;
+    if (f.header.x == 0u) {
+        let m0 = vec2<f32>(f.data[0], f.data[1]);
+        let m1 = vec2<f32>(f.data[2], f.data[3]);
+        let a0 = vec2<f32>(f.data[4], f.data[5]) * f.data[8];
+        let a1 = vec2<f32>(f.data[6], f.data[7]) * f.data[9];
+        let at = quad_coordinates(q, m0, m1, a0, a1);
+        if (at.x < 0.0 || (at.y == 0.0 && outer)) {
+            return vec2<f32>(-1.0);
+        }
+        let z0 = f.data[10];
+        let z1 = f.data[11];
+        let depth = 1.0 / (1.0 / z0 + (1.0 / z1 - 1.0 / z0) * at.x);
+        return vec2<f32>(0.5 * (1.0 - at.y), depth);
+    }
+    let center = vec2<f32>(f.data[0], f.data[1]);
+    let from_dir = vec2<f32>(f.data[2], f.data[3]);
+    let to_dir = vec2<f32>(f.data[4], f.data[5]);
+    let radius = f.data[6];
+    let rel = q - center;
+    let r2 = dot(rel, rel);
+    if (!(r2 <= radius * radius) || (r2 == 0.0 && outer)) {
+        return vec2<f32>(-1.0);
+    }
+    let s = sign(cross2(from_dir, to_dir));
+    if (cross2(from_dir, rel) * s < 0.0 || cross2(rel, to_dir) * s < 0.0) {
+        return vec2<f32>(-1.0);
+    }
+    return vec2<f32>(0.5 * (1.0 - sqrt(r2) / radius), f.data[7]);
+}
+
+fn fin_bounds(f: Fin) -> vec4<f32> {
+    if (f.header.x == 0u) {
+        let m0 = vec2<f32>(f.data[0], f.data[1]);
+        let m1 = vec2<f32>(f.data[2], f.data[3]);
+        let p2 = m0 + vec2<f32>(f.data[4], f.data[5]) * f.data[8];
+        let p3 = m1 + vec2<f32>(f.data[6], f.data[7]) * f.data[9];
+        return vec4<f32>(min(min(m0, m1), min(p2, p3)), max(max(m0, m1), max(p2, p3)));
+    }
+    let c = vec2<f32>(f.data[0], f.data[1]);
+    let r = f.data[6];
+    return vec4<f32>(c - r, c + r);
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn raster_fins(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = primitive_index(wg);
+    if (i >= params.counts.w) {
+        return;
+    }
+    let f = fins[i];
+    let bounds = fin_bounds(f);
+    let range = texel_range(bounds.xy, bounds.zw);
+    if (range.x > range.y || range.z > range.w) {
+        return;
+    }
+    let w = u32(range.y - range.x + 1);
+    let count = w * u32(range.w - range.z + 1);
+    let channel = select(1u, 3u, f.header.y == 1u);
+    for (var k = lane; k < count; k += WORKGROUP) {
+        let x = u32(range.x) + k % w;
+        let y = u32(range.z) + k / w;
+        let s = fin_sample(f, texel_center(params, x, y));
+        if (s.x < 0.0) {
+            continue;
+        }
+        let base = texel_index(params, f.header.z, x, y) + channel;
+        atomicMin(&maps[base], min_key(params, s.x, s.y));
+        atomicMax(&maps[base + 1u], max_key(params, s.x, s.y));
+    }
+}

@@ -1,0 +1,424 @@
+//! Render world: the penumbra-map passes (once per frame, only when the fin
+//! frame changed) and the per-camera visibility pass.
+
+use std::borrow::Cow;
+
+use bevy::{
+    asset::{embedded_asset, load_embedded_asset},
+    core_pipeline::{
+        prepass::ViewPrepassTextures,
+        schedule::{Core3d, Core3dSystems, camera_driver},
+    },
+    prelude::*,
+    render::{
+        Render, RenderApp, RenderSystems,
+        camera::ExtractedCamera,
+        diagnostic::RecordDiagnostics,
+        extract_component::{ExtractComponent, ExtractComponentPlugin},
+        extract_resource::ExtractResourcePlugin,
+        render_asset::RenderAssets,
+        render_resource::{
+            binding_types::{
+                storage_buffer_read_only_sized, storage_buffer_sized, texture_2d, texture_depth_2d, texture_storage_2d,
+                uniform_buffer, uniform_buffer_sized,
+            },
+            *,
+        },
+        renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue, ViewQuery},
+        texture::{CachedTexture, GpuImage, TextureCache},
+        view::{ViewUniform, ViewUniformOffset, ViewUniforms},
+    },
+    shader::load_shader_library,
+};
+
+use crate::{
+    extract::{FinFrame, FinFrameData},
+    light::FinShadowView,
+};
+
+pub(crate) fn build(app: &mut App) {
+    load_shader_library!(app, "fin_types.wgsl");
+    embedded_asset!(app, "maps.wgsl");
+    embedded_asset!(app, "visibility.wgsl");
+    app.add_plugins((ExtractResourcePlugin::<FinFrame>::default(), ExtractComponentPlugin::<FinShadowView>::default()));
+}
+
+pub(crate) fn finish(app: &mut App) {
+    let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
+    render_app
+        .init_resource::<FinMapsGpu>()
+        .add_systems(bevy::render::RenderStartup, init_pipelines)
+        .add_systems(
+            Render,
+            (
+                prepare_maps.in_set(RenderSystems::PrepareResources),
+                prepare_view_textures.in_set(RenderSystems::PrepareResources),
+                prepare_view_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+            ),
+        )
+        .add_systems(RenderGraph, render_maps.before(camera_driver))
+        .add_systems(Core3d, fin_visibility.after(Core3dSystems::Prepass).before(Core3dSystems::MainPass));
+}
+
+impl ExtractComponent for FinShadowView {
+    type QueryData = &'static FinShadowView;
+    type QueryFilter = With<Camera3d>;
+    type Out = FinShadowView;
+    fn extract_component(item: &FinShadowView) -> Option<FinShadowView> {
+        Some(item.clone())
+    }
+}
+
+impl bevy::render::sync_component::SyncComponent for FinShadowView {
+    type Target = (FinShadowView, FinViewTexture, FinViewBindGroup);
+}
+
+/// The uniform every pass reads; the layout of `FinParams` in `fin_types.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct FinParams {
+    map: [f32; 4],
+    counts: [u32; 4],
+    light: [f32; 4],
+    flags: [u32; 4],
+    origin: [f32; 4],
+    axis_u: [f32; 4],
+    axis_v: [f32; 4],
+    axis_n: [f32; 4],
+}
+
+const CHANNELS: u64 = 5;
+const WORKGROUP: u32 = 64;
+
+#[derive(Resource)]
+struct FinPipelines {
+    maps_layout: BindGroupLayoutDescriptor,
+    view_layout: BindGroupLayoutDescriptor,
+    clear: CachedComputePipelineId,
+    casters: CachedComputePipelineId,
+    fins: CachedComputePipelineId,
+    visibility: CachedComputePipelineId,
+}
+
+fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, asset_server: Res<AssetServer>) {
+    let maps_layout = BindGroupLayoutDescriptor::new(
+        "fin_maps_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                uniform_buffer_sized(false, None),
+                storage_buffer_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+            ),
+        ),
+    );
+    let view_layout = BindGroupLayoutDescriptor::new(
+        "fin_visibility_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                uniform_buffer_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                texture_depth_2d(),
+                texture_2d(TextureSampleType::Float { filterable: false }),
+                texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
+                uniform_buffer::<ViewUniform>(true),
+            ),
+        ),
+    );
+    let maps_shader = load_embedded_asset!(asset_server.as_ref(), "maps.wgsl");
+    let visibility_shader = load_embedded_asset!(asset_server.as_ref(), "visibility.wgsl");
+    let compute =
+        |label: &'static str, layout: &BindGroupLayoutDescriptor, shader: &Handle<Shader>, entry: &'static str| {
+            pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
+                label: Some(label.into()),
+                layout: vec![layout.clone()],
+                shader: shader.clone(),
+                entry_point: Some(Cow::from(entry)),
+                ..default()
+            })
+        };
+    commands.insert_resource(FinPipelines {
+        clear: compute("fin_clear_maps", &maps_layout, &maps_shader, "clear_maps"),
+        casters: compute("fin_raster_casters", &maps_layout, &maps_shader, "raster_casters"),
+        fins: compute("fin_raster_fins", &maps_layout, &maps_shader, "raster_fins"),
+        visibility: compute("fin_visibility", &view_layout, &visibility_shader, "visibility_pass"),
+        maps_layout,
+        view_layout,
+    });
+}
+
+/// GPU copies of the current fin frame and its maps.
+#[derive(Resource, Default)]
+struct FinMapsGpu {
+    generation: u64,
+    /// The maps must be (re)rendered: new content, or pipelines were not ready.
+    dirty: bool,
+    params: Option<Buffer>,
+    maps: Option<Buffer>,
+    casters: Option<Buffer>,
+    fins: Option<Buffer>,
+    bind_group: Option<BindGroup>,
+    counts: (u32, u32, u64),
+}
+
+fn params_of(f: &FinFrameData) -> FinParams {
+    let s = f.settings;
+    let falloff = match s.falloff {
+        shadow_fins::refine::Falloff::Linear => 0,
+        shadow_fins::refine::Falloff::Bernstein => 1,
+        shadow_fins::refine::Falloff::DiskSegment => 2,
+    };
+    let overlap = match s.overlap {
+        shadow_fins::oracle::Overlap::MinMax => 0,
+        shadow_fins::oracle::Overlap::Union => 1,
+    };
+    let v4 = |v: Vec3| [v.x, v.y, v.z, 0.0];
+    FinParams {
+        map: [f.region.min.x, f.region.min.y, f.region.texel, f.reference_depth],
+        counts: [f.region.resolution, f.layers, f.casters.len() as u32, f.fins.len() as u32],
+        light: [f.radius, f.near, f.scene_extent * 1e-5, 0.0],
+        flags: [s.refinement as u32, falloff, overlap, 0],
+        origin: v4(f.origin),
+        axis_u: v4(f.axes[0]),
+        axis_v: v4(f.axes[1]),
+        axis_n: v4(f.axes[2]),
+    }
+}
+
+/// Uploads a changed fin frame; buffers grow on demand and are reused otherwise.
+fn prepare_maps(
+    frame: Res<FinFrame>,
+    mut gpu: ResMut<FinMapsGpu>,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    pipelines: Option<Res<FinPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+) {
+    let (Some(f), Some(pipelines)) = (frame.0.as_ref(), pipelines) else {
+        gpu.bind_group = None;
+        gpu.generation = 0;
+        return;
+    };
+    if f.generation == gpu.generation && gpu.bind_group.is_some() {
+        return;
+    }
+    let mut params = params_of(f);
+    // The maps must fit the device's largest storage binding: halve the
+    // resolution (over the same region) until they do.
+    let limit = device.limits().max_storage_buffer_binding_size as u64;
+    let mut resolution = f.region.resolution;
+    while f.layers as u64 * (resolution as u64).pow(2) * CHANNELS * 4 > limit && resolution > 16 {
+        resolution /= 2;
+    }
+    if resolution != f.region.resolution {
+        warn_once!(
+            "fin shadows: {} layers at {}² exceed this GPU's storage binding limit; using {}²",
+            f.layers,
+            f.region.resolution,
+            resolution
+        );
+        params.counts[0] = resolution;
+        params.map[2] = f.region.texel * f.region.resolution as f32 / resolution as f32;
+    }
+    let texels = f.layers as u64 * resolution as u64 * resolution as u64;
+    let maps_size = (texels * CHANNELS * 4).max(16);
+    fn ensure(buf: &mut Option<Buffer>, device: &RenderDevice, label: &str, size: u64, usage: BufferUsages) {
+        if buf.as_ref().is_none_or(|b| b.size() < size) {
+            // Grow by half again so a slowly growing scene does not reallocate every frame.
+            let cap = device.limits().max_storage_buffer_binding_size as u64;
+            *buf = Some(device.create_buffer(&BufferDescriptor {
+                label: Some(label),
+                size: (size + size / 2).min(cap.max(size)).max(64).next_multiple_of(16),
+                usage,
+                mapped_at_creation: false,
+            }));
+        }
+    }
+    let storage = BufferUsages::STORAGE | BufferUsages::COPY_DST;
+    ensure(&mut gpu.params, &device, "fin_params", 128, BufferUsages::UNIFORM | BufferUsages::COPY_DST);
+    ensure(&mut gpu.maps, &device, "fin_maps", maps_size, storage | BufferUsages::COPY_SRC);
+    let caster_bytes: &[u8] = bytemuck::cast_slice(&f.casters);
+    let fin_bytes: &[u8] = bytemuck::cast_slice(&f.fins);
+    ensure(&mut gpu.casters, &device, "fin_casters", caster_bytes.len().max(64) as u64, storage);
+    ensure(&mut gpu.fins, &device, "fin_fins", fin_bytes.len().max(64) as u64, storage);
+    queue.write_buffer(gpu.params.as_ref().unwrap(), 0, bytemuck::bytes_of(&params));
+    if !caster_bytes.is_empty() {
+        queue.write_buffer(gpu.casters.as_ref().unwrap(), 0, caster_bytes);
+    }
+    if !fin_bytes.is_empty() {
+        queue.write_buffer(gpu.fins.as_ref().unwrap(), 0, fin_bytes);
+    }
+    gpu.bind_group = Some(device.create_bind_group(
+        "fin_maps_bind_group",
+        &pipeline_cache.get_bind_group_layout(&pipelines.maps_layout),
+        &BindGroupEntries::sequential((
+            gpu.params.as_ref().unwrap().as_entire_binding(),
+            gpu.maps.as_ref().unwrap().as_entire_binding(),
+            gpu.casters.as_ref().unwrap().as_entire_binding(),
+            gpu.fins.as_ref().unwrap().as_entire_binding(),
+        )),
+    ));
+    gpu.counts = (f.casters.len() as u32, f.fins.len() as u32, texels);
+    gpu.generation = f.generation;
+    gpu.dirty = true;
+}
+
+/// Workgroup counts for `n` items, split over y when x would exceed the limit.
+fn workgroups(n: u32) -> (u32, u32) {
+    if n <= 65535 { (n, 1) } else { (65535, n.div_ceil(65535)) }
+}
+
+/// Renders every layer's maps: clear, casters (slab depths), fins (keys).
+fn render_maps(
+    mut gpu: ResMut<FinMapsGpu>,
+    pipelines: Option<Res<FinPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    mut ctx: RenderContext,
+) {
+    if !gpu.dirty {
+        return;
+    }
+    let (Some(pipelines), Some(bind_group)) = (pipelines, gpu.bind_group.clone()) else { return };
+    let (Some(clear), Some(casters), Some(fins)) = (
+        pipeline_cache.get_compute_pipeline(pipelines.clear),
+        pipeline_cache.get_compute_pipeline(pipelines.casters),
+        pipeline_cache.get_compute_pipeline(pipelines.fins),
+    ) else {
+        return;
+    };
+    let (n_casters, n_fins, texels) = gpu.counts;
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/penumbra_maps");
+    {
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor { label: Some("fin_penumbra_maps"), timestamp_writes: None });
+        pass.set_bind_group(0, &bind_group, &[]);
+        if texels > 0 {
+            pass.set_pipeline(clear);
+            let (x, y) = workgroups((texels as u32).div_ceil(WORKGROUP));
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        if n_casters > 0 {
+            pass.set_pipeline(casters);
+            let (x, y) = workgroups(n_casters);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        if n_fins > 0 {
+            pass.set_pipeline(fins);
+            let (x, y) = workgroups(n_fins);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+    }
+    span.end(ctx.command_encoder());
+    gpu.dirty = false;
+}
+
+/// Per camera: its visibility (illuminance) buffer.
+#[derive(Component)]
+pub struct FinViewTexture(CachedTexture);
+
+#[derive(Component)]
+pub struct FinViewBindGroup(BindGroup);
+
+fn prepare_view_textures(
+    mut commands: Commands,
+    mut cache: ResMut<TextureCache>,
+    device: Res<RenderDevice>,
+    views: Query<(Entity, &ExtractedCamera), With<FinShadowView>>,
+) {
+    for (entity, camera) in &views {
+        let Some(size) = camera.physical_viewport_size else { continue };
+        let texture = cache.get(
+            &device,
+            TextureDescriptor {
+                label: Some("fin_visibility"),
+                size: Extent3d { width: size.x.max(1), height: size.y.max(1), depth_or_array_layers: 1 },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: TextureDimension::D2,
+                format: TextureFormat::R32Float,
+                usage: TextureUsages::STORAGE_BINDING | TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_SRC,
+                view_formats: &[],
+            },
+        );
+        commands.entity(entity).insert(FinViewTexture(texture));
+    }
+}
+
+fn prepare_view_bind_groups(
+    mut commands: Commands,
+    device: Res<RenderDevice>,
+    gpu: Res<FinMapsGpu>,
+    pipelines: Option<Res<FinPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    view_uniforms: Res<ViewUniforms>,
+    views: Query<(Entity, &FinViewTexture, &ViewPrepassTextures)>,
+) {
+    let (Some(pipelines), Some(params), Some(maps), Some(view_binding)) =
+        (pipelines, gpu.params.as_ref(), gpu.maps.as_ref(), view_uniforms.uniforms.binding())
+    else {
+        return;
+    };
+    if gpu.bind_group.is_none() {
+        return;
+    }
+    for (entity, texture, prepass) in &views {
+        let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else {
+            warn_once!("fin shadows: the camera needs DepthPrepass and NormalPrepass (FinShadowView adds them)");
+            continue;
+        };
+        let bind_group = device.create_bind_group(
+            "fin_visibility_bind_group",
+            &pipeline_cache.get_bind_group_layout(&pipelines.view_layout),
+            &BindGroupEntries::sequential((
+                params.as_entire_binding(),
+                maps.as_entire_binding(),
+                depth,
+                normal,
+                &texture.0.default_view,
+                view_binding.clone(),
+            )),
+        );
+        commands.entity(entity).insert(FinViewBindGroup(bind_group));
+    }
+}
+
+fn fin_visibility(
+    view: ViewQuery<(&FinShadowView, &FinViewTexture, &FinViewBindGroup, &ViewUniformOffset)>,
+    pipelines: Option<Res<FinPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    images: Res<RenderAssets<GpuImage>>,
+    mut ctx: RenderContext,
+) {
+    let (settings, texture, bind_group, offset) = view.into_inner();
+    let Some(pipeline) = pipelines.and_then(|p| pipeline_cache.get_compute_pipeline(p.visibility)) else { return };
+    let size = texture.0.texture.size();
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/visibility");
+    {
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor { label: Some("fin_visibility"), timestamp_writes: None });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &bind_group.0, &[offset.offset]);
+        pass.dispatch_workgroups(size.width.div_ceil(8), size.height.div_ceil(8), 1);
+    }
+    span.end(ctx.command_encoder());
+    if let Some(target) = settings.visibility_target.as_ref().and_then(|h| images.get(h)) {
+        let t = target.texture.size();
+        if t == size && target.texture_descriptor.format == TextureFormat::R32Float {
+            ctx.command_encoder().copy_texture_to_texture(
+                texture.0.texture.as_image_copy(),
+                target.texture.as_image_copy(),
+                size,
+            );
+        } else {
+            warn_once!("fin shadows: visibility_target must be R32Float at the camera's size ({size:?})");
+        }
+    }
+}

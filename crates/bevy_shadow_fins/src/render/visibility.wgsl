@@ -1,0 +1,137 @@
+// The illuminance (visibility) buffer of one camera: per pixel, the receiver
+// from the depth and normal prepasses, looked up in every layer's maps and
+// combined as `shadow_fins::oracle::combine_layers` does (DESIGN §3, with the
+// refinement of eq. 5, the overlap rule and the falloff).
+#import bevy_render::view::View
+#import bevy_shadow_fins::fin_types::{
+    FinParams, FinSample, CHANNELS, NO_MIN, NO_MAX, texel_index, decode_min_key, decode_max_key,
+}
+
+@group(0) @binding(0) var<uniform> params: FinParams;
+@group(0) @binding(1) var<storage, read> maps: array<u32>;
+@group(0) @binding(2) var depth_prepass: texture_depth_2d;
+@group(0) @binding(3) var normal_prepass: texture_2d<f32>;
+@group(0) @binding(4) var visibility: texture_storage_2d<r32float, write>;
+@group(0) @binding(5) var<uniform> view: View;
+
+// Penumbra half-width in map units that an edge at depth lb casts at depth lr.
+fn half_width(lb: f32, lr: f32) -> f32 {
+    return max(params.light.x * (1.0 / lb - 1.0 / lr), 0.0);
+}
+
+// Eq. 5, clamped; a negative result means the fin is not in front of the receiver.
+fn refine(s: FinSample, lr: f32) -> f32 {
+    if (!(s.depth < lr)) {
+        return -1.0;
+    }
+    if (params.flags.x == 0u) {
+        return s.weight;
+    }
+    let b0 = half_width(s.depth, params.map.w);
+    let br = half_width(s.depth, lr);
+    var ratio = 1e12;
+    if (br > b0 * 1e-12) {
+        ratio = b0 / br;
+    }
+    return clamp(0.5 + ratio * (s.weight - 0.5), 0.0, 0.5);
+}
+
+// One side's refined weight at a texel (min/max keys), or -1 when no fin applies.
+fn side_weight(min_k: u32, max_k: u32, lr: f32, paper_pick_min: bool) -> f32 {
+    if (min_k == NO_MIN) {
+        return -1.0;
+    }
+    let lo = refine(decode_min_key(params, min_k), lr);
+    let hi = refine(decode_max_key(params, max_k), lr);
+    if (params.flags.z == 0u) {
+        return select(hi, lo, paper_pick_min);
+    }
+    // Union of two distinct fins; one fin when both keys name the same.
+    let distinct = (min_k - 1u) >> 16u != (max_k - 1u) >> 16u
+        || ((min_k - 1u) & 0xffffu) != 65535u - ((max_k - 1u) & 0xffffu);
+    if (distinct && lo >= 0.0 && hi >= 0.0) {
+        return 1.0 - (1.0 - lo) * (1.0 - hi);
+    }
+    if (lo >= 0.0) {
+        return lo;
+    }
+    return select(-1.0, hi, distinct);
+}
+
+fn falloff(i: f32) -> f32 {
+    let x = clamp(i, 0.0, 1.0);
+    if (params.flags.y == 0u) {
+        return x;
+    }
+    if (params.flags.y == 1u) {
+        return x * x * (3.0 - 2.0 * x);
+    }
+    let s = 2.0 * x - 1.0;
+    return clamp(0.5 + (s * sqrt(max(1.0 - s * s, 0.0)) + asin(s)) / 3.14159265358979, 0.0, 1.0);
+}
+
+fn to_frame(p: vec3<f32>) -> vec3<f32> {
+    let d = p - params.origin.xyz;
+    return vec3<f32>(dot(d, params.axis_u.xyz), dot(d, params.axis_v.xyz), dot(d, params.axis_n.xyz));
+}
+
+fn dir_to_frame(d: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot(d, params.axis_u.xyz), dot(d, params.axis_v.xyz), dot(d, params.axis_n.xyz));
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
+    let size = textureDimensions(visibility);
+    if (id.x >= size.x || id.y >= size.y) {
+        return;
+    }
+    let pixel = vec2<i32>(id.xy);
+    let depth = textureLoad(depth_prepass, pixel, 0);
+    if (depth <= 0.0) {
+        // Background (reverse-Z far plane): fully lit.
+        textureStore(visibility, pixel, vec4<f32>(1.0));
+        return;
+    }
+    let uv = (vec2<f32>(id.xy) + 0.5) / vec2<f32>(size);
+    let ndc = vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
+    let world = view.world_from_clip * ndc;
+    let position = to_frame(world.xyz / world.w);
+    let normal_world = normalize(textureLoad(normal_prepass, pixel, 0).xyz * 2.0 - 1.0);
+    let normal = dir_to_frame(normal_world);
+
+    // Lift by one texel's world size along the normal (as the raster oracle).
+    let near = params.light.y;
+    let texel_world = params.map.z * max(position.z, near);
+    let p = position + normal * (params.light.z + texel_world);
+    var v = 0.0;
+    if (p.z > near) {
+        let q = p.xy / p.z;
+        let t = (q - params.map.xy) / params.map.z;
+        let res = f32(params.counts.x);
+        let inside = t.x >= 0.0 && t.y >= 0.0 && t.x < res && t.y < res;
+        let limit = p.z * (1.0 - 1e-6);
+        var illuminance = 1.0;
+        for (var layer = 0u; layer < params.counts.y; layer++) {
+            if (!inside) {
+                break;
+            }
+            let base = texel_index(params, layer, u32(t.x), u32(t.y));
+            let slab = bitcast<f32>(maps[base]);
+            let blocked = slab < limit;
+            let inner = side_weight(maps[base + 1u], maps[base + 2u], p.z, true);
+            let outer = side_weight(maps[base + 3u], maps[base + 4u], p.z, false);
+            if (inner >= 0.0 || outer >= 0.0) {
+                let u = clamp(select(1.0, 0.0, blocked) + max(inner, 0.0) - max(outer, 0.0), 0.0, 1.0);
+                if (params.flags.z == 0u) {
+                    illuminance = min(illuminance, u);
+                } else {
+                    illuminance = illuminance * u;
+                }
+            } else if (blocked) {
+                illuminance = 0.0;
+            }
+        }
+        v = falloff(illuminance);
+    }
+    textureStore(visibility, pixel, vec4<f32>(v, 0.0, 0.0, 1.0));
+}

@@ -1,0 +1,84 @@
+//! Renders the demo scene (or a glTF given as argument) headless with the
+//! plugin and writes its visibility (illuminance) buffer as a PNG.
+//!
+//! `cargo run --release --example headless -- [scene.gltf] [--out out/headless.png]`
+//!
+//! A glTF gets a light of radius 5% of its size, 1× its size above its centre.
+
+use bevy::{
+    asset::RenderAssetUsages,
+    image::Image,
+    render::render_resource::{Extent3d, TextureDimension, TextureFormat},
+};
+use shadow_fins::{
+    camera::Camera,
+    glam::Vec3,
+    light::{DiskLight, Light},
+    scenes::SceneId,
+};
+use shadow_fins_app::harness::{Setup, render};
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> Result<(), String> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let out = args
+        .iter()
+        .position(|a| a == "--out")
+        .and_then(|i| args.get(i + 1))
+        .cloned()
+        .unwrap_or("out/headless.png".into());
+    let gltf = args.iter().find(|a| !a.starts_with("--") && Some(*a) != Some(&out));
+    let (scene, light, camera) = match gltf {
+        Some(path) => {
+            let import = shadow_fins::gltf_import::load_gltf(path).map_err(|e| e.to_string())?;
+            for s in &import.skipped {
+                eprintln!("warning: skipped {s}");
+            }
+            let (lo, hi) = import.scene.bounds().ok_or("empty scene")?;
+            let (center, size) = ((lo + hi) * 0.5, (hi - lo).length().max(1e-6));
+            let light = Light::Disk(
+                DiskLight::new(center + Vec3::Y * size, Vec3::NEG_Y, size * 0.05).map_err(|e| e.to_string())?,
+            );
+            let camera = Camera::looking_at(center + Vec3::new(0.6, 0.7, 0.9).normalize() * size * 1.2, center);
+            (import.scene, light, camera)
+        }
+        None => {
+            let demo = SceneId::Demo.build();
+            (demo.scene, demo.light, demo.camera)
+        }
+    };
+    let (width, height) = (640, 480);
+    let setup = Setup { scene, light, camera, settings: Default::default(), width, height, extra_meshes: vec![] };
+    let shot = render(&setup, 8)?;
+    let bytes: Vec<u8> = shot
+        .visibility
+        .iter()
+        .flat_map(|v| {
+            let g = (v.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8;
+            [g, g, g, 255]
+        })
+        .collect();
+    let image = Image::new(
+        Extent3d { width, height, depth_or_array_layers: 1 },
+        TextureDimension::D2,
+        bytes,
+        TextureFormat::Rgba8UnormSrgb,
+        RenderAssetUsages::MAIN_WORLD,
+    );
+    if let Some(dir) = std::path::Path::new(&out).parent() {
+        std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
+    }
+    image.try_into_dynamic().map_err(|e| e.to_string())?.to_rgba8().save(&out).map_err(|e| e.to_string())?;
+    let s = shot.stats;
+    println!(
+        "wrote {out}: {} casters, {} triangles, {} silhouette edges, {} fins, {} layers, extraction {:.2} ms",
+        s.casters, s.triangles, s.silhouettes, s.fins, s.layers, s.extract_ms
+    );
+    Ok(())
+}

@@ -1,0 +1,10 @@
+//! Rendering tests of the plugin, headless (lavapipe on CPU machines): GPU
+//! read-backs of the visibility buffer against the core's raster oracle at the
+//! same map resolution. One test binary, a module per topic.
+
+mod render {
+    pub mod common;
+    mod oracle_agreement;
+    mod robustness;
+    mod runtime_changes;
+}

@@ -1,0 +1,72 @@
+//! Shared helpers: scenes, the oracle's visibility per pixel, comparisons.
+
+use bevy_shadow_fins::FinShadowSettings;
+use shadow_fins::{
+    bvh::Bvh,
+    oracle::{FinShadowModel, Method, Receiver},
+    scene::LightSpaceScene,
+    scenes::SceneId,
+};
+use shadow_fins_app::harness::{Setup, Shot};
+
+pub const WIDTH: u32 = 96;
+pub const HEIGHT: u32 = 72;
+pub const MAP: u32 = 256;
+
+pub fn setup(id: SceneId, settings: FinShadowSettings) -> Setup {
+    let s = id.build();
+    Setup {
+        scene: s.scene,
+        light: s.light,
+        camera: s.camera,
+        settings,
+        width: WIDTH,
+        height: HEIGHT,
+        extra_meshes: vec![],
+    }
+}
+
+pub fn settings() -> FinShadowSettings {
+    FinShadowSettings { map_resolution: MAP, ..Default::default() }
+}
+
+/// The raster oracle's visibility at every pixel's receiver (1 for background).
+pub fn oracle(setup: &Setup, method: Method) -> Vec<f32> {
+    let ls = LightSpaceScene::new(&setup.scene, setup.light);
+    let model = FinShadowModel::new(&setup.scene, &ls, method, setup.settings.core());
+    let maps = model.raster(setup.settings.clamped().map_resolution);
+    let bvh = Bvh::new(&ls.casters);
+    (0..setup.width * setup.height)
+        .map(|i| {
+            let (o, d) = setup.camera.ray(i % setup.width, i / setup.width, setup.width, setup.height);
+            let (o, d) = (ls.frame.to_frame(o), ls.frame.dir_to_frame(d));
+            match bvh.closest_hit(o, d, 0.0) {
+                Some(h) => {
+                    let n = if h.normal.dot(d) > 0.0 { -h.normal } else { h.normal };
+                    maps.visibility(Receiver { position: o + d * h.t, normal: n })
+                }
+                None => 1.0,
+            }
+        })
+        .collect()
+}
+
+/// Mean absolute difference and the share of pixels off by more than 0.1.
+pub fn compare(shot: &Shot, oracle: &[f32]) -> (f32, f32) {
+    let n = oracle.len() as f32;
+    let mad = shot.visibility.iter().zip(oracle).map(|(a, b)| (a - b).abs()).sum::<f32>() / n;
+    let far = shot.visibility.iter().zip(oracle).filter(|(a, b)| (*a - *b).abs() > 0.1).count() as f32 / n;
+    (mad, far)
+}
+
+pub fn render(setup: &Setup) -> Shot {
+    shadow_fins_app::harness::render(setup, 6).expect("headless render")
+}
+
+/// A shot must show both shadow and light: a test that passes on a black (or
+/// white) image is a bug.
+pub fn assert_not_trivial(shot: &Shot) {
+    let dark = shot.visibility.iter().filter(|v| **v < 0.05).count();
+    let lit = shot.visibility.iter().filter(|v| **v > 0.95).count();
+    assert!(dark > 50 && lit > 50, "visibility buffer is trivial: {dark} dark, {lit} lit pixels");
+}

@@ -1,0 +1,53 @@
+//! Bad geometry and extreme lights: no panic, no NaN in the visibility buffer.
+
+use shadow_fins::{
+    glam::Vec3,
+    light::{DiskLight, Light},
+    scenes::SceneId,
+};
+
+use super::common::*;
+
+#[test]
+fn a_light_inside_a_caster_stays_finite() {
+    let mut setup = setup(SceneId::BoxOverPlane, settings());
+    // The box spans y 1..2: put the light in its middle.
+    setup.light = Light::Disk(DiskLight::new(Vec3::new(0.0, 1.5, 0.0), Vec3::NEG_Y, 0.3).unwrap());
+    let shot = render(&setup);
+    assert!(shot.visibility.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
+}
+
+#[test]
+fn a_huge_light_stays_finite_and_in_range() {
+    let mut setup = setup(SceneId::SphereGrid, settings());
+    setup.light = setup.light.with_size_scaled(100.0);
+    let shot = render(&setup);
+    assert!(shot.visibility.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
+}
+
+#[test]
+fn empty_nan_and_degenerate_meshes_are_skipped_without_panic() {
+    use bevy::{
+        asset::RenderAssetUsages,
+        mesh::{Indices, Mesh as BevyMesh, PrimitiveTopology},
+    };
+    let mesh = |positions: Vec<[f32; 3]>, indices: Vec<u32>| {
+        BevyMesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
+            .with_inserted_attribute(BevyMesh::ATTRIBUTE_POSITION, positions)
+            .with_inserted_indices(Indices::U32(indices))
+    };
+    let mut setup = setup(SceneId::BoxOverPlane, settings());
+    setup.extra_meshes = vec![
+        // No triangles at all.
+        (mesh(vec![], vec![]), Vec3::new(2.0, 1.0, 0.0)),
+        // NaN positions.
+        (mesh(vec![[f32::NAN, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], vec![0, 1, 2]), Vec3::new(-2.0, 1.0, 0.0)),
+        // Every triangle of zero area.
+        (mesh(vec![[0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]], vec![0, 1, 2]), Vec3::new(0.0, 1.0, 2.0)),
+    ];
+    let shot = render(&setup);
+    assert_not_trivial(&shot);
+    assert!(shot.visibility.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
+    // The bad meshes are skipped; the box and ground still cast and receive.
+    assert_eq!(shot.stats.casters, 2);
+}
