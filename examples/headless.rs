@@ -54,7 +54,16 @@ fn run() -> Result<(), String> {
         }
     };
     let (width, height) = (640, 480);
-    let setup = Setup { scene, light, camera, settings: Default::default(), width, height, extra_meshes: vec![] };
+    let setup = Setup {
+        scene,
+        light,
+        camera,
+        settings: Default::default(),
+        width,
+        height,
+        extra_meshes: vec![],
+        msaa: bevy::prelude::Msaa::Off,
+    };
     let shot = render(&setup, 8)?;
     let bytes: Vec<u8> = shot
         .visibility

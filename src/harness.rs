@@ -28,6 +28,8 @@ pub struct Setup {
     pub height: u32,
     /// Raw Bevy meshes spawned as they are (bad input for robustness tests), at a position.
     pub extra_meshes: Vec<(Mesh, Vec3)>,
+    /// The camera's MSAA (the plugin needs `Msaa::Off`; others must not crash).
+    pub msaa: Msaa,
 }
 
 /// A read-back visibility buffer, row-major, top row first.
@@ -104,7 +106,7 @@ pub fn app(setup: &Setup) -> (App, Arc<Mutex<Option<Vec<u8>>>>) {
     }
     world.spawn((
         Camera3d::default(),
-        Msaa::Off,
+        setup.msaa,
         RenderTarget::Image(color.into()),
         Projection::Perspective(PerspectiveProjection { fov: setup.camera.vertical_fov.to_radians(), ..default() }),
         Transform::from_translation(setup.camera.position).looking_at(setup.camera.target, setup.camera.up),

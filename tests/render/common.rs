@@ -23,6 +23,7 @@ pub fn setup(id: SceneId, settings: FinShadowSettings) -> Setup {
         width: WIDTH,
         height: HEIGHT,
         extra_meshes: vec![],
+        msaa: bevy::prelude::Msaa::Off,
     }
 }
 

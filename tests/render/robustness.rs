@@ -51,3 +51,13 @@ fn empty_nan_and_degenerate_meshes_are_skipped_without_panic() {
     // The bad meshes are skipped; the box and ground still cast and receive.
     assert_eq!(shot.stats.casters, 2);
 }
+
+#[test]
+fn a_camera_with_msaa_is_skipped_without_a_crash() {
+    let mut setup = setup(SceneId::BoxOverPlane, settings());
+    setup.msaa = bevy::prelude::Msaa::Sample4;
+    // The visibility pass skips the view (with a warning); the app keeps running
+    // and the target image keeps its initial zeros.
+    let shot = render(&setup);
+    assert!(shot.visibility.iter().all(|v| *v == 0.0));
+}

@@ -367,6 +367,12 @@ fn prepare_view_bind_groups(
         return;
     }
     for (entity, texture, prepass) in &views {
+        // Multisampled prepass textures cannot be bound as the pass's
+        // single-sample inputs: skip the view with a clear message, not a crash.
+        if prepass.depth.as_ref().is_some_and(|d| d.texture.texture.sample_count() > 1) {
+            warn_once!("fin shadows: the camera uses MSAA; add `Msaa::Off` to it for fin shadows");
+            continue;
+        }
         let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else {
             warn_once!("fin shadows: the camera needs DepthPrepass and NormalPrepass (FinShadowView adds them)");
             continue;
