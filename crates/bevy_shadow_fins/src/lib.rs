@@ -3,10 +3,18 @@
 //! Soft shadows from a light with a size, by multi-layered shadow fins (Cai et
 //! al. 2006) with this project's measured improvements (see `CHANGELOG.md`).
 //!
-//! ```ignore
-//! app.add_plugins((DefaultPlugins, ShadowFinsPlugin));
-//! commands.spawn((FinLight { radius: 0.5, ..default() }, Transform::from_xyz(0.0, 5.0, 0.0).looking_at(Vec3::ZERO, Vec3::Z)));
-//! commands.spawn((Camera3d::default(), FinShadowView::default()));
+//! ```no_run
+//! use bevy::prelude::*;
+//! use bevy_shadow_fins::{FinLight, FinShadowView, ShadowFinsPlugin};
+//!
+//! fn main() {
+//!     App::new().add_plugins((DefaultPlugins, ShadowFinsPlugin)).add_systems(Startup, setup).run();
+//! }
+//!
+//! fn setup(mut commands: Commands) {
+//!     commands.spawn((FinLight { radius: 0.5, ..default() }, Transform::from_xyz(0.0, 5.0, 0.0).looking_at(Vec3::ZERO, Vec3::Z)));
+//!     commands.spawn((Camera3d::default(), Msaa::Off, FinShadowView::default()));
+//! }
 //! ```
 //!
 //! Every mesh with a `Mesh3d` casts and receives (opt out of casting with
