@@ -77,7 +77,6 @@ pub struct FinFrameData {
     pub stats: FinFrameStats,
     pub(crate) casters: Vec<GpuCaster>,
     pub(crate) fins: Vec<GpuFin>,
-    pub(crate) layers: u32,
     pub(crate) region: MapRegion,
     /// World → light frame: origin and axes (u, v, n).
     pub(crate) origin: Vec3,
@@ -211,7 +210,6 @@ fn update_fin_frame(
         stats,
         casters: casters_gpu,
         fins: fins_gpu,
-        layers: stats.layers as u32,
         region,
         origin: ls.frame.origin().as_vec3(),
         axes: ls.frame.axes(),

@@ -177,7 +177,7 @@ fn params_of(f: &FinFrameData) -> FinParams {
     let v4 = |v: Vec3| [v.x, v.y, v.z, 0.0];
     FinParams {
         map: [f.region.min.x, f.region.min.y, f.region.texel, f.reference_depth],
-        counts: [f.region.resolution, f.layers, f.casters.len() as u32, f.fins.len() as u32],
+        counts: [f.region.resolution, f.stats.layers as u32, f.casters.len() as u32, f.fins.len() as u32],
         light: [f.radius, f.near, f.scene_extent * 1e-5, 0.0],
         flags: [s.refinement as u32, falloff, overlap, 0],
         origin: v4(f.origin),
@@ -209,20 +209,20 @@ fn prepare_maps(
     // resolution (over the same region) until they do.
     let limit = device.limits().max_storage_buffer_binding_size as u64;
     let mut resolution = f.region.resolution;
-    while f.layers as u64 * (resolution as u64).pow(2) * CHANNELS * 4 > limit && resolution > 16 {
+    while f.stats.layers as u64 * (resolution as u64).pow(2) * CHANNELS * 4 > limit && resolution > 16 {
         resolution /= 2;
     }
     if resolution != f.region.resolution {
         warn_once!(
             "fin shadows: {} layers at {}² exceed this GPU's storage binding limit; using {}²",
-            f.layers,
+            f.stats.layers,
             f.region.resolution,
             resolution
         );
         params.counts[0] = resolution;
         params.map[2] = f.region.texel * f.region.resolution as f32 / resolution as f32;
     }
-    let texels = f.layers as u64 * resolution as u64 * resolution as u64;
+    let texels = f.stats.layers as u64 * resolution as u64 * resolution as u64;
     let maps_size = (texels * CHANNELS * 4).max(16);
     fn ensure(buf: &mut Option<Buffer>, device: &RenderDevice, label: &str, size: u64, usage: BufferUsages) {
         if buf.as_ref().is_none_or(|b| b.size() < size) {
