@@ -3,7 +3,8 @@
 use bevy_shadow_fins::FinShadowSettings;
 use shadow_fins::{
     bvh::Bvh,
-    oracle::{FinShadowModel, Method, Receiver},
+    camera::pixel_receiver,
+    oracle::{FinShadowModel, Method},
     scene::LightSpaceScene,
     scenes::SceneId,
 };
@@ -39,15 +40,8 @@ pub fn oracle(setup: &Setup, method: Method) -> Vec<f32> {
     let bvh = Bvh::new(&ls.casters);
     (0..setup.width * setup.height)
         .map(|i| {
-            let (o, d) = setup.camera.ray(i % setup.width, i / setup.width, setup.width, setup.height);
-            let (o, d) = (ls.frame.to_frame(o), ls.frame.dir_to_frame(d));
-            match bvh.closest_hit(o, d, 0.0) {
-                Some(h) => {
-                    let n = if h.normal.dot(d) > 0.0 { -h.normal } else { h.normal };
-                    maps.visibility(Receiver { position: o + d * h.t, normal: n })
-                }
-                None => 1.0,
-            }
+            let pixel = (i % setup.width, i / setup.width, setup.width, setup.height);
+            pixel_receiver(&setup.camera, pixel, &ls, &bvh).map_or(1.0, |r| maps.visibility(r))
         })
         .collect()
 }

@@ -30,3 +30,20 @@ impl Camera {
         (self.position, (forward + right * sx + up * sy).normalize())
     }
 }
+
+/// The receiver a camera pixel sees: the first hit of its ray in the light
+/// frame of `light_space`, with the surface normal turned towards the camera;
+/// `None` for the background. `bvh` must be built over `light_space.casters`.
+pub fn pixel_receiver(
+    camera: &Camera,
+    (x, y, width, height): (u32, u32, u32, u32),
+    light_space: &crate::scene::LightSpaceScene,
+    bvh: &crate::bvh::Bvh,
+) -> Option<crate::oracle::Receiver> {
+    let (o, d) = camera.ray(x, y, width, height);
+    let (o, d) = (light_space.frame.to_frame(o), light_space.frame.dir_to_frame(d));
+    bvh.closest_hit(o, d, 0.0).map(|h| {
+        let normal = if h.normal.dot(d) > 0.0 { -h.normal } else { h.normal };
+        crate::oracle::Receiver { position: o + d * h.t, normal }
+    })
+}

@@ -5,7 +5,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 use shadow_fins::{
     bvh::Bvh,
-    camera::Camera,
+    camera::{Camera, pixel_receiver},
     ground_truth::GroundTruth,
     oracle::{FinSettings, FinShadowModel, Receiver},
     scene::{LightSpaceScene, Scene},
@@ -88,16 +88,8 @@ pub fn camera_receivers(
     light_space: &LightSpaceScene,
 ) -> Vec<Option<Receiver>> {
     let bvh = Bvh::new(&light_space.casters);
-    let frame = &light_space.frame;
     (0..width * height)
         .into_par_iter()
-        .map(|i| {
-            let (o, d) = camera.ray(i % width, i / width, width, height);
-            let (o, d) = (frame.to_frame(o), frame.dir_to_frame(d));
-            bvh.closest_hit(o, d, 0.0).map(|h| {
-                let n = if h.normal.dot(d) > 0.0 { -h.normal } else { h.normal };
-                Receiver { position: o + d * h.t, normal: n }
-            })
-        })
+        .map(|i| pixel_receiver(camera, (i % width, i / width, width, height), light_space, &bvh))
         .collect()
 }

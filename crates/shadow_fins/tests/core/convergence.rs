@@ -3,7 +3,7 @@
 
 use shadow_fins::{
     bvh::Bvh,
-    camera::Camera,
+    camera::{Camera, pixel_receiver},
     light::Light,
     oracle::{FinSettings, FinShadowModel, Method, Receiver},
     scene::{LightSpaceScene, Scene},
@@ -22,15 +22,7 @@ pub fn view_receivers(
 ) -> (LightSpaceScene, Vec<Receiver>) {
     let ls = LightSpaceScene::new(scene, light);
     let bvh = Bvh::new(&ls.casters);
-    let mut out = Vec::new();
-    for i in 0..w * h {
-        let (o, d) = camera.ray(i % w, i / w, w, h);
-        let (o, d) = (ls.frame.to_frame(o), ls.frame.dir_to_frame(d));
-        if let Some(hit) = bvh.closest_hit(o, d, 0.0) {
-            let n = if hit.normal.dot(d) > 0.0 { -hit.normal } else { hit.normal };
-            out.push(Receiver { position: o + d * hit.t, normal: n });
-        }
-    }
+    let out = (0..w * h).filter_map(|i| pixel_receiver(camera, (i % w, i / w, w, h), &ls, &bvh)).collect();
     (ls, out)
 }
 
