@@ -131,18 +131,15 @@ fn update_fin_frame(
     let mut hasher = std::collections::hash_map::DefaultHasher::new();
     hash_floats(&mut hasher, &light_transform.to_matrix().to_cols_array());
     hash_floats(&mut hasher, &[light.effective_radius(), light.range]);
-    format!("{:?}", settings.clamped()).hash(&mut hasher);
-    let mut count = 0usize;
+    settings.clamped().hash(&mut hasher);
     for (entity, mesh, transform, not_caster) in &casters {
         entity.hash(&mut hasher);
         not_caster.hash(&mut hasher);
         mesh.id().hash(&mut hasher);
+        // A mesh that finishes loading changes the frame too.
+        meshes.contains(mesh.id()).hash(&mut hasher);
         hash_floats(&mut hasher, &transform.to_matrix().to_cols_array());
-        count += 1;
     }
-    count.hash(&mut hasher);
-    let loaded = casters.iter().filter(|(_, m, ..)| meshes.contains(m.id())).count();
-    loaded.hash(&mut hasher);
     let signature = hasher.finish();
     if signature == cache.signature && frame.0.is_some() {
         return;

@@ -69,7 +69,7 @@ impl From<FinMethod> for Method {
 /// can change at runtime and takes effect the next frame.
 ///
 /// Out-of-range values are clamped (see [`FinShadowSettings::clamped`]).
-#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
+#[derive(Component, Debug, Clone, Copy, PartialEq, Eq, Hash, Reflect)]
 #[reflect(Component, Default, Debug, Clone)]
 pub struct FinShadowSettings {
     pub method: FinMethod,
