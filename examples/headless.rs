@@ -1,5 +1,6 @@
 //! Renders the demo scene (or a glTF given as argument) headless with the
-//! plugin and writes its visibility (illuminance) buffer as a PNG.
+//! plugin and writes the final image as a PNG, and its visibility
+//! (illuminance) buffer beside it (`…_visibility.png`).
 //!
 //! `cargo run --release --example headless -- [scene.gltf] [--out out/headless.png]`
 //!
@@ -54,36 +55,36 @@ fn run() -> Result<(), String> {
         }
     };
     let (width, height) = (640, 480);
-    let setup = Setup {
-        scene,
-        light,
-        camera,
-        settings: Default::default(),
-        width,
-        height,
-        extra_meshes: vec![],
-        msaa: bevy::prelude::Msaa::Off,
-    };
+    let mut setup = Setup::new(scene, light, camera, Default::default(), (width, height));
+    setup.hdr = true;
+    setup.tonemapping = bevy::core_pipeline::tonemapping::Tonemapping::TonyMcMapface;
     let shot = render(&setup, 8)?;
-    let bytes: Vec<u8> = shot
+    let gray: Vec<[u8; 4]> = shot
         .visibility
         .iter()
-        .flat_map(|v| {
+        .map(|v| {
             let g = (v.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8;
             [g, g, g, 255]
         })
         .collect();
-    let image = Image::new(
-        Extent3d { width, height, depth_or_array_layers: 1 },
-        TextureDimension::D2,
-        bytes,
-        TextureFormat::Rgba8UnormSrgb,
-        RenderAssetUsages::MAIN_WORLD,
-    );
+    let visibility_out = match out.strip_suffix(".png") {
+        Some(stem) => format!("{stem}_visibility.png"),
+        None => format!("{out}_visibility.png"),
+    };
     if let Some(dir) = std::path::Path::new(&out).parent() {
         std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
     }
-    image.try_into_dynamic().map_err(|e| e.to_string())?.to_rgba8().save(&out).map_err(|e| e.to_string())?;
+    for (pixels, path) in [(&shot.color, &out), (&gray, &visibility_out)] {
+        let image = Image::new(
+            Extent3d { width, height, depth_or_array_layers: 1 },
+            TextureDimension::D2,
+            pixels.iter().flatten().copied().collect(),
+            TextureFormat::Rgba8UnormSrgb,
+            RenderAssetUsages::MAIN_WORLD,
+        );
+        image.try_into_dynamic().map_err(|e| e.to_string())?.to_rgba8().save(path).map_err(|e| e.to_string())?;
+    }
+    println!("wrote {visibility_out}");
     let s = shot.stats;
     println!(
         "wrote {out}: {} casters, {} triangles, {} silhouette edges, {} fins, {} layers, extraction {:.2} ms",

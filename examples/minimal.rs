@@ -22,7 +22,6 @@ fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials
     ));
     commands.spawn((
         Camera3d::default(),
-        Msaa::Off,
         FinShadowView::default(),
         Transform::from_xyz(3.0, 4.0, 4.5).looking_at(Vec3::ZERO, Vec3::Y),
     ));

@@ -5,8 +5,11 @@ use std::sync::{Arc, Mutex};
 use bevy::{
     asset::RenderAssetUsages,
     camera::RenderTarget,
+    core_pipeline::tonemapping::Tonemapping,
+    diagnostic::DiagnosticsStore,
     mesh::{Indices, PrimitiveTopology},
     prelude::*,
+    render::diagnostic::RenderDiagnosticsPlugin,
     render::{
         RenderPlugin,
         gpu_readback::{Readback, ReadbackComplete},
@@ -14,7 +17,9 @@ use bevy::{
     },
     window::ExitCondition,
 };
-use bevy_shadow_fins::{FinFrame, FinLight, FinShadowSettings, FinShadowView, NotFinShadowCaster, ShadowFinsPlugin};
+use bevy_shadow_fins::{
+    FinFrame, FinLight, FinShadowSettings, FinShadowView, NotFinShadowCaster, NotFinShadowReceiver, ShadowFinsPlugin,
+};
 use shadow_fins::{camera::Camera as CoreCamera, light::Light, scene::Scene};
 
 /// A scene to render: the core's scene, a disk light and a camera.
@@ -28,18 +33,81 @@ pub struct Setup {
     pub height: u32,
     /// Raw Bevy meshes spawned as they are (bad input for robustness tests), at a position.
     pub extra_meshes: Vec<(Mesh, Vec3)>,
-    /// The camera's MSAA (the plugin needs `Msaa::Off`; others must not crash).
+    /// The camera's MSAA (the plugin turns it off on fin-shadowed cameras).
     pub msaa: Msaa,
+    /// An HDR camera (tonemapping after lighting) or not (tonemapping inside
+    /// the lighting shader).
+    pub hdr: bool,
+    /// Light the scene with Bevy's own `PointLight` (same colour, intensity,
+    /// range, radius; no shadow maps) instead of the fin light: the reference
+    /// the compositing pass is compared against.
+    pub bevy_point_light: bool,
+    /// More fin-shadowed cameras rendered in the same frames.
+    pub extra_cameras: Vec<CoreCamera>,
+    /// The cameras' tonemapping (`None` keeps the output linear in the light,
+    /// which the compositing tests rely on).
+    pub tonemapping: Tonemapping,
+    /// The light's luminous power, lumens.
+    pub intensity: f32,
 }
 
-/// A read-back visibility buffer, row-major, top row first.
+impl Setup {
+    /// A setup with the defaults of every optional field.
+    pub fn new(scene: Scene, light: Light, camera: CoreCamera, settings: FinShadowSettings, size: (u32, u32)) -> Self {
+        Self {
+            scene,
+            light,
+            camera,
+            settings,
+            width: size.0,
+            height: size.1,
+            extra_meshes: vec![],
+            msaa: Msaa::Off,
+            hdr: false,
+            bevy_point_light: false,
+            extra_cameras: vec![],
+            tonemapping: Tonemapping::None,
+            intensity: FinLight::default().intensity,
+        }
+    }
+}
+
+/// What one camera produced: visibility buffer and final colour, row-major,
+/// top row first.
+#[derive(Debug, Clone, Default)]
+pub struct ViewShot {
+    pub visibility: Vec<f32>,
+    /// The camera's output, sRGB bytes (RGBA).
+    pub color: Vec<[u8; 4]>,
+}
+
+/// A rendered frame: the first camera's buffers, the others', and the counts.
 #[derive(Debug, Clone)]
 pub struct Shot {
     pub width: u32,
     pub height: u32,
     pub visibility: Vec<f32>,
+    pub color: Vec<[u8; 4]>,
+    /// The cameras of `Setup::extra_cameras`, in order.
+    pub extra_views: Vec<ViewShot>,
     /// Silhouettes, fins and layers the frame modelled.
     pub stats: bevy_shadow_fins::FinFrameStats,
+    /// Every `render/fin_shadows/…` diagnostic (per-pass GPU and CPU times,
+    /// ms) with its latest value.
+    pub pass_times: Vec<(String, f64)>,
+}
+
+/// Frames [`render`] waits at most for the image to settle.
+pub const MAX_FRAMES: u32 = 60;
+
+/// The latest read-back of one image (rows padded to 256 bytes).
+pub type Slot = Arc<Mutex<Option<Vec<u8>>>>;
+
+/// Read-back slots of one camera.
+#[derive(Clone, Default)]
+pub struct ViewSlots {
+    pub visibility: Slot,
+    pub color: Slot,
 }
 
 /// A Bevy mesh (flat-shaded, so the normal prepass holds face normals) from a core mesh.
@@ -54,31 +122,18 @@ pub fn bevy_mesh(mesh: &shadow_fins::mesh::Mesh) -> Mesh {
         .with_computed_flat_normals()
 }
 
-/// Builds the headless app for `setup`; returns it with the shared read-back slot.
-pub fn app(setup: &Setup) -> (App, Arc<Mutex<Option<Vec<u8>>>>) {
+/// Builds the headless app for `setup`; returns it with every camera's
+/// read-back slots (the first camera first).
+pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
     let mut app = App::new();
     app.add_plugins(
         DefaultPlugins
             .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, ..default() })
             .set(RenderPlugin { synchronous_pipeline_compilation: true, ..default() }),
     )
-    .add_plugins(ShadowFinsPlugin);
-    let slot = Arc::new(Mutex::new(None));
+    .add_plugins((ShadowFinsPlugin, RenderDiagnosticsPlugin));
     let world = app.world_mut();
     let (w, h) = (setup.width, setup.height);
-    let (color, visibility) = {
-        let mut images = world.resource_mut::<Assets<Image>>();
-        let color = images.add(Image::new_target_texture(w, h, TextureFormat::Rgba8UnormSrgb, None));
-        let mut vis = Image::new_fill(
-            Extent3d { width: w, height: h, depth_or_array_layers: 1 },
-            TextureDimension::D2,
-            &0f32.to_le_bytes(),
-            TextureFormat::R32Float,
-            RenderAssetUsages::RENDER_WORLD,
-        );
-        vis.texture_descriptor.usage |= TextureUsages::COPY_DST | TextureUsages::COPY_SRC;
-        (color, images.add(vis))
-    };
     let material = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial::default());
     for object in &setup.scene.objects {
         let mesh = world.resource_mut::<Assets<Mesh>>().add(bevy_mesh(&object.mesh));
@@ -90,6 +145,9 @@ pub fn app(setup: &Setup) -> (App, Arc<Mutex<Option<Vec<u8>>>>) {
         if !object.casts_shadows {
             e.insert(NotFinShadowCaster);
         }
+        if !object.receives_shadows {
+            e.insert(NotFinShadowReceiver);
+        }
     }
     for (mesh, at) in &setup.extra_meshes {
         let mesh = world.resource_mut::<Assets<Mesh>>().add(mesh.clone());
@@ -98,48 +156,155 @@ pub fn app(setup: &Setup) -> (App, Arc<Mutex<Option<Vec<u8>>>>) {
     if let Light::Disk(d) = setup.light {
         let target = d.center + d.normal;
         let up = if d.normal.cross(Vec3::Z).length() > 1e-3 { Vec3::Z } else { Vec3::X };
-        world.spawn((
-            FinLight { radius: d.radius, ..default() },
-            setup.settings,
-            Transform::from_translation(d.center).looking_at(target, up),
-        ));
+        let transform = Transform::from_translation(d.center).looking_at(target, up);
+        // The range covers the whole scene, whatever its scale.
+        let reach =
+            setup.scene.bounds().map_or(20.0, |(lo, hi)| (hi - lo).length() + (d.center - (lo + hi) * 0.5).length());
+        let fin = FinLight { radius: d.radius, intensity: setup.intensity, range: reach.max(20.0), ..default() };
+        if setup.bevy_point_light {
+            world.spawn((
+                PointLight {
+                    color: fin.color,
+                    intensity: fin.intensity,
+                    range: fin.range,
+                    radius: fin.radius,
+                    shadow_maps_enabled: false,
+                    ..default()
+                },
+                transform,
+            ));
+        } else {
+            world.spawn((fin, setup.settings, transform));
+        }
     }
-    world.spawn((
-        Camera3d::default(),
-        setup.msaa,
-        RenderTarget::Image(color.into()),
-        Projection::Perspective(PerspectiveProjection { fov: setup.camera.vertical_fov.to_radians(), ..default() }),
-        Transform::from_translation(setup.camera.position).looking_at(setup.camera.target, setup.camera.up),
-        FinShadowView { visibility_target: Some(visibility.clone()) },
-    ));
-    let sink = slot.clone();
-    world.spawn(Readback::texture(visibility)).observe(move |e: On<ReadbackComplete>| {
-        *sink.lock().unwrap() = Some(e.data.clone());
-    });
-    (app, slot)
+    let cameras = std::iter::once(&setup.camera).chain(&setup.extra_cameras);
+    let mut slots = vec![];
+    for (order, camera) in cameras.enumerate() {
+        let view = ViewSlots::default();
+        let (color, visibility) = {
+            let mut images = world.resource_mut::<Assets<Image>>();
+            let mut color = Image::new_target_texture(w, h, TextureFormat::Rgba8UnormSrgb, None);
+            color.texture_descriptor.usage |= TextureUsages::COPY_SRC;
+            let color = images.add(color);
+            let mut vis = Image::new_fill(
+                Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+                TextureDimension::D2,
+                &0f32.to_le_bytes(),
+                TextureFormat::R32Float,
+                RenderAssetUsages::RENDER_WORLD,
+            );
+            vis.texture_descriptor.usage |= TextureUsages::COPY_DST | TextureUsages::COPY_SRC;
+            (color, images.add(vis))
+        };
+        let mut e = world.spawn((
+            Camera3d::default(),
+            Camera { order: order as isize, ..default() },
+            setup.tonemapping,
+            setup.msaa,
+            RenderTarget::Image(color.clone().into()),
+            Projection::Perspective(PerspectiveProjection { fov: camera.vertical_fov.to_radians(), ..default() }),
+            Transform::from_translation(camera.position).looking_at(camera.target, camera.up),
+            FinShadowView { visibility_target: Some(visibility.clone()) },
+        ));
+        if setup.hdr {
+            e.insert(bevy::camera::Hdr);
+        }
+        for (image, slot) in [(visibility, view.visibility.clone()), (color, view.color.clone())] {
+            world.spawn(Readback::texture(image)).observe(move |e: On<ReadbackComplete>| {
+                *slot.lock().unwrap() = Some(e.data.clone());
+            });
+        }
+        slots.push(view);
+    }
+    (app, slots)
 }
 
-/// Renders `frames` frames and returns the last visibility read-back.
+/// Renders at least `frames` frames, then on until the first camera's image
+/// stops changing (shaders load and pipelines compile asynchronously, and
+/// read-backs arrive a frame or two late), at most [`MAX_FRAMES`]; returns
+/// the last read-backs.
 pub fn render(setup: &Setup, frames: u32) -> Result<Shot, String> {
-    let (mut app, slot) = app(setup);
+    let (mut app, slots) = app(setup);
     app.finish();
     app.cleanup();
-    for _ in 0..frames.max(3) {
+    let take = |slot: &Slot| slot.lock().unwrap().take();
+    let mut latest: Vec<(Option<Vec<u8>>, Option<Vec<u8>>)> = vec![(None, None); slots.len()];
+    let mut previous_color: Option<Vec<u8>> = None;
+    let mut stable = 0;
+    for frame in 0..MAX_FRAMES {
         app.update();
+        for (view, latest) in slots.iter().zip(&mut latest) {
+            if let Some(v) = take(&view.visibility) {
+                latest.0 = Some(v);
+            }
+            if let Some(c) = take(&view.color) {
+                latest.1 = Some(c);
+            }
+        }
+        let color = latest[0].1.clone();
+        stable = if color.is_some() && color == previous_color { stable + 1 } else { 0 };
+        previous_color = color;
+        if frame + 1 >= frames.max(3) && stable >= 2 {
+            break;
+        }
     }
-    let data = slot.lock().unwrap().take().ok_or("no visibility read back (no GPU adapter?)")?;
+    let mut views = vec![];
+    for (visibility, color) in latest {
+        let missing = || "no read-back (no GPU adapter?)".to_string();
+        let visibility =
+            unpad(setup.width, setup.height, &visibility.ok_or_else(missing)?).map(f32::from_le_bytes).collect();
+        let color = unpad(setup.width, setup.height, &color.ok_or_else(missing)?).collect();
+        views.push(ViewShot { visibility, color });
+    }
     let stats = app.world().resource::<FinFrame>().0.as_ref().map(|f| f.stats).unwrap_or_default();
-    Ok(unpad(setup.width, setup.height, &data, stats))
+    let pass_times = pass_times(app.world());
+    let first = views.remove(0);
+    Ok(Shot {
+        width: setup.width,
+        height: setup.height,
+        visibility: first.visibility,
+        color: first.color,
+        extra_views: views,
+        stats,
+        pass_times,
+    })
 }
 
-/// Texture read-backs pad rows to 256 bytes.
-fn unpad(width: u32, height: u32, data: &[u8], stats: bevy_shadow_fins::FinFrameStats) -> Shot {
+/// The latest value of every `render/fin_shadows/…` diagnostic.
+pub fn pass_times(world: &World) -> Vec<(String, f64)> {
+    let Some(store) = world.get_resource::<DiagnosticsStore>() else { return vec![] };
+    let mut times: Vec<(String, f64)> = store
+        .iter()
+        .filter(|d| d.path().as_str().starts_with("render/fin_shadows/"))
+        .filter_map(|d| Some((d.path().as_str().to_string(), d.value()?)))
+        .collect();
+    times.sort_by(|a, b| a.0.cmp(&b.0));
+    times
+}
+
+/// The 4-byte texels of a read-back, rows unpadded (texture read-backs pad
+/// rows to 256 bytes).
+pub fn unpad(width: u32, height: u32, data: &[u8]) -> impl Iterator<Item = [u8; 4]> + '_ {
     let row = width as usize * 4;
     let padded = if height > 1 { row.div_ceil(256) * 256 } else { row };
-    let mut visibility = Vec::with_capacity((width * height) as usize);
-    for y in 0..height as usize {
-        let line = &data[y * padded..y * padded + row];
-        visibility.extend(line.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])));
+    (0..height as usize)
+        .flat_map(move |y| data[y * padded..y * padded + row].chunks_exact(4).map(|b| [b[0], b[1], b[2], b[3]]))
+}
+
+impl Shot {
+    /// Writes the first camera's final image as a PNG (for looking at what a
+    /// test rendered).
+    pub fn save_color(&self, path: &str) -> Result<(), String> {
+        let image = Image::new(
+            Extent3d { width: self.width, height: self.height, depth_or_array_layers: 1 },
+            TextureDimension::D2,
+            self.color.iter().flatten().copied().collect(),
+            TextureFormat::Rgba8UnormSrgb,
+            RenderAssetUsages::MAIN_WORLD,
+        );
+        if let Some(dir) = std::path::Path::new(path).parent() {
+            std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
+        }
+        image.try_into_dynamic().map_err(|e| e.to_string())?.to_rgba8().save(path).map_err(|e| e.to_string())
     }
-    Shot { width, height, visibility, stats }
 }

@@ -4,6 +4,7 @@
 
 mod render {
     pub mod common;
+    mod compositing;
     mod oracle_agreement;
     mod robustness;
     mod runtime_changes;

@@ -10,22 +10,19 @@ use shadow_fins::{
 };
 use shadow_fins_app::harness::{Setup, Shot};
 
+/// sRGB byte → linear.
+pub fn linear(byte: u8) -> f32 {
+    let c = byte as f32 / 255.0;
+    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+}
+
 pub const WIDTH: u32 = 96;
 pub const HEIGHT: u32 = 72;
 pub const MAP: u32 = 256;
 
 pub fn setup(id: SceneId, settings: FinShadowSettings) -> Setup {
     let s = id.build();
-    Setup {
-        scene: s.scene,
-        light: s.light,
-        camera: s.camera,
-        settings,
-        width: WIDTH,
-        height: HEIGHT,
-        extra_meshes: vec![],
-        msaa: bevy::prelude::Msaa::Off,
-    }
+    Setup::new(s.scene, s.light, s.camera, settings, (WIDTH, HEIGHT))
 }
 
 pub fn settings() -> FinShadowSettings {
@@ -34,6 +31,11 @@ pub fn settings() -> FinShadowSettings {
 
 /// The raster oracle's visibility at every pixel's receiver (1 for background).
 pub fn oracle(setup: &Setup, method: Method) -> Vec<f32> {
+    oracle_for(setup, &setup.camera, method)
+}
+
+/// [`oracle`] seen from another camera.
+pub fn oracle_for(setup: &Setup, camera: &shadow_fins::camera::Camera, method: Method) -> Vec<f32> {
     let ls = LightSpaceScene::new(&setup.scene, setup.light);
     let model = FinShadowModel::new(&setup.scene, &ls, method, setup.settings.core());
     let maps = model.raster(setup.settings.clamped().map_resolution);
@@ -41,16 +43,16 @@ pub fn oracle(setup: &Setup, method: Method) -> Vec<f32> {
     (0..setup.width * setup.height)
         .map(|i| {
             let pixel = (i % setup.width, i / setup.width, setup.width, setup.height);
-            pixel_receiver(&setup.camera, pixel, &ls, &bvh).map_or(1.0, |r| maps.visibility(r))
+            pixel_receiver(camera, pixel, &ls, &bvh).map_or(1.0, |r| maps.visibility(r))
         })
         .collect()
 }
 
 /// Mean absolute difference and the share of pixels off by more than 0.1.
-pub fn compare(shot: &Shot, oracle: &[f32]) -> (f32, f32) {
+pub fn compare(visibility: &[f32], oracle: &[f32]) -> (f32, f32) {
     let n = oracle.len() as f32;
-    let mad = shot.visibility.iter().zip(oracle).map(|(a, b)| (a - b).abs()).sum::<f32>() / n;
-    let far = shot.visibility.iter().zip(oracle).filter(|(a, b)| (*a - *b).abs() > 0.1).count() as f32 / n;
+    let mad = visibility.iter().zip(oracle).map(|(a, b)| (a - b).abs()).sum::<f32>() / n;
+    let far = visibility.iter().zip(oracle).filter(|(a, b)| (*a - *b).abs() > 0.1).count() as f32 / n;
     (mad, far)
 }
 
@@ -61,7 +63,12 @@ pub fn render(setup: &Setup) -> Shot {
 /// A shot must show both shadow and light: a test that passes on a black (or
 /// white) image is a bug.
 pub fn assert_not_trivial(shot: &Shot) {
-    let dark = shot.visibility.iter().filter(|v| **v < 0.05).count();
-    let lit = shot.visibility.iter().filter(|v| **v > 0.95).count();
+    assert_visibility_not_trivial(&shot.visibility);
+}
+
+/// [`assert_not_trivial`] for one visibility buffer.
+pub fn assert_visibility_not_trivial(visibility: &[f32]) {
+    let dark = visibility.iter().filter(|v| **v < 0.05).count();
+    let lit = visibility.iter().filter(|v| **v > 0.95).count();
     assert!(dark > 50 && lit > 50, "visibility buffer is trivial: {dark} dark, {lit} lit pixels");
 }

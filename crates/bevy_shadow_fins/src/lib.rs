@@ -13,12 +13,17 @@
 //!
 //! fn setup(mut commands: Commands) {
 //!     commands.spawn((FinLight { radius: 0.5, ..default() }, Transform::from_xyz(0.0, 5.0, 0.0).looking_at(Vec3::ZERO, Vec3::Z)));
-//!     commands.spawn((Camera3d::default(), Msaa::Off, FinShadowView::default()));
+//!     commands.spawn((Camera3d::default(), FinShadowView::default()));
 //! }
 //! ```
 //!
-//! Every mesh with a `Mesh3d` casts and receives (opt out of casting with
-//! [`NotFinShadowCaster`]); materials are unchanged.
+//! Every mesh with a `Mesh3d` casts and receives (opt out with
+//! [`NotFinShadowCaster`] and [`NotFinShadowReceiver`]); materials are
+//! unchanged. The plugin makes deferred the default opaque renderer method
+//! (`DefaultOpaqueRendererMethod`), because the fin light is composited from
+//! the G-buffer: 3D cameras that show fin-lit scenes carry [`FinShadowView`],
+//! which adds the deferred prepass. Materials forced to
+//! `OpaqueRendererMethod::Forward` are not lit by the fin light.
 //!
 //! Stages, per frame and only when something moved or a setting changed:
 //! 1. **fin extraction and layer assignment** on the CPU with the core crate
@@ -30,14 +35,21 @@
 //! 3. **visibility** per camera: a compute pass reads the depth and normal
 //!    prepass and combines the layers (refinement, overlap rule, falloff) into
 //!    the illuminance buffer, which [`FinShadowView::visibility_target`] can copy
-//!    into an image (tests, the editor).
+//!    into an image (tests, the editor);
+//! 4. **compositing** per camera: Bevy's deferred lighting of the G-buffer
+//!    plus the fin light's direct light (Bevy's point-light BRDF) times the
+//!    visibility, in one pass that replaces Bevy's deferred lighting pass.
+//!
+//! GPU time per pass is recorded under the diagnostic paths
+//! `render/fin_shadows/penumbra_maps`, `render/fin_shadows/visibility` and
+//! `render/fin_shadows/composite` (add Bevy's `RenderDiagnosticsPlugin`).
 
 mod extract;
 mod light;
 mod render;
 
 pub use extract::{FinFrame, FinFrameStats, FinSceneError};
-pub use light::{FinLight, FinMethod, FinShadowSettings, FinShadowView, NotFinShadowCaster};
+pub use light::{FinLight, FinMethod, FinShadowSettings, FinShadowView, NotFinShadowCaster, NotFinShadowReceiver};
 pub use shadow_fins;
 
 use bevy::prelude::*;
@@ -51,12 +63,34 @@ impl Plugin for ShadowFinsPlugin {
         app.register_type::<FinLight>()
             .register_type::<FinShadowSettings>()
             .register_type::<FinShadowView>()
-            .register_type::<NotFinShadowCaster>();
+            .register_type::<NotFinShadowCaster>()
+            .register_type::<NotFinShadowReceiver>()
+            .insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred())
+            .add_systems(PostUpdate, turn_off_msaa_on_fin_views)
+            .add_observer(|add: On<Add, NotFinShadowReceiver>, mut commands: Commands| {
+                commands.entity(add.entity).insert(bevy::light::NotShadowReceiver);
+            })
+            .add_observer(|remove: On<Remove, NotFinShadowReceiver>, mut commands: Commands| {
+                if let Ok(mut e) = commands.get_entity(remove.entity) {
+                    e.remove::<bevy::light::NotShadowReceiver>();
+                }
+            });
         extract::build(app);
         render::build(app);
     }
 
     fn finish(&self, app: &mut App) {
         render::finish(app);
+    }
+}
+
+/// Deferred rendering has no MSAA: turn it off on fin-shadowed cameras rather
+/// than fail (told once).
+fn turn_off_msaa_on_fin_views(mut views: Query<&mut Msaa, (With<FinShadowView>, Changed<Msaa>)>) {
+    for mut msaa in &mut views {
+        if *msaa != Msaa::Off {
+            warn_once!("fin shadows: MSAA turned off on a FinShadowView camera (deferred rendering needs Msaa::Off)");
+            *msaa = Msaa::Off;
+        }
     }
 }

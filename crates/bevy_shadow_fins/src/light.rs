@@ -126,11 +126,25 @@ impl FinShadowSettings {
     }
 }
 
-/// Put on a `Camera3d` to render the fin light's shadows for it. Requires (and
-/// adds) the depth and normal prepasses the visibility pass reads.
+/// Put on a `Camera3d` to render the fin light (its light and its soft
+/// shadows) for it.
+///
+/// What the camera needs, added by this component and the plugin:
+/// - the depth and normal prepasses (the visibility pass reads them) and the
+///   deferred prepass (the compositing pass lights the G-buffer with Bevy's
+///   own PBR functions and adds the fin light, in place of Bevy's deferred
+///   lighting pass);
+/// - `Msaa::Off`: deferred rendering has no MSAA; the plugin turns it off on
+///   such cameras, with a warning, instead of failing.
+///
+/// HDR on or off both work: the fin light is added before tonemapping.
 #[derive(Component, Debug, Clone, Default, Reflect)]
 #[reflect(Component, Default, Debug, Clone)]
-#[require(bevy::core_pipeline::prepass::DepthPrepass, bevy::core_pipeline::prepass::NormalPrepass)]
+#[require(
+    bevy::core_pipeline::prepass::DepthPrepass,
+    bevy::core_pipeline::prepass::NormalPrepass,
+    bevy::core_pipeline::prepass::DeferredPrepass
+)]
 pub struct FinShadowView {
     /// When set, the camera's visibility (illuminance) buffer, `R32Float` at the
     /// camera's size, is copied into this image every frame: read it back with
@@ -142,3 +156,13 @@ pub struct FinShadowView {
 #[derive(Component, Debug, Clone, Copy, Default, Reflect)]
 #[reflect(Component, Default, Debug, Clone)]
 pub struct NotFinShadowCaster;
+
+/// Keeps a mesh from receiving fin shadows: the fin light reaches it unshadowed.
+///
+/// The compositing pass reads the G-buffer's shadow-receiver flag, which is
+/// Bevy's `NotShadowReceiver`; so this marker adds `NotShadowReceiver` (the
+/// mesh also receives no Bevy shadow-map shadows) and removing it removes that.
+/// Bevy's `NotShadowReceiver` alone has the same effect on fin shadows.
+#[derive(Component, Debug, Clone, Copy, Default, Reflect)]
+#[reflect(Component, Default, Debug, Clone)]
+pub struct NotFinShadowReceiver;

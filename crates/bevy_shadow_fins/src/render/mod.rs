@@ -36,28 +36,34 @@ use crate::{
     light::FinShadowView,
 };
 
+mod composite;
+
 pub(crate) fn build(app: &mut App) {
     load_shader_library!(app, "fin_types.wgsl");
     embedded_asset!(app, "maps.wgsl");
     embedded_asset!(app, "visibility.wgsl");
     app.add_plugins((ExtractResourcePlugin::<FinFrame>::default(), ExtractComponentPlugin::<FinShadowView>::default()));
+    composite::build(app);
 }
 
 pub(crate) fn finish(app: &mut App) {
     let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
     render_app
         .init_resource::<FinMapsGpu>()
+        .init_resource::<ViewsWithVisibility>()
         .add_systems(bevy::render::RenderStartup, init_pipelines)
         .add_systems(
             Render,
             (
                 prepare_maps.in_set(RenderSystems::PrepareResources),
+                clear_views_with_visibility.in_set(RenderSystems::PrepareResources),
                 prepare_view_textures.in_set(RenderSystems::PrepareResources),
                 prepare_view_bind_groups.in_set(RenderSystems::PrepareBindGroups),
             ),
         )
         .add_systems(RenderGraph, render_maps.before(camera_driver))
         .add_systems(Core3d, fin_visibility.after(Core3dSystems::Prepass).before(Core3dSystems::MainPass));
+    composite::finish(app);
 }
 
 impl ExtractComponent for FinShadowView {
@@ -70,7 +76,14 @@ impl ExtractComponent for FinShadowView {
 }
 
 impl bevy::render::sync_component::SyncComponent for FinShadowView {
-    type Target = (FinShadowView, FinViewTexture, FinViewBindGroup);
+    type Target = (
+        FinShadowView,
+        FinViewTexture,
+        FinViewBindGroup,
+        composite::FinCompositePipeline,
+        composite::FinCompositeBindGroup,
+        bevy::pbr::deferred::SkipDeferredLighting,
+    );
 }
 
 /// The uniform every pass reads; the layout of `FinParams` in `fin_types.wgsl`.
@@ -324,6 +337,15 @@ pub struct FinViewTexture(CachedTexture);
 #[derive(Component)]
 pub struct FinViewBindGroup(BindGroup);
 
+/// Views whose visibility buffer was written this frame (the compositing pass
+/// uses the buffer only then).
+#[derive(Resource, Default)]
+struct ViewsWithVisibility(std::collections::HashSet<Entity>);
+
+fn clear_views_with_visibility(mut views: ResMut<ViewsWithVisibility>) {
+    views.0.clear();
+}
+
 fn prepare_view_textures(
     mut commands: Commands,
     mut cache: ResMut<TextureCache>,
@@ -394,13 +416,14 @@ fn prepare_view_bind_groups(
 }
 
 fn fin_visibility(
-    view: ViewQuery<(&FinShadowView, &FinViewTexture, &FinViewBindGroup, &ViewUniformOffset)>,
+    view: ViewQuery<(Entity, &FinShadowView, &FinViewTexture, &FinViewBindGroup, &ViewUniformOffset)>,
     pipelines: Option<Res<FinPipelines>>,
     pipeline_cache: Res<PipelineCache>,
     images: Res<RenderAssets<GpuImage>>,
+    mut written: ResMut<ViewsWithVisibility>,
     mut ctx: RenderContext,
 ) {
-    let (settings, texture, bind_group, offset) = view.into_inner();
+    let (entity, settings, texture, bind_group, offset) = view.into_inner();
     let Some(pipeline) = pipelines.and_then(|p| pipeline_cache.get_compute_pipeline(p.visibility)) else { return };
     let size = texture.0.texture.size();
     let diagnostics = ctx.diagnostic_recorder();
@@ -415,6 +438,7 @@ fn fin_visibility(
         pass.dispatch_workgroups(size.width.div_ceil(8), size.height.div_ceil(8), 1);
     }
     span.end(ctx.command_encoder());
+    written.0.insert(entity);
     if let Some(target) = settings.visibility_target.as_ref().and_then(|h| images.get(h)) {
         let t = target.texture.size();
         if t == size && target.texture_descriptor.format == TextureFormat::R32Float {

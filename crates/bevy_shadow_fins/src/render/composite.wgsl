@@ -1,0 +1,192 @@
+// Layered compositing (DESIGN §3 "Compositing"): Bevy's own deferred lighting
+// of the G-buffer, plus the fin light's direct contribution times the
+// visibility buffer. It replaces Bevy's deferred lighting pass on fin-shadowed
+// cameras, so the sum is exact before tonemapping, HDR or not.
+//
+// The fin light is shaded exactly as Bevy shades a point light
+// (`bevy_pbr::lighting::point_light`: representative-point specular with the
+// light's radius, Burley diffuse, windowed inverse-square falloff), restricted
+// to the half-space the disk faces, i.e. a `SpotLight` with a 90° cone.
+#import bevy_pbr::{
+    prepass_utils,
+    pbr_types::{PbrInput, STANDARD_MATERIAL_FLAGS_UNLIT_BIT},
+    pbr_functions,
+    pbr_deferred_functions::pbr_input_from_deferred_gbuffer,
+    lighting,
+    mesh_types::MESH_FLAGS_SHADOW_RECEIVER_BIT,
+    mesh_view_bindings::{deferred_prepass_texture, view},
+}
+
+#ifdef SCREEN_SPACE_AMBIENT_OCCLUSION
+#import bevy_pbr::mesh_view_bindings::screen_space_ambient_occlusion_texture
+#import bevy_pbr::ssao_utils::ssao_multibounce
+#endif
+
+struct FullscreenVertexOutput {
+    @builtin(position) position: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+};
+
+// Bevy's deferred lighting pass id: the depth test selects the pixels whose
+// material belongs to the default PBR lighting pass.
+struct PbrDeferredLightingDepthId {
+    depth_id: u32,
+#ifdef SIXTEEN_BYTE_ALIGNMENT
+    _webgl2_padding_0: f32,
+    _webgl2_padding_1: f32,
+    _webgl2_padding_2: f32,
+#endif
+}
+@group(2) @binding(0) var<uniform> depth_id: PbrDeferredLightingDepthId;
+
+// Mirrors `FinLightUniform` in composite.rs.
+struct FinLightUniform {
+    // xyz: disk centre (world), w: radius.
+    position_radius: vec4<f32>,
+    // xyz: the direction the disk faces (into the scene), w: 1 / range².
+    forward_inverse_square_range: vec4<f32>,
+    // rgb: linear colour × luminous intensity (lm / 4π), as Bevy's lights.
+    color: vec4<f32>,
+};
+@group(3) @binding(0) var fin_visibility: texture_2d<f32>;
+@group(3) @binding(1) var<uniform> fin_light: FinLightUniform;
+
+@vertex
+fn vertex(@builtin(vertex_index) vertex_index: u32) -> FullscreenVertexOutput {
+    let uv = vec2<f32>(f32(vertex_index >> 1u), f32(vertex_index & 1u)) * 2.0;
+    // The depth is the pass id (u8 stored as unorm), compared for equality.
+    let clip_position = vec4<f32>(uv * vec2<f32>(2.0, -2.0) + vec2<f32>(-1.0, 1.0), f32(depth_id.depth_id) / 255.0, 1.0);
+    return FullscreenVertexOutput(clip_position, uv);
+}
+
+// The lighting input `apply_pbr_lighting` builds from a `PbrInput`.
+fn lighting_input_of(in: PbrInput) -> lighting::LightingInput {
+    let metallic = in.material.metallic;
+    let perceptual_roughness = in.material.perceptual_roughness;
+    let NdotV = max(dot(in.N, in.V), 0.0001);
+    var input: lighting::LightingInput;
+    input.layers[lighting::LAYER_BASE].NdotV = NdotV;
+    input.layers[lighting::LAYER_BASE].N = in.N;
+    input.layers[lighting::LAYER_BASE].R = reflect(-in.V, in.N);
+    input.layers[lighting::LAYER_BASE].perceptual_roughness = perceptual_roughness;
+    input.layers[lighting::LAYER_BASE].roughness = lighting::perceptualRoughnessToRoughness(perceptual_roughness);
+    input.P = in.world_position.xyz;
+    input.V = in.V;
+    input.diffuse_color = pbr_functions::calculate_diffuse_color(
+        in.material.base_color.rgb,
+        metallic,
+        in.material.specular_transmission,
+        in.material.diffuse_transmission,
+    );
+    input.metallic = metallic;
+    input.F0_dielectric = pbr_functions::calculate_F0_dielectric(in.material.reflectance);
+    input.F0_metallic = in.material.base_color.rgb;
+    input.F_ab = lighting::F_AB(perceptual_roughness, NdotV);
+#ifdef STANDARD_MATERIAL_CLEARCOAT
+    let clearcoat_N = in.clearcoat_N;
+    input.layers[lighting::LAYER_CLEARCOAT].NdotV = max(dot(clearcoat_N, in.V), 0.0001);
+    input.layers[lighting::LAYER_CLEARCOAT].N = clearcoat_N;
+    input.layers[lighting::LAYER_CLEARCOAT].R = reflect(-in.V, clearcoat_N);
+    input.layers[lighting::LAYER_CLEARCOAT].perceptual_roughness = in.material.clearcoat_perceptual_roughness;
+    input.layers[lighting::LAYER_CLEARCOAT].roughness =
+        lighting::perceptualRoughnessToRoughness(in.material.clearcoat_perceptual_roughness);
+    input.clearcoat_strength = in.material.clearcoat;
+#endif
+    return input;
+}
+
+// The fin light's unshadowed direct light at the surface (before exposure):
+// `lighting::point_light` with the light's values from our uniform.
+fn fin_light_direct(input: ptr<function, lighting::LightingInput>) -> vec3<f32> {
+    let P = (*input).P;
+    let N = (*input).layers[lighting::LAYER_BASE].N;
+    let V = (*input).V;
+    let radius = fin_light.position_radius.w;
+    let light_to_frag = fin_light.position_radius.xyz - P;
+    let L = normalize(light_to_frag);
+    let distance_square = dot(light_to_frag, light_to_frag);
+    let distance = sqrt(distance_square);
+    let range_attenuation = lighting::getDistanceAttenuation(distance_square, fin_light.forward_inverse_square_range.w);
+
+    let a = (*input).layers[lighting::LAYER_BASE].roughness;
+    let spec = lighting::compute_specular_layer_values_for_point_light(
+        input, lighting::LAYER_BASE, V, light_to_frag, radius, distance);
+    var specular_derived = lighting::derive_lighting_input(N, V, spec.xyz);
+    let normalization = a / spec.w;
+    let brdf_roughness = mix(a, spec.w, lighting::specular_fix_remap(a));
+    var specular_light = lighting::specular(input, &specular_derived, brdf_roughness, normalization * normalization);
+    if radius > 0.0 {
+        let solid_angle = radius * radius / distance_square;
+        specular_light *= saturate(specular_derived.NdotL / max(specular_derived.NdotL + solid_angle, 1e-4));
+    }
+
+    var derived = lighting::derive_lighting_input(N, V, L);
+    let diffuse = (*input).diffuse_color * lighting::Fd_Burley(input, &derived);
+
+#ifdef STANDARD_MATERIAL_CLEARCOAT
+    let clearcoat_N = (*input).layers[lighting::LAYER_CLEARCOAT].N;
+    let clearcoat_a = (*input).layers[lighting::LAYER_CLEARCOAT].roughness;
+    let cc = lighting::compute_specular_layer_values_for_point_light(
+        input, lighting::LAYER_CLEARCOAT, V, light_to_frag, radius, distance);
+    var cc_derived = lighting::derive_lighting_input(clearcoat_N, V, cc.xyz);
+    let cc_normalization = clearcoat_a / cc.w;
+    let Fc_Frc = lighting::specular_clearcoat(
+        input,
+        &cc_derived,
+        (*input).clearcoat_strength,
+        mix(clearcoat_a, cc.w, lighting::specular_fix_remap(clearcoat_a)),
+        cc_normalization * cc_normalization,
+    );
+    let inv_Fc = 1.0 - Fc_Frc.r;
+    var Frc = Fc_Frc.g;
+    if radius > 0.0 {
+        let solid_angle = radius * radius / distance_square;
+        Frc *= saturate(cc_derived.NdotL / max(cc_derived.NdotL + solid_angle, 1e-4));
+    }
+    let color_times_NdotL = (diffuse * derived.NdotL + specular_light * specular_derived.NdotL * inv_Fc) * inv_Fc
+        + Frc * cc_derived.NdotL;
+#else
+    let color_times_NdotL = diffuse * derived.NdotL + specular_light * specular_derived.NdotL;
+#endif
+
+    // One-sided disk: only the half-space in front of it (a spot light whose
+    // inner and outer angles are both 90°).
+    let facing = saturate(dot(fin_light.forward_inverse_square_range.xyz, -L) * 1e4);
+    return color_times_NdotL * fin_light.color.rgb * range_attenuation * facing * facing;
+}
+
+@fragment
+fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
+    var frag_coord = vec4(in.position.xy, 0.0, 0.0);
+    let deferred_data = textureLoad(deferred_prepass_texture, vec2<i32>(frag_coord.xy), 0);
+#ifdef DEPTH_PREPASS
+    frag_coord.z = prepass_utils::prepass_depth(in.position, 0u);
+#endif
+    var pbr_input = pbr_input_from_deferred_gbuffer(frag_coord, deferred_data);
+    var output_color = vec4(0.0);
+    if ((pbr_input.material.flags & STANDARD_MATERIAL_FLAGS_UNLIT_BIT) == 0u) {
+#ifdef SCREEN_SPACE_AMBIENT_OCCLUSION
+        let ssao = textureLoad(screen_space_ambient_occlusion_texture, vec2<i32>(in.position.xy), 0i).r;
+        let ssao_multibounce = ssao_multibounce(ssao, pbr_input.material.base_color.rgb);
+        pbr_input.diffuse_occlusion = min(pbr_input.diffuse_occlusion, ssao_multibounce);
+        let NdotV = max(dot(pbr_input.N, pbr_input.V), 0.0001);
+        let roughness = lighting::perceptualRoughnessToRoughness(pbr_input.material.perceptual_roughness);
+        pbr_input.specular_occlusion = saturate(pow(NdotV + ssao, exp2(-16.0 * roughness - 1.0)) - 1.0 + ssao);
+#endif
+        output_color = pbr_functions::apply_pbr_lighting(pbr_input);
+
+        // V from the visibility pass; 1 on meshes that do not receive shadows.
+        var visibility = textureLoad(fin_visibility, vec2<i32>(in.position.xy), 0).r;
+        if ((pbr_input.flags & MESH_FLAGS_SHADOW_RECEIVER_BIT) == 0u) {
+            visibility = 1.0;
+        }
+        // A NaN must never reach the screen: `max` with 0 maps it to 0.
+        visibility = clamp(max(visibility, 0.0), 0.0, 1.0);
+        var input = lighting_input_of(pbr_input);
+        let fin = fin_light_direct(&input);
+        output_color = vec4(output_color.rgb + view.exposure * visibility * fin, output_color.a);
+    } else {
+        output_color = pbr_input.material.base_color;
+    }
+    return pbr_functions::main_pass_post_lighting_processing(pbr_input, output_color);
+}
