@@ -1,10 +1,20 @@
 #!/usr/bin/env bash
-# The main job: the lab renders the built-in demo scene by every method beside
-# the 1024-sample ground truth, with error heat maps, and prints the error table.
-# Extra arguments go to `shadow-fins-lab image` (try --scene ring-plate, or
-# --gltf FILE --light-center x,y,z --radius R).
+# The main job: the editor on the built-in demo scene. With a display it opens
+# the window; without one (a CI box, ssh) it runs under a virtual display,
+# renders 60 frames and writes the whole window, panels included, to
+# out/editor.png. Extra arguments go to the editor (a glTF path,
+# --settings FILE.ron, --screenshot PATH --frames N).
+# The lab's side-by-side of every method against ground truth:
+#   cargo run --release -p shadow_fins_lab -- image --scene demo --out out/demo.png
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-cargo run --release --locked -p shadow_fins_lab -- image --scene demo --width 320 --height 240 --out out/demo.png "$@"
-echo "open out/demo.png"
+# The dev profile builds dependencies optimised (Cargo.toml) and shares the
+# test suite's build; a release build of Bevy is another ~15 minutes.
+if [ -n "${DISPLAY:-}" ]; then
+  cargo run --locked --example editor -- "$@"
+else
+  xvfb-run -a -s "-screen 0 1280x800x24" \
+    cargo run --locked --example editor -- --screenshot out/editor.png --frames 60 "$@"
+  echo "no display: the editor ran on a virtual one; open out/editor.png"
+fi

@@ -13,6 +13,15 @@ need_pkg pkg-config
 # tests and examples; a real GPU's driver is used instead where there is one.
 need_pkg libvulkan1
 need_pkg mesa-vulkan-drivers
+# The editor's window (winit loads the X11 libraries at run time) and a virtual
+# display for machines without one (tests and the headless main job).
+need_pkg libx11-6
+need_pkg libxcursor1
+need_pkg libxrandr2
+need_pkg libxi6
+need_pkg libxkbcommon-x11-0
+need_pkg xvfb
+need_pkg xauth
 
 if [ ${#missing[@]} -gt 0 ]; then
   echo "setup: installing ${missing[*]}"

@@ -5,6 +5,7 @@
 mod render {
     pub mod common;
     mod compositing;
+    mod editor;
     mod oracle_agreement;
     mod robustness;
     mod runtime_changes;

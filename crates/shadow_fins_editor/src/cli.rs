@@ -1,0 +1,120 @@
+//! Command line: the scene, a settings file, and the screenshot mode tests and
+//! docs use (`--screenshot PATH --frames N`: render N frames, save the whole
+//! window, panels included, exit).
+
+use std::path::PathBuf;
+
+use bevy::{
+    prelude::*,
+    render::view::screenshot::{Screenshot, ScreenshotCaptured},
+};
+
+use crate::EditorState;
+
+/// The editor's options.
+#[derive(Resource, Debug, Clone, Default, PartialEq)]
+pub struct EditorOptions {
+    /// A glTF/GLB to open instead of the built-in demo scene.
+    pub scene: Option<PathBuf>,
+    /// A settings file (RON) to load at start.
+    pub settings: Option<PathBuf>,
+    /// Save a screenshot of the window here after `frames` frames, then exit.
+    pub screenshot: Option<PathBuf>,
+    /// Frames before the screenshot (default 30).
+    pub frames: u32,
+}
+
+/// A command line that could not be understood.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CliError {
+    #[error("{0} needs a value")]
+    MissingValue(&'static str),
+    #[error("--frames must be a whole number ≥ 1, got {0:?}")]
+    BadFrames(String),
+    #[error("unknown option {0:?} (options: [scene.gltf] --settings FILE --screenshot PATH --frames N)")]
+    Unknown(String),
+}
+
+impl EditorOptions {
+    /// Parses the arguments after the program name.
+    pub fn parse(args: impl IntoIterator<Item = String>) -> Result<Self, CliError> {
+        let mut options = Self { frames: 30, ..Self::default() };
+        let mut args = args.into_iter();
+        while let Some(arg) = args.next() {
+            let mut value = |name: &'static str| args.next().ok_or(CliError::MissingValue(name));
+            match arg.as_str() {
+                "--screenshot" => options.screenshot = Some(value("--screenshot")?.into()),
+                "--settings" => options.settings = Some(value("--settings")?.into()),
+                "--frames" => {
+                    let v = value("--frames")?;
+                    options.frames = v.parse().ok().filter(|n| *n >= 1).ok_or(CliError::BadFrames(v))?;
+                }
+                a if a.starts_with("--") => return Err(CliError::Unknown(arg)),
+                _ => options.scene = Some(arg.into()),
+            }
+        }
+        Ok(options)
+    }
+}
+
+pub(crate) fn build(app: &mut App) {
+    app.add_systems(Last, (count_frames, take_screenshot_when_due).chain());
+}
+
+fn count_frames(mut state: ResMut<EditorState>) {
+    state.frames += 1;
+}
+
+/// In screenshot mode: on frame N capture the window, save it, exit.
+fn take_screenshot_when_due(mut commands: Commands, options: Res<EditorOptions>, state: Res<EditorState>) {
+    let Some(path) = options.screenshot.clone() else { return };
+    if state.frames != options.frames {
+        return;
+    }
+    commands.spawn(Screenshot::primary_window()).observe(
+        move |captured: On<ScreenshotCaptured>, mut exit: MessageWriter<AppExit>| {
+            let saved = captured.image.clone().try_into_dynamic().map_err(|e| e.to_string()).and_then(|image| {
+                if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+                    std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
+                }
+                image.to_rgb8().save(&path).map_err(|e| e.to_string())
+            });
+            match saved {
+                Ok(()) => {
+                    info!("screenshot written to {}", path.display());
+                    exit.write(AppExit::Success);
+                }
+                Err(e) => {
+                    error!("could not write the screenshot {}: {e}", path.display());
+                    exit.write(AppExit::error());
+                }
+            }
+        },
+    );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(args: &[&str]) -> Result<EditorOptions, CliError> {
+        EditorOptions::parse(args.iter().map(|s| s.to_string()))
+    }
+
+    #[test]
+    fn parses_scene_screenshot_and_frames() {
+        let o = parse(&["scene.glb", "--screenshot", "out/e.png", "--frames", "5"]).unwrap();
+        assert_eq!(o.scene, Some("scene.glb".into()));
+        assert_eq!(o.screenshot, Some("out/e.png".into()));
+        assert_eq!(o.frames, 5);
+        assert_eq!(parse(&[]).unwrap().frames, 30);
+    }
+
+    #[test]
+    fn rejects_bad_frames_and_unknown_options() {
+        assert_eq!(parse(&["--frames", "0"]), Err(CliError::BadFrames("0".into())));
+        assert_eq!(parse(&["--frames", "x"]), Err(CliError::BadFrames("x".into())));
+        assert_eq!(parse(&["--screenshot"]), Err(CliError::MissingValue("--screenshot")));
+        assert_eq!(parse(&["--fast"]), Err(CliError::Unknown("--fast".into())));
+    }
+}

@@ -1,0 +1,83 @@
+//! # shadow_fins_editor
+//!
+//! Live tuning of fin shadows: the light (position, direction, radius,
+//! intensity, colour), the fins (layers, sub-layers, map resolution,
+//! refinement, falloff), the method (hard, outer fins, single-layer,
+//! multi-layer, Bevy's PCSS), every intermediate buffer, and the error against
+//! a progressively computed ground truth.
+//!
+//! UI code is plain systems over resources (`ui.rs`); the UI edits the
+//! [`LightParams`] and the light's `FinShadowSettings`, `scene.rs` turns them
+//! into components, the plugin renders. Nothing else is shared.
+//!
+//! `cargo run --example editor -- [scene.gltf] [--settings FILE.ron]
+//! [--screenshot PATH --frames N]`
+
+mod cli;
+mod orbit;
+mod scene;
+mod settings_file;
+mod truth;
+mod ui;
+mod views;
+
+pub use cli::{CliError, EditorOptions};
+pub use scene::{EditorMethod, LightParams, SceneSource};
+pub use settings_file::{EditorSettings, SettingsFileError};
+pub use truth::GroundTruthStatus;
+pub use views::ViewKind;
+
+use bevy::{prelude::*, render::diagnostic::RenderDiagnosticsPlugin, window::WindowResolution};
+use bevy_egui::EguiPlugin;
+use bevy_shadow_fins::ShadowFinsPlugin;
+
+/// What the editor shows and where it stands; the UI reads and edits it.
+#[derive(Resource, Debug, Default)]
+pub struct EditorState {
+    /// The last error (a broken glTF, a settings file that did not parse):
+    /// shown in the UI until dismissed; the editor keeps running.
+    pub error: Option<String>,
+    /// A one-line status (saved, loaded, screenshot written).
+    pub status: Option<String>,
+    /// The buffer shown over the viewport.
+    pub view: ViewKind,
+    /// The layer whose maps the map views show.
+    pub layer: u32,
+    /// Frames rendered so far.
+    pub frames: u32,
+}
+
+/// The editor: scene, light, camera, panels, ground truth. Add it after
+/// `DefaultPlugins`; it adds the fin-shadow plugin, egui and render diagnostics.
+pub struct EditorPlugin {
+    pub options: EditorOptions,
+}
+
+impl Plugin for EditorPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_plugins((ShadowFinsPlugin, EguiPlugin::default(), RenderDiagnosticsPlugin))
+            .insert_resource(self.options.clone())
+            .init_resource::<EditorState>();
+        scene::build(app);
+        orbit::build(app);
+        views::build(app);
+        truth::build(app);
+        ui::build(app);
+        cli::build(app);
+    }
+}
+
+/// Runs the editor with `options` in a window.
+pub fn run(options: EditorOptions) -> AppExit {
+    App::new()
+        .add_plugins(DefaultPlugins.set(WindowPlugin {
+            primary_window: Some(Window {
+                title: "shadow fins editor".into(),
+                resolution: WindowResolution::new(1280, 800),
+                ..default()
+            }),
+            ..default()
+        }))
+        .add_plugins(EditorPlugin { options })
+        .run()
+}

@@ -1,0 +1,370 @@
+//! The scene (built-in demo or a glTF), the light and the camera, and the one
+//! system that turns the UI's [`LightParams`] into components.
+
+use std::{path::PathBuf, sync::Arc};
+
+use bevy::{
+    asset::RenderAssetUsages,
+    camera::RenderTarget,
+    input::mouse::AccumulatedMouseMotion,
+    mesh::{Indices, PrimitiveTopology},
+    prelude::*,
+    window::{FileDragAndDrop, PrimaryWindow},
+};
+use bevy_egui::input::EguiWantsInput;
+use bevy_shadow_fins::{FinLight, FinMethod, FinShadowSettings, FinShadowView, NotFinShadowCaster};
+use shadow_fins::{
+    camera::Camera as CoreCamera,
+    light::{DiskLight, Light},
+    scene::Scene,
+    scenes::SceneId,
+};
+
+use crate::{EditorOptions, EditorState, orbit::OrbitCamera, settings_file::EditorSettings};
+
+/// Where the scene comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SceneSource {
+    /// The built-in demo scene (also `assets/demo.gltf`).
+    Demo,
+    Gltf(PathBuf),
+}
+
+/// The loaded scene as the core crate sees it (the ground truth traces it).
+#[derive(Resource, Clone)]
+pub struct LoadedScene {
+    pub name: String,
+    pub scene: Arc<Scene>,
+    /// Bumped on every load, so derived data (ground truth) restarts.
+    pub generation: u64,
+}
+
+/// How the light is rendered.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum EditorMethod {
+    /// The fin light with one of the plugin's methods.
+    Fins(FinMethod),
+    /// Bevy's own point light with PCSS soft shadows (`experimental_pbr_pcss`).
+    BevyPcss,
+}
+
+impl Default for EditorMethod {
+    fn default() -> Self {
+        EditorMethod::Fins(FinMethod::MultiLayer)
+    }
+}
+
+impl EditorMethod {
+    pub const ALL: [EditorMethod; 5] = [
+        EditorMethod::Fins(FinMethod::Hard),
+        EditorMethod::Fins(FinMethod::OuterFins),
+        EditorMethod::Fins(FinMethod::SingleLayer),
+        EditorMethod::Fins(FinMethod::MultiLayer),
+        EditorMethod::BevyPcss,
+    ];
+
+    /// The fin method, or `None` for Bevy's PCSS.
+    pub fn fin_method(self) -> Option<FinMethod> {
+        match self {
+            EditorMethod::Fins(m) => Some(m),
+            EditorMethod::BevyPcss => None,
+        }
+    }
+
+    pub fn label(self) -> &'static str {
+        match self.fin_method() {
+            Some(FinMethod::Hard) => "hard shadow map",
+            Some(FinMethod::OuterFins) => "outer fins only",
+            Some(FinMethod::SingleLayer) => "single-layer fins",
+            Some(FinMethod::MultiLayer) => "multi-layer fins",
+            None => "Bevy PCSS",
+        }
+    }
+}
+
+/// The light as the UI edits it. Values are clamped where they are used
+/// (radius ≥ 0, intensity ≥ 0), never rejected.
+#[derive(Resource, Debug, Clone, Copy, PartialEq)]
+pub struct LightParams {
+    pub position: Vec3,
+    /// The direction the disk faces (into the scene); normalised on use.
+    pub direction: Vec3,
+    pub radius: f32,
+    /// Lumens.
+    pub intensity: f32,
+    pub color: [f32; 3],
+    pub method: EditorMethod,
+}
+
+impl LightParams {
+    /// The core crate's light for these parameters (for the ground truth).
+    pub fn core_light(&self) -> Option<Light> {
+        let direction = self.direction.try_normalize()?;
+        DiskLight::new(self.position, direction, self.radius.max(0.0)).ok().map(Light::Disk)
+    }
+
+    fn transform(&self) -> Transform {
+        let direction = self.direction.try_normalize().unwrap_or(Vec3::NEG_Y);
+        let up = if direction.cross(Vec3::Z).length() > 1e-3 { Vec3::Z } else { Vec3::X };
+        Transform::from_translation(self.position).looking_to(direction, up)
+    }
+}
+
+#[derive(Component)]
+pub(crate) struct EditorMesh;
+
+#[derive(Component)]
+pub(crate) struct EditorLight;
+
+#[derive(Component)]
+pub(crate) struct LightMarker;
+
+#[derive(Component)]
+pub(crate) struct EditorCamera;
+
+/// A request to (re)load a scene, from the command line, the UI or a drop.
+#[derive(Message, Debug, Clone)]
+pub struct LoadScene(pub SceneSource);
+
+pub(crate) fn build(app: &mut App) {
+    app.add_message::<LoadScene>()
+        .add_systems(Startup, (spawn_rig, request_initial_scene))
+        .add_systems(Update, (load_dropped_files, load_scene, drag_light_with_shift, sync_light, sync_marker).chain());
+}
+
+/// Reads a scene: the built-in demo, or a glTF through the core's importer.
+pub fn read_scene(source: &SceneSource) -> Result<(String, Scene, Light, CoreCamera), String> {
+    match source {
+        SceneSource::Demo => {
+            let demo = SceneId::Demo.build();
+            Ok(("demo".into(), demo.scene, demo.light, demo.camera))
+        }
+        SceneSource::Gltf(path) => {
+            let import = shadow_fins::gltf_import::load_gltf(path)
+                .map_err(|e| format!("could not open {}: {e}", path.display()))?;
+            let (lo, hi) = import.scene.bounds().ok_or_else(|| format!("{} has no usable mesh", path.display()))?;
+            let (center, size) = ((lo + hi) * 0.5, (hi - lo).length().max(1e-6));
+            let light = DiskLight::new(center + Vec3::Y * size, Vec3::NEG_Y, size * 0.05).map_err(|e| e.to_string())?;
+            let camera = CoreCamera::looking_at(center + Vec3::new(0.6, 0.7, 0.9).normalize() * size * 1.2, center);
+            let name = path.file_name().map_or("scene".into(), |n| n.to_string_lossy().into_owned());
+            Ok((name, import.scene, Light::Disk(light), camera))
+        }
+    }
+}
+
+fn request_initial_scene(options: Res<EditorOptions>, mut load: MessageWriter<LoadScene>) {
+    load.write(LoadScene(options.scene.clone().map_or(SceneSource::Demo, SceneSource::Gltf)));
+}
+
+fn spawn_rig(
+    mut commands: Commands,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+    options: Res<EditorOptions>,
+    mut state: ResMut<EditorState>,
+) {
+    let demo = SceneId::Demo.build();
+    let Light::Disk(disk) = demo.light else { unreachable!("the demo light is a disk") };
+    let mut params = LightParams {
+        position: disk.center,
+        direction: disk.normal,
+        radius: disk.radius,
+        intensity: FinLight::default().intensity,
+        color: [1.0, 1.0, 1.0],
+        method: EditorMethod::default(),
+    };
+    let mut settings = FinShadowSettings::default();
+    if let Some(path) = &options.settings {
+        match EditorSettings::load(path) {
+            Ok(file) => file.apply(&mut params, &mut settings),
+            Err(e) => state.error = Some(e.to_string()),
+        }
+    }
+    commands.insert_resource(params);
+    commands.spawn((EditorLight, settings, params.transform()));
+    // The light's position, drawn as a small unlit disc that casts nothing.
+    commands.spawn((
+        LightMarker,
+        Mesh3d(meshes.add(Sphere::new(1.0).mesh().ico(2).unwrap_or_else(|_| Sphere::new(1.0).mesh().uv(16, 8)))),
+        MeshMaterial3d(materials.add(StandardMaterial {
+            unlit: true,
+            base_color: Color::srgb(1.0, 0.9, 0.4),
+            ..default()
+        })),
+        NotFinShadowCaster,
+        bevy::light::NotShadowCaster,
+        params.transform().with_scale(Vec3::new(1.0, 1.0, 0.05) * params.radius.max(0.02)),
+    ));
+    let camera = demo.camera;
+    commands.spawn((
+        EditorCamera,
+        Camera3d::default(),
+        bevy::camera::Hdr,
+        RenderTarget::default(),
+        FinShadowView::default(),
+        OrbitCamera::looking_at(camera.position, camera.target),
+        Projection::Perspective(PerspectiveProjection { fov: camera.vertical_fov.to_radians(), ..default() }),
+        Transform::from_translation(camera.position).looking_at(camera.target, Vec3::Y),
+    ));
+}
+
+fn load_dropped_files(mut drops: MessageReader<FileDragAndDrop>, mut load: MessageWriter<LoadScene>) {
+    for drop in drops.read() {
+        if let FileDragAndDrop::DroppedFile { path_buf, .. } = drop {
+            load.write(LoadScene(SceneSource::Gltf(path_buf.clone())));
+        }
+    }
+}
+
+/// Replaces the scene's meshes; a broken file leaves the current scene and
+/// shows the error.
+#[allow(clippy::too_many_arguments)]
+fn load_scene(
+    mut commands: Commands,
+    mut requests: MessageReader<LoadScene>,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+    old: Query<Entity, With<EditorMesh>>,
+    mut params: ResMut<LightParams>,
+    mut cameras: Query<&mut OrbitCamera>,
+    loaded: Option<Res<LoadedScene>>,
+    mut state: ResMut<EditorState>,
+) {
+    let Some(LoadScene(source)) = requests.read().last().cloned() else { return };
+    let (name, scene, light, camera) = match read_scene(&source) {
+        Ok(s) => s,
+        Err(e) => {
+            state.error = Some(e);
+            return;
+        }
+    };
+    for e in &old {
+        commands.entity(e).despawn();
+    }
+    let material = materials.add(StandardMaterial { perceptual_roughness: 0.8, ..default() });
+    for object in &scene.objects {
+        let mesh = meshes.add(bevy_mesh(&object.mesh));
+        let mut e = commands.spawn((
+            EditorMesh,
+            Mesh3d(mesh),
+            MeshMaterial3d(material.clone()),
+            Transform::from_matrix(Mat4::from(object.transform)),
+        ));
+        if !object.casts_shadows {
+            e.insert(NotFinShadowCaster);
+        }
+    }
+    // A new glTF gets its own light and view; the demo keeps the user's light.
+    if let (SceneSource::Gltf(_), Light::Disk(disk)) = (&source, light) {
+        params.position = disk.center;
+        params.direction = disk.normal;
+        params.radius = disk.radius;
+        for mut orbit in &mut cameras {
+            *orbit = OrbitCamera::looking_at(camera.position, camera.target);
+        }
+    }
+    let generation = loaded.map_or(1, |l| l.generation + 1);
+    commands.insert_resource(LoadedScene { name: name.clone(), scene: Arc::new(scene), generation });
+    state.status = Some(format!("loaded {name}"));
+    state.error = None;
+}
+
+/// A Bevy mesh with smooth normals from a core mesh.
+pub fn bevy_mesh(mesh: &shadow_fins::mesh::Mesh) -> Mesh {
+    let mut m = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
+        .with_inserted_attribute(
+            Mesh::ATTRIBUTE_POSITION,
+            mesh.positions().iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+        )
+        .with_inserted_indices(Indices::U32(mesh.indices().to_vec()));
+    // Flat normals: the core's meshes weld by position, and flat shading shows
+    // the facets the fins are built from.
+    m.duplicate_vertices();
+    m.compute_flat_normals();
+    m
+}
+
+/// The light's "drag gizmo": Shift + drag in the viewport moves the light
+/// over the ground (x/z); Shift + Ctrl + drag moves it up and down.
+fn drag_light_with_shift(
+    buttons: Res<ButtonInput<MouseButton>>,
+    keys: Res<ButtonInput<KeyCode>>,
+    motion: Res<AccumulatedMouseMotion>,
+    egui_input: Res<EguiWantsInput>,
+    camera: Query<&Transform, With<EditorCamera>>,
+    mut params: ResMut<LightParams>,
+) {
+    let shift = keys.any_pressed([KeyCode::ShiftLeft, KeyCode::ShiftRight]);
+    if !shift
+        || !buttons.pressed(MouseButton::Left)
+        || egui_input.wants_any_pointer_input()
+        || motion.delta == Vec2::ZERO
+    {
+        return;
+    }
+    let Ok(camera) = camera.single() else { return };
+    let speed = 0.01 * (camera.translation - params.position).length().max(1.0) * 0.2;
+    if keys.any_pressed([KeyCode::ControlLeft, KeyCode::ControlRight]) {
+        params.position.y -= motion.delta.y * speed;
+    } else {
+        let right = camera.right().as_vec3().with_y(0.0).normalize_or_zero();
+        let forward = camera.forward().as_vec3().with_y(0.0).normalize_or_zero();
+        params.position += right * motion.delta.x * speed - forward * motion.delta.y * speed;
+    }
+}
+
+/// Writes the light parameters into the light entity: a `FinLight` for the
+/// fin methods, Bevy's `PointLight` with PCSS for the PCSS method.
+fn sync_light(
+    mut commands: Commands,
+    params: Res<LightParams>,
+    mut lights: Query<(Entity, &mut Transform, &mut FinShadowSettings, Option<&mut FinLight>), With<EditorLight>>,
+) {
+    if !params.is_changed() {
+        return;
+    }
+    let Ok((entity, mut transform, mut settings, fin)) = lights.single_mut() else { return };
+    *transform = params.transform();
+    let color = Color::srgb(params.color[0], params.color[1], params.color[2]);
+    let radius = params.radius.max(0.0);
+    let intensity = params.intensity.max(0.0);
+    let range = 1000.0;
+    match params.method.fin_method() {
+        Some(method) => {
+            if settings.method != method {
+                settings.method = method;
+            }
+            let light = FinLight { color, intensity, range, radius };
+            match fin {
+                Some(mut f) => *f = light,
+                None => {
+                    commands.entity(entity).remove::<PointLight>().insert(light);
+                }
+            }
+        }
+        None => {
+            commands.entity(entity).remove::<FinLight>().insert(PointLight {
+                color,
+                intensity,
+                range,
+                radius,
+                shadow_maps_enabled: true,
+                soft_shadows_enabled: true,
+                ..default()
+            });
+        }
+    }
+}
+
+fn sync_marker(params: Res<LightParams>, mut marker: Query<&mut Transform, With<LightMarker>>) {
+    if params.is_changed() {
+        for mut t in &mut marker {
+            *t = params.transform().with_scale(Vec3::new(1.0, 1.0, 0.05) * params.radius.max(0.02));
+        }
+    }
+}
+
+/// The primary window's physical size, if any.
+pub(crate) fn window_size(window: &Query<&Window, With<PrimaryWindow>>) -> Option<UVec2> {
+    window.single().ok().map(|w| w.physical_size()).filter(|s| s.x > 0 && s.y > 0)
+}

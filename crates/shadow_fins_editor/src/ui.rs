@@ -1,0 +1,347 @@
+//! The panels: light, fins, method, views (left); stats, ground truth, files
+//! (right); the chosen buffer over the viewport. Plain systems over resources:
+//! the UI edits [`LightParams`] and the light's `FinShadowSettings`.
+
+use std::collections::VecDeque;
+
+use bevy::{
+    diagnostic::{DiagnosticPath, DiagnosticsStore},
+    prelude::*,
+    render::view::screenshot::{Screenshot, save_to_disk},
+};
+use bevy_egui::{EguiContexts, EguiPrimaryContextPass, egui};
+use bevy_shadow_fins::{FinFrame, FinShadowSettings};
+use shadow_fins::{oracle::Overlap, refine::Falloff};
+
+use crate::{
+    EditorState,
+    scene::{EditorLight, EditorMethod, LightParams, LoadScene, LoadedScene, SceneSource},
+    settings_file::EditorSettings,
+    truth::{AnalysisJob, GroundTruthJob},
+    views::{CurrentError, LatestVisibility, ViewKind, view_pixels},
+};
+
+/// The passes whose GPU time the stats show, as diagnostic names.
+const PASSES: [&str; 3] = ["penumbra_maps", "visibility", "composite"];
+
+/// Files the UI reads and writes, editable in the UI.
+#[derive(Resource)]
+struct FilePaths {
+    scene: String,
+    settings: String,
+}
+
+/// Time and error as settings change, for the plot.
+#[derive(Resource, Default)]
+struct History {
+    /// (fin passes' GPU ms, MAE against ground truth when known).
+    points: VecDeque<(f32, Option<f32>)>,
+}
+
+#[derive(Default)]
+struct ViewTexture {
+    handle: Option<egui::TextureHandle>,
+    key: (Option<ViewKind>, u64, usize, u32),
+}
+
+pub(crate) fn build(app: &mut App) {
+    app.insert_resource(FilePaths { scene: "assets/demo.gltf".into(), settings: "out/editor-settings.ron".into() })
+        .init_resource::<History>()
+        .add_systems(Update, record_history)
+        .add_systems(EguiPrimaryContextPass, panels);
+}
+
+/// GPU time of a fin pass (CPU time where the adapter has no timestamps), ms.
+fn pass_ms(store: &DiagnosticsStore, pass: &str) -> Option<f64> {
+    let get = |kind: &str| {
+        store.get(&DiagnosticPath::new(format!("render/fin_shadows/{pass}/{kind}"))).and_then(|d| d.smoothed())
+    };
+    get("elapsed_gpu").or_else(|| get("elapsed_cpu"))
+}
+
+fn record_history(
+    store: Res<DiagnosticsStore>,
+    error: Res<CurrentError>,
+    state: Res<EditorState>,
+    mut history: ResMut<History>,
+) {
+    if state.frames % 10 != 0 {
+        return;
+    }
+    let ms: f64 = PASSES.iter().filter_map(|p| pass_ms(&store, p)).sum();
+    history.points.push_back((ms as f32, error.metrics.map(|m| m.mae)));
+    while history.points.len() > 120 {
+        history.points.pop_front();
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn panels(
+    mut contexts: EguiContexts,
+    mut commands: Commands,
+    mut state: ResMut<EditorState>,
+    mut params: ResMut<LightParams>,
+    mut settings: Query<&mut FinShadowSettings, With<EditorLight>>,
+    mut paths: ResMut<FilePaths>,
+    mut load: MessageWriter<LoadScene>,
+    (frame, store, truth, analysis, error, latest, history, scene): (
+        Res<FinFrame>,
+        Res<DiagnosticsStore>,
+        Res<GroundTruthJob>,
+        Res<AnalysisJob>,
+        Res<CurrentError>,
+        Res<LatestVisibility>,
+        Res<History>,
+        Option<Res<LoadedScene>>,
+    ),
+    mut texture: Local<ViewTexture>,
+) -> Result {
+    let ctx = contexts.ctx_mut()?.clone();
+    let Ok(mut fin_settings) = settings.single_mut() else { return Ok(()) };
+    let mut root = egui::Ui::new(
+        ctx.clone(),
+        "editor_root".into(),
+        egui::UiBuilder::new().layer_id(egui::LayerId::background()).max_rect(ctx.viewport_rect()),
+    );
+
+    egui::Panel::left("controls").resizable(true).default_size(280.0).show(&mut root, |ui| {
+        egui::ScrollArea::vertical().show(ui, |ui| {
+            ui.heading("Light");
+            let mut p = *params;
+            vec3_row(ui, "position", &mut p.position, 0.05);
+            vec3_row(ui, "direction", &mut p.direction, 0.01);
+            ui.small("Shift+drag in the view moves the light; Shift+Ctrl+drag raises it.");
+            ui.add(
+                egui::Slider::new(&mut p.radius, 0.0..=5.0).text("radius").logarithmic(true).smallest_positive(1e-3),
+            );
+            ui.add(egui::Slider::new(&mut p.intensity, 0.0..=1e8).text("intensity (lm)").logarithmic(true));
+            ui.horizontal(|ui| {
+                ui.label("colour");
+                ui.color_edit_button_rgb(&mut p.color);
+            });
+
+            ui.separator();
+            ui.heading("Method");
+            for m in EditorMethod::ALL {
+                ui.radio_value(&mut p.method, m, m.label());
+            }
+            if p != *params {
+                *params = p;
+            }
+
+            ui.separator();
+            ui.heading("Fins");
+            let mut s = *fin_settings;
+            ui.add(egui::Slider::new(&mut s.layers, 1..=32).text("layers"));
+            ui.add(egui::Slider::new(&mut s.sub_layers, 1..=4096).text("sub-layers").logarithmic(true));
+            egui::ComboBox::from_label("map resolution").selected_text(s.map_resolution.to_string()).show_ui(
+                ui,
+                |ui| {
+                    for r in [256, 512, 1024, 2048] {
+                        ui.selectable_value(&mut s.map_resolution, r, r.to_string());
+                    }
+                },
+            );
+            ui.checkbox(&mut s.refinement, "refinement (eq. 5)");
+            egui::ComboBox::from_label("falloff").selected_text(s.falloff.name()).show_ui(ui, |ui| {
+                for f in Falloff::ALL {
+                    ui.selectable_value(&mut s.falloff, f, f.name());
+                }
+            });
+            egui::ComboBox::from_label("overlap").selected_text(s.overlap.name()).show_ui(ui, |ui| {
+                for o in Overlap::ALL {
+                    ui.selectable_value(&mut s.overlap, o, o.name());
+                }
+            });
+            if s != *fin_settings {
+                *fin_settings = s;
+            }
+
+            ui.separator();
+            ui.heading("View");
+            for v in ViewKind::ALL {
+                ui.radio_value(&mut state.view, v, v.label());
+            }
+            let layers = frame.0.as_ref().map_or(1, |f| f.stats.layers.max(1)) as u32;
+            ui.add(egui::Slider::new(&mut state.layer, 0..=layers - 1).text("map layer"));
+        });
+    });
+
+    egui::Panel::right("stats").resizable(true).default_size(260.0).show(&mut root, |ui| {
+        egui::ScrollArea::vertical().show(ui, |ui| {
+            ui.heading("Stats");
+            if let Some(scene) = &scene {
+                ui.label(format!("scene: {} ({} objects)", scene.name, scene.scene.objects.len()));
+            }
+            for pass in PASSES {
+                let t = pass_ms(&store, pass).map_or("–".into(), |ms| format!("{ms:.3} ms"));
+                ui.label(format!("{pass}: {t}"));
+            }
+            if let Some(f) = frame.0.as_ref() {
+                let s = f.stats;
+                ui.label(format!("casters {} · triangles {}", s.casters, s.triangles));
+                ui.label(format!("silhouette edges {} · fins {}", s.silhouettes, s.fins));
+                ui.label(format!("layers in use {} · extraction {:.2} ms (CPU)", s.layers, s.extract_ms));
+            }
+
+            ui.separator();
+            ui.heading("Ground truth");
+            let st = truth.status;
+            ui.add(
+                egui::ProgressBar::new(st.rows_done as f32 / st.rows.max(1) as f32)
+                    .text(format!("{}/{} rows · {} samples/pixel", st.rows_done, st.rows, st.samples)),
+            );
+            match error.metrics {
+                Some(m) => {
+                    ui.label(format!("MAE {:.4} · RMSE {:.4} · p99 {:.3}", m.mae, m.rmse, m.p99));
+                    ui.label(format!(
+                        "umbra over {:.2}% · leaks {:.2}% ({} px)",
+                        m.umbra_over * 100.0,
+                        m.leak * 100.0,
+                        m.count
+                    ));
+                }
+                None => {
+                    ui.label("error: waiting for ground truth");
+                }
+            }
+            plot(ui, &history);
+
+            ui.separator();
+            ui.heading("Files");
+            ui.horizontal(|ui| {
+                ui.text_edit_singleline(&mut paths.scene);
+                if ui.button("open glTF").clicked() {
+                    load.write(LoadScene(SceneSource::Gltf(paths.scene.clone().into())));
+                }
+            });
+            if ui.button("open the demo scene").clicked() {
+                load.write(LoadScene(SceneSource::Demo));
+            }
+            ui.horizontal(|ui| {
+                ui.text_edit_singleline(&mut paths.settings);
+                if ui.button("save").clicked() {
+                    let file = EditorSettings::capture(&params, &fin_settings);
+                    match file.save(std::path::Path::new(&paths.settings)) {
+                        Ok(()) => state.status = Some(format!("saved {}", paths.settings)),
+                        Err(e) => state.error = Some(e.to_string()),
+                    }
+                }
+                if ui.button("load").clicked() {
+                    match EditorSettings::load(std::path::Path::new(&paths.settings)) {
+                        Ok(file) => {
+                            let (mut p, mut s) = (*params, *fin_settings);
+                            file.apply(&mut p, &mut s);
+                            *params = p;
+                            *fin_settings = s;
+                            state.status = Some(format!("loaded {}", paths.settings));
+                        }
+                        Err(e) => state.error = Some(e.to_string()),
+                    }
+                }
+            });
+            if ui.button("screenshot").clicked() {
+                let path = format!("out/editor-{}.png", state.frames);
+                commands.spawn(Screenshot::primary_window()).observe(save_to_disk(path.clone()));
+                state.status = Some(format!("screenshot → {path}"));
+            }
+            if let Some(s) = &state.status {
+                ui.small(s.as_str());
+            }
+            if let Some(e) = state.error.clone() {
+                ui.colored_label(egui::Color32::from_rgb(255, 110, 90), format!("error: {e}"));
+                if ui.button("dismiss").clicked() {
+                    state.error = None;
+                }
+            }
+        });
+    });
+
+    // The chosen buffer, over what is left of the viewport.
+    let analysis = analysis.latest.as_deref();
+    let key = (
+        Some(state.view),
+        latest.serial / 3,
+        analysis.map_or(0, |a| a as *const _ as usize) ^ error.signed.as_ref().map_or(0, |g| g.values.len()),
+        truth.status.rows_done,
+    );
+    if texture.key != key {
+        texture.key = key;
+        if let Some((w, h, px)) = view_pixels(state.view, &latest, analysis, &error) {
+            let image = egui::ColorImage::from_rgba_unmultiplied([w as usize, h as usize], px.as_flattened());
+            match texture.handle.as_mut() {
+                Some(t) => t.set(image, egui::TextureOptions::NEAREST),
+                None => texture.handle = Some(ctx.load_texture("editor_view", image, egui::TextureOptions::NEAREST)),
+            }
+        } else {
+            texture.handle = None;
+        }
+    }
+    if state.view != ViewKind::Final
+        && let Some(t) = texture.handle.as_ref()
+    {
+        let rect = root.available_rect_before_wrap();
+        let size = t.size_vec2();
+        let scale = (rect.width() / size.x).min(rect.height() / size.y);
+        let shown = egui::Rect::from_center_size(rect.center(), size * scale);
+        root.painter().image(
+            t.id(),
+            shown,
+            egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+            egui::Color32::WHITE,
+        );
+        let label = match (state.view, analysis) {
+            (ViewKind::SlabDepth | ViewKind::InnerMap | ViewKind::OuterMap, Some(a)) => {
+                format!("{} — layer {} of {}, {}²", state.view.label(), a.map_layer, a.layer_count, a.map_resolution)
+            }
+            (view, _) => view.label().to_string(),
+        };
+        root.painter().text(
+            shown.left_top() + egui::vec2(6.0, 6.0),
+            egui::Align2::LEFT_TOP,
+            label,
+            egui::FontId::proportional(16.0),
+            egui::Color32::WHITE,
+        );
+    }
+    Ok(())
+}
+
+fn vec3_row(ui: &mut egui::Ui, label: &str, v: &mut Vec3, speed: f64) {
+    ui.horizontal(|ui| {
+        ui.label(label);
+        for c in [&mut v.x, &mut v.y, &mut v.z] {
+            ui.add(egui::DragValue::new(c).speed(speed).max_decimals(3));
+        }
+    });
+}
+
+/// GPU time (orange) and MAE (cyan) over the last frames, each scaled to its maximum.
+fn plot(ui: &mut egui::Ui, history: &History) {
+    let (rect, _) = ui.allocate_exact_size(egui::vec2(ui.available_width(), 80.0), egui::Sense::hover());
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 2.0, egui::Color32::from_gray(20));
+    let n = history.points.len();
+    if n < 2 {
+        return;
+    }
+    let max_ms = history.points.iter().map(|p| p.0).fold(1e-6, f32::max);
+    let max_mae = history.points.iter().filter_map(|p| p.1).fold(1e-6, f32::max);
+    let x = |i: usize| rect.left() + rect.width() * i as f32 / (n - 1) as f32;
+    let y = |v: f32, max: f32| rect.bottom() - rect.height() * (v / max).clamp(0.0, 1.0) * 0.9;
+    let ms: Vec<egui::Pos2> =
+        history.points.iter().enumerate().map(|(i, p)| egui::pos2(x(i), y(p.0, max_ms))).collect();
+    painter.add(egui::Shape::line(ms, egui::Stroke::new(1.5, egui::Color32::from_rgb(255, 160, 60))));
+    let mae: Vec<egui::Pos2> =
+        history.points.iter().enumerate().filter_map(|(i, p)| p.1.map(|m| egui::pos2(x(i), y(m, max_mae)))).collect();
+    if mae.len() > 1 {
+        painter.add(egui::Shape::line(mae, egui::Stroke::new(1.5, egui::Color32::from_rgb(80, 220, 255))));
+    }
+    painter.text(
+        rect.left_top(),
+        egui::Align2::LEFT_TOP,
+        format!("GPU {max_ms:.2} ms · MAE {max_mae:.3} (max)"),
+        egui::FontId::proportional(11.0),
+        egui::Color32::GRAY,
+    );
+}

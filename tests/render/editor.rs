@@ -1,0 +1,114 @@
+//! The editor, run as the user runs it (the `editor` example) under
+//! `xvfb-run`: it starts, draws its panels and the scene, writes a
+//! screenshot, and its settings change what the plugin renders.
+
+use std::{path::PathBuf, process::Command};
+
+use bevy::{
+    asset::RenderAssetUsages,
+    image::{CompressedImageFormats, Image, ImageSampler, ImageType},
+};
+use shadow_fins_editor::EditorSettings;
+
+/// The example binary, built next to this test binary by `cargo test --all-targets`.
+fn editor_binary() -> PathBuf {
+    let exe = std::env::current_exe().expect("test binary path");
+    let dir = exe.parent().and_then(|d| d.parent()).expect("target/<profile>");
+    let bin = dir.join("examples").join("editor");
+    assert!(bin.exists(), "{} is missing: run the tests with `cargo test --all-targets`", bin.display());
+    bin
+}
+
+fn out_dir() -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("editor");
+    std::fs::create_dir_all(&dir).expect("test output directory");
+    dir
+}
+
+/// Runs the editor for `frames` frames with `args`, returns the screenshot.
+fn screenshot(name: &str, args: &[&str], frames: u32) -> Image {
+    let path = out_dir().join(format!("{name}.png"));
+    let _ = std::fs::remove_file(&path);
+    let output = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1280x800x24"])
+        .arg(editor_binary())
+        .args(args)
+        .args(["--screenshot", path.to_str().unwrap(), "--frames", &frames.to_string()])
+        .output()
+        .expect("xvfb-run (scripts/setup.sh installs xvfb)");
+    assert!(
+        output.status.success() && path.exists(),
+        "the editor failed ({}):\n{}",
+        output.status,
+        String::from_utf8_lossy(&output.stderr)
+            .lines()
+            .filter(|l| !l.contains("CommandQueue"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+    let bytes = std::fs::read(&path).unwrap();
+    Image::from_buffer(
+        &bytes,
+        ImageType::Extension("png"),
+        CompressedImageFormats::NONE,
+        true,
+        ImageSampler::Default,
+        RenderAssetUsages::MAIN_WORLD,
+    )
+    .expect("a PNG")
+}
+
+/// Distinct colours in a rectangle (x0..x1, y0..y1), quantised to 4 bits.
+fn distinct_colours(image: &Image, (x0, x1, y0, y1): (u32, u32, u32, u32)) -> usize {
+    let mut seen = std::collections::HashSet::new();
+    for y in y0..y1 {
+        for x in x0..x1 {
+            if let Ok(c) = image.get_color_at(x, y) {
+                let c = c.to_srgba();
+                seen.insert(((c.red * 15.0) as u8, (c.green * 15.0) as u8, (c.blue * 15.0) as u8));
+            }
+        }
+    }
+    seen.len()
+}
+
+#[test]
+fn the_editor_starts_draws_panels_and_scene_and_writes_a_screenshot() {
+    let image = screenshot("editor", &[], 20);
+    let (w, h) = (image.width(), image.height());
+    assert!(w >= 800 && h >= 600, "screenshot is {w}×{h}");
+    // The panels: text on a flat background; the scene in the middle: shading.
+    let left = distinct_colours(&image, (0, 200, 0, h));
+    let middle = distinct_colours(&image, (w / 2 - 150, w / 2 + 150, h / 2 - 150, h / 2 + 150));
+    assert!(left >= 4, "the left panel looks empty ({left} colours)");
+    assert!(middle >= 8, "the viewport looks empty ({middle} colours)");
+}
+
+#[test]
+fn the_editors_settings_change_what_the_plugin_renders() {
+    let dir = out_dir();
+    let write = |name: &str, radius: f32, method: &str| {
+        let mut s = EditorSettings::load(&PathBuf::from("tests/data/editor-settings.ron")).expect("settings fixture");
+        s.radius = radius;
+        s.method = method.into();
+        let path = dir.join(format!("{name}.ron"));
+        s.save(&path).unwrap();
+        path
+    };
+    let hard = write("hard", 0.0, "hard");
+    let soft = write("soft", 1.0, "multi-layer");
+    let a = screenshot("hard", &["--settings", hard.to_str().unwrap()], 12);
+    let b = screenshot("soft", &["--settings", soft.to_str().unwrap()], 12);
+    let (w, h) = (a.width().min(b.width()), a.height().min(b.height()));
+    let mut changed = 0;
+    for y in (h / 4..h * 3 / 4).step_by(2) {
+        for x in (w / 4..w * 3 / 4).step_by(2) {
+            let (p, q) = (a.get_color_at(x, y).unwrap().to_srgba(), b.get_color_at(x, y).unwrap().to_srgba());
+            if (p.red - q.red).abs() + (p.green - q.green).abs() + (p.blue - q.blue).abs() > 0.06 {
+                changed += 1;
+            }
+        }
+    }
+    println!("{changed} sampled viewport pixels differ between hard and soft");
+    assert!(changed > 500, "a 1-unit light and a hard shadow map rendered nearly the same ({changed} pixels differ)");
+}
