@@ -65,7 +65,7 @@ fn record_history(
     state: Res<EditorState>,
     mut history: ResMut<History>,
 ) {
-    if state.frames % 10 != 0 {
+    if !state.frames.is_multiple_of(10) {
         return;
     }
     let ms: f64 = PASSES.iter().filter_map(|p| pass_ms(&store, p)).sum();

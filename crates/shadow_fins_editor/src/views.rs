@@ -162,7 +162,7 @@ fn update_error(
         }
         return;
     };
-    if latest.serial == last.0 || latest.serial % 4 != 0 && last.1 == truth.status.rows_done {
+    if latest.serial == last.0 || !latest.serial.is_multiple_of(4) && last.1 == truth.status.rows_done {
         return;
     }
     *last = (latest.serial, truth.status.rows_done);
