@@ -129,7 +129,9 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
     app.add_plugins(
         DefaultPlugins
             .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, ..default() })
-            .set(RenderPlugin { synchronous_pipeline_compilation: true, ..default() }),
+            .set(RenderPlugin { synchronous_pipeline_compilation: true, ..default() })
+            // Headless: no event loop (it needs a display); the caller drives `update`.
+            .disable::<bevy::winit::WinitPlugin>(),
     )
     .add_plugins((ShadowFinsPlugin, RenderDiagnosticsPlugin));
     let world = app.world_mut();

@@ -67,20 +67,39 @@ impl Plugin for ShadowFinsPlugin {
             .register_type::<NotFinShadowReceiver>()
             .insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred())
             .add_systems(PostUpdate, turn_off_msaa_on_fin_views)
-            .add_observer(|add: On<Add, NotFinShadowReceiver>, mut commands: Commands| {
-                commands.entity(add.entity).insert(bevy::light::NotShadowReceiver);
-            })
-            .add_observer(|remove: On<Remove, NotFinShadowReceiver>, mut commands: Commands| {
-                if let Ok(mut e) = commands.get_entity(remove.entity) {
-                    e.remove::<bevy::light::NotShadowReceiver>();
-                }
-            });
+            .add_observer(add_not_shadow_receiver)
+            .add_observer(remove_not_shadow_receiver);
         extract::build(app);
         render::build(app);
     }
 
     fn finish(&self, app: &mut App) {
         render::finish(app);
+    }
+}
+
+/// Marks a `NotShadowReceiver` that [`NotFinShadowReceiver`] added, so that
+/// removing the marker never removes one the user put there.
+#[derive(Component)]
+struct AddedForNotFinShadowReceiver;
+
+fn add_not_shadow_receiver(
+    add: On<Add, NotFinShadowReceiver>,
+    has: Query<Has<bevy::light::NotShadowReceiver>>,
+    mut commands: Commands,
+) {
+    if has.get(add.entity).is_ok_and(|has| !has) {
+        commands.entity(add.entity).try_insert((bevy::light::NotShadowReceiver, AddedForNotFinShadowReceiver));
+    }
+}
+
+fn remove_not_shadow_receiver(
+    remove: On<Remove, NotFinShadowReceiver>,
+    added: Query<(), With<AddedForNotFinShadowReceiver>>,
+    mut commands: Commands,
+) {
+    if added.contains(remove.entity) {
+        commands.entity(remove.entity).try_remove::<(bevy::light::NotShadowReceiver, AddedForNotFinShadowReceiver)>();
     }
 }
 

@@ -12,7 +12,7 @@ use bevy::{
 use crate::EditorState;
 
 /// The editor's options.
-#[derive(Resource, Debug, Clone, Default, PartialEq)]
+#[derive(Resource, Debug, Clone, PartialEq)]
 pub struct EditorOptions {
     /// A glTF/GLB to open instead of the built-in demo scene.
     pub scene: Option<PathBuf>,
@@ -35,10 +35,19 @@ pub enum CliError {
     Unknown(String),
 }
 
+impl Default for EditorOptions {
+    fn default() -> Self {
+        Self { scene: None, settings: None, screenshot: None, frames: 30 }
+    }
+}
+
+/// Frames the screenshot may take to arrive before the editor gives up.
+const SCREENSHOT_TIMEOUT_FRAMES: u32 = 300;
+
 impl EditorOptions {
     /// Parses the arguments after the program name.
     pub fn parse(args: impl IntoIterator<Item = String>) -> Result<Self, CliError> {
-        let mut options = Self { frames: 30, ..Self::default() };
+        let mut options = Self::default();
         let mut args = args.into_iter();
         while let Some(arg) = args.next() {
             let mut value = |name: &'static str| args.next().ok_or(CliError::MissingValue(name));
@@ -66,9 +75,19 @@ fn count_frames(mut state: ResMut<EditorState>) {
 }
 
 /// In screenshot mode: on frame N capture the window, save it, exit.
-fn take_screenshot_when_due(mut commands: Commands, options: Res<EditorOptions>, state: Res<EditorState>) {
+fn take_screenshot_when_due(
+    mut commands: Commands,
+    options: Res<EditorOptions>,
+    state: Res<EditorState>,
+    mut exit: MessageWriter<AppExit>,
+) {
     let Some(path) = options.screenshot.clone() else { return };
-    if state.frames != options.frames {
+    let due = options.frames.max(1);
+    if state.frames == due + SCREENSHOT_TIMEOUT_FRAMES {
+        error!("no screenshot arrived {SCREENSHOT_TIMEOUT_FRAMES} frames after it was asked for; giving up");
+        exit.write(AppExit::error());
+    }
+    if state.frames != due {
         return;
     }
     commands.spawn(Screenshot::primary_window()).observe(

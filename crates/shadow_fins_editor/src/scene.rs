@@ -124,7 +124,18 @@ pub(crate) struct EditorCamera;
 
 /// A request to (re)load a scene, from the command line, the UI or a drop.
 #[derive(Message, Debug, Clone)]
-pub struct LoadScene(pub SceneSource);
+pub struct LoadScene {
+    pub source: SceneSource,
+    /// Keep the current light instead of placing one over the new scene (the
+    /// light of a `--settings` file given with the scene).
+    pub keep_light: bool,
+}
+
+impl LoadScene {
+    pub fn new(source: SceneSource) -> Self {
+        Self { source, keep_light: false }
+    }
+}
 
 pub(crate) fn build(app: &mut App) {
     app.add_message::<LoadScene>()
@@ -153,7 +164,8 @@ pub fn read_scene(source: &SceneSource) -> Result<(String, Scene, Light, CoreCam
 }
 
 fn request_initial_scene(options: Res<EditorOptions>, mut load: MessageWriter<LoadScene>) {
-    load.write(LoadScene(options.scene.clone().map_or(SceneSource::Demo, SceneSource::Gltf)));
+    let source = options.scene.clone().map_or(SceneSource::Demo, SceneSource::Gltf);
+    load.write(LoadScene { source, keep_light: options.settings.is_some() });
 }
 
 fn spawn_rig(
@@ -211,7 +223,7 @@ fn spawn_rig(
 fn load_dropped_files(mut drops: MessageReader<FileDragAndDrop>, mut load: MessageWriter<LoadScene>) {
     for drop in drops.read() {
         if let FileDragAndDrop::DroppedFile { path_buf, .. } = drop {
-            load.write(LoadScene(SceneSource::Gltf(path_buf.clone())));
+            load.write(LoadScene::new(SceneSource::Gltf(path_buf.clone())));
         }
     }
 }
@@ -230,7 +242,7 @@ fn load_scene(
     loaded: Option<Res<LoadedScene>>,
     mut state: ResMut<EditorState>,
 ) {
-    let Some(LoadScene(source)) = requests.read().last().cloned() else { return };
+    let Some(LoadScene { source, keep_light }) = requests.read().last().cloned() else { return };
     let (name, scene, light, camera) = match read_scene(&source) {
         Ok(s) => s,
         Err(e) => {
@@ -255,7 +267,7 @@ fn load_scene(
         }
     }
     // A new glTF gets its own light and view; the demo keeps the user's light.
-    if let (SceneSource::Gltf(_), Light::Disk(disk)) = (&source, light) {
+    if let (SceneSource::Gltf(_), Light::Disk(disk), false) = (&source, light, keep_light) {
         params.position = disk.center;
         params.direction = disk.normal;
         params.radius = disk.radius;
@@ -265,8 +277,8 @@ fn load_scene(
     }
     let generation = loaded.map_or(1, |l| l.generation + 1);
     commands.insert_resource(LoadedScene { name: name.clone(), scene: Arc::new(scene), generation });
+    // An earlier error (a bad settings file, a broken glTF) stays until dismissed.
     state.status = Some(format!("loaded {name}"));
-    state.error = None;
 }
 
 /// A Bevy mesh with smooth normals from a core mesh.

@@ -247,6 +247,7 @@ fn update_analysis(
         let mut h = std::collections::hash_map::DefaultHasher::new();
         settings.hash(&mut h);
         state.layer.hash(&mut h);
+        grid.hash(&mut h);
         h.finish()
     };
     let key = hash_of(&key_values, scene.generation ^ settings_hash.rotate_left(17));

@@ -212,11 +212,11 @@ fn panels(
             ui.horizontal(|ui| {
                 ui.text_edit_singleline(&mut paths.scene);
                 if ui.button("open glTF").clicked() {
-                    load.write(LoadScene(SceneSource::Gltf(paths.scene.clone().into())));
+                    load.write(LoadScene::new(SceneSource::Gltf(paths.scene.clone().into())));
                 }
             });
             if ui.button("open the demo scene").clicked() {
-                load.write(LoadScene(SceneSource::Demo));
+                load.write(LoadScene::new(SceneSource::Demo));
             }
             ui.horizontal(|ui| {
                 ui.text_edit_singleline(&mut paths.settings);
@@ -242,8 +242,13 @@ fn panels(
             });
             if ui.button("screenshot").clicked() {
                 let path = format!("out/editor-{}.png", state.frames);
-                commands.spawn(Screenshot::primary_window()).observe(save_to_disk(path.clone()));
-                state.status = Some(format!("screenshot → {path}"));
+                match std::fs::create_dir_all("out") {
+                    Ok(()) => {
+                        commands.spawn(Screenshot::primary_window()).observe(save_to_disk(path.clone()));
+                        state.status = Some(format!("screenshot → {path}"));
+                    }
+                    Err(e) => state.error = Some(format!("could not create out/: {e}")),
+                }
             }
             if let Some(s) = &state.status {
                 ui.small(s.as_str());

@@ -21,7 +21,10 @@ use bevy::{
     },
     pbr::{
         MeshPipelineKey, MeshViewBindGroup, ViewKeyCache,
-        deferred::{DeferredLightingLayout, PbrDeferredLightingDepthId, SkipDeferredLighting, deferred_lighting},
+        deferred::{
+            DeferredLightingLayout, PbrDeferredLightingDepthId, SkipDeferredLighting, deferred_lighting,
+            prepare_deferred_lighting_pipelines,
+        },
     },
     prelude::*,
     render::{
@@ -53,17 +56,22 @@ pub(crate) struct FinLightUniform {
 }
 
 impl FinLightUniform {
-    /// The uniform of `light` at `transform`; non-finite or negative values
-    /// are clamped (no light rather than a NaN on screen).
-    pub(crate) fn new(light: &FinLight, transform: &GlobalTransform) -> Self {
+    /// The uniform of `light` at `transform`; `None` when the transform has no
+    /// finite position or direction (a zero scale, a NaN): no light rather than
+    /// a NaN on screen. Negative or non-finite intensity, colour and range are
+    /// clamped.
+    pub(crate) fn new(light: &FinLight, transform: &GlobalTransform) -> Option<Self> {
         let position = transform.translation();
-        let forward = transform.forward().as_vec3();
+        let forward: Vec3 = (transform.affine().matrix3 * bevy::math::Vec3A::NEG_Z).try_normalize()?.into();
+        if !position.is_finite() {
+            return None;
+        }
         let finite = |x: f32| if x.is_finite() { x.max(0.0) } else { 0.0 };
         // Lumens → luminous intensity, as Bevy does for point and spot lights.
         let intensity = finite(light.intensity) / (4.0 * std::f32::consts::PI);
         let color = LinearRgba::from(light.color);
         let range = finite(light.range).max(1e-6);
-        Self {
+        Some(Self {
             position_radius: position.extend(light.effective_radius()).to_array(),
             forward_inverse_square_range: forward.extend(1.0 / (range * range)).to_array(),
             color: [
@@ -72,7 +80,7 @@ impl FinLightUniform {
                 finite(color.blue) * intensity,
                 1.0,
             ],
-        }
+        })
     }
 }
 
@@ -95,20 +103,30 @@ pub(crate) fn finish(app: &mut App) {
         .add_systems(
             Render,
             (
-                prepare_composite_pipelines.in_set(RenderSystems::Prepare),
+                // Before Bevy decides whether to run its own lighting pass, and
+                // before the resources and bind groups that follow from it.
+                prepare_composite_pipelines
+                    .in_set(RenderSystems::Prepare)
+                    .before(prepare_deferred_lighting_pipelines)
+                    .before(RenderSystems::PrepareResources),
                 prepare_light_uniform.in_set(RenderSystems::PrepareResources),
                 prepare_composite_bind_groups.in_set(RenderSystems::PrepareBindGroups),
             ),
         )
         .add_systems(
             Core3d,
-            fin_composite.after(deferred_lighting).before(main_opaque_pass_3d).in_set(Core3dSystems::MainPass),
+            fin_composite
+                .after(deferred_lighting)
+                // SSR reads the lit image: it must see ours, not overwrite it.
+                .before(bevy::pbr::screen_space_reflections)
+                .before(main_opaque_pass_3d)
+                .in_set(Core3dSystems::MainPass),
         );
 }
 
 /// The same light the fin frame uses: the first `FinLight`.
 fn update_light_shading(lights: Query<(&FinLight, &GlobalTransform)>, mut shading: ResMut<FinLightShading>) {
-    let next = lights.iter().next().map(|(light, transform)| FinLightUniform::new(light, transform));
+    let next = lights.iter().next().and_then(|(light, transform)| FinLightUniform::new(light, transform));
     if shading.0 != next {
         shading.0 = next;
     }
@@ -199,9 +217,10 @@ fn prepare_composite_pipelines(
                 (pipeline_cache.queue_render_pipeline(descriptor), pass_id_layout)
             })
             .clone();
+        let ready = pipeline_cache.get_render_pipeline(id).is_some();
         let mut e = commands.entity(entity);
         e.insert(FinCompositePipeline { id, pass_id_layout });
-        if ran_last_frame.contains(&entity) {
+        if ran_last_frame.contains(&entity) && ready {
             e.insert(SkipDeferredLighting);
         } else {
             e.remove::<SkipDeferredLighting>();

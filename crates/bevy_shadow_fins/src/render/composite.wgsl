@@ -180,8 +180,12 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
         if ((pbr_input.flags & MESH_FLAGS_SHADOW_RECEIVER_BIT) == 0u) {
             visibility = 1.0;
         }
-        // A NaN must never reach the screen: `max` with 0 maps it to 0.
-        visibility = clamp(max(visibility, 0.0), 0.0, 1.0);
+        // A NaN must never reach the screen; compared by its bits, since WGSL
+        // lets implementations assume floats are never NaN.
+        if ((bitcast<u32>(visibility) & 0x7fffffffu) > 0x7f800000u) {
+            visibility = 0.0;
+        }
+        visibility = clamp(visibility, 0.0, 1.0);
         var input = lighting_input_of(pbr_input);
         let fin = fin_light_direct(&input);
         output_color = vec4(output_color.rgb + view.exposure * visibility * fin, output_color.a);

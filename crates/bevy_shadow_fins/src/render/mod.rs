@@ -380,23 +380,30 @@ fn prepare_view_bind_groups(
     view_uniforms: Res<ViewUniforms>,
     views: Query<(Entity, &FinViewTexture, &ViewPrepassTextures)>,
 ) {
-    let (Some(pipelines), Some(params), Some(maps), Some(view_binding)) =
-        (pipelines, gpu.params.as_ref(), gpu.maps.as_ref(), view_uniforms.uniforms.binding())
-    else {
-        return;
+    let inputs = match (pipelines, gpu.params.as_ref(), gpu.maps.as_ref(), view_uniforms.uniforms.binding()) {
+        (Some(pipelines), Some(params), Some(maps), Some(view_binding)) if gpu.bind_group.is_some() => {
+            Some((pipelines, params, maps, view_binding))
+        }
+        _ => None,
     };
-    if gpu.bind_group.is_none() {
-        return;
-    }
     for (entity, texture, prepass) in &views {
+        // A view that cannot run the pass this frame loses its bind group, so
+        // the pass does not run on last frame's maps and nothing composites
+        // stale shadows.
+        let Some((pipelines, params, maps, view_binding)) = inputs.as_ref() else {
+            commands.entity(entity).remove::<FinViewBindGroup>();
+            continue;
+        };
         // Multisampled prepass textures cannot be bound as the pass's
         // single-sample inputs: skip the view with a clear message, not a crash.
         if prepass.depth.as_ref().is_some_and(|d| d.texture.texture.sample_count() > 1) {
             warn_once!("fin shadows: the camera uses MSAA; add `Msaa::Off` to it for fin shadows");
+            commands.entity(entity).remove::<FinViewBindGroup>();
             continue;
         }
         let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else {
             warn_once!("fin shadows: the camera needs DepthPrepass and NormalPrepass (FinShadowView adds them)");
+            commands.entity(entity).remove::<FinViewBindGroup>();
             continue;
         };
         let bind_group = device.create_bind_group(
@@ -408,7 +415,7 @@ fn prepare_view_bind_groups(
                 depth,
                 normal,
                 &texture.0.default_view,
-                view_binding.clone(),
+                (*view_binding).clone(),
             )),
         );
         commands.entity(entity).insert(FinViewBindGroup(bind_group));
