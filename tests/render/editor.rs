@@ -1,4 +1,4 @@
-//! The editor, run as the user runs it (the `editor` example) under
+//! The editor, run as the user runs it (the `editor` example's `main`) under
 //! `xvfb-run`: it starts, draws its panels and the scene, writes a
 //! screenshot, and its settings change what the plugin renders.
 
@@ -10,13 +10,10 @@ use bevy::{
 };
 use shadow_fins_editor::EditorSettings;
 
-/// The example binary, built next to this test binary by `cargo test --all-targets`.
+/// The editor binary (the same `main` as `examples/editor.rs`), which cargo
+/// builds before it runs this test.
 fn editor_binary() -> PathBuf {
-    let exe = std::env::current_exe().expect("test binary path");
-    let dir = exe.parent().and_then(|d| d.parent()).expect("target/<profile>");
-    let bin = dir.join("examples").join("editor");
-    assert!(bin.exists(), "{} is missing: run the tests with `cargo test --all-targets`", bin.display());
-    bin
+    PathBuf::from(env!("CARGO_BIN_EXE_shadow-fins-editor"))
 }
 
 fn out_dir() -> PathBuf {

@@ -67,6 +67,18 @@ impl Plugin for EditorPlugin {
     }
 }
 
+/// The editor's `main`: options from the command line (a usage error exits
+/// with code 2), then [`run`].
+pub fn main_from_args() -> AppExit {
+    match EditorOptions::parse(std::env::args().skip(1)) {
+        Ok(options) => run(options),
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(2);
+        }
+    }
+}
+
 /// Runs the editor with `options` in a window.
 pub fn run(options: EditorOptions) -> AppExit {
     App::new()
