@@ -11,12 +11,7 @@ use bevy::{
     image::Image,
     render::render_resource::{Extent3d, TextureDimension, TextureFormat},
 };
-use shadow_fins::{
-    camera::Camera,
-    glam::Vec3,
-    light::{DiskLight, Light},
-    scenes::SceneId,
-};
+use shadow_fins::scenes::SceneId;
 use shadow_fins_app::harness::{Setup, render};
 
 fn main() {
@@ -41,12 +36,7 @@ fn run() -> Result<(), String> {
             for s in &import.skipped {
                 eprintln!("warning: skipped {s}");
             }
-            let (lo, hi) = import.scene.bounds().ok_or("empty scene")?;
-            let (center, size) = ((lo + hi) * 0.5, (hi - lo).length().max(1e-6));
-            let light = Light::Disk(
-                DiskLight::new(center + Vec3::Y * size, Vec3::NEG_Y, size * 0.05).map_err(|e| e.to_string())?,
-            );
-            let camera = Camera::looking_at(center + Vec3::new(0.6, 0.7, 0.9).normalize() * size * 1.2, center);
+            let (light, camera) = shadow_fins::scenes::default_view(&import.scene).ok_or("empty scene")?;
             (import.scene, light, camera)
         }
         None => {

@@ -7,7 +7,6 @@ use bevy::{
     camera::RenderTarget,
     core_pipeline::tonemapping::Tonemapping,
     diagnostic::DiagnosticsStore,
-    mesh::{Indices, PrimitiveTopology},
     prelude::*,
     render::diagnostic::RenderDiagnosticsPlugin,
     render::{
@@ -110,18 +109,6 @@ pub struct ViewSlots {
     pub color: Slot,
 }
 
-/// A Bevy mesh (flat-shaded, so the normal prepass holds face normals) from a core mesh.
-pub fn bevy_mesh(mesh: &shadow_fins::mesh::Mesh) -> Mesh {
-    Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
-        .with_inserted_attribute(
-            Mesh::ATTRIBUTE_POSITION,
-            mesh.positions().iter().map(|p| p.to_array()).collect::<Vec<_>>(),
-        )
-        .with_inserted_indices(Indices::U32(mesh.indices().to_vec()))
-        .with_duplicated_vertices()
-        .with_computed_flat_normals()
-}
-
 /// Builds the headless app for `setup`; returns it with every camera's
 /// read-back slots (the first camera first).
 pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
@@ -138,7 +125,7 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
     let (w, h) = (setup.width, setup.height);
     let material = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial::default());
     for object in &setup.scene.objects {
-        let mesh = world.resource_mut::<Assets<Mesh>>().add(bevy_mesh(&object.mesh));
+        let mesh = world.resource_mut::<Assets<Mesh>>().add(bevy_shadow_fins::mesh_from_core(&object.mesh));
         let mut e = world.spawn((
             Mesh3d(mesh),
             MeshMaterial3d(material.clone()),

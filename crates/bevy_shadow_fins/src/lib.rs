@@ -54,6 +54,24 @@ pub use shadow_fins;
 
 use bevy::prelude::*;
 
+/// A flat-shaded Bevy mesh of a core-crate mesh (each triangle its own
+/// vertices and face normal, so the normal prepass holds the facets the fins
+/// are built from). For showing the core's scenes and glTF imports.
+pub fn mesh_from_core(mesh: &shadow_fins::mesh::Mesh) -> Mesh {
+    use bevy::{
+        asset::RenderAssetUsages,
+        mesh::{Indices, PrimitiveTopology},
+    };
+    Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
+        .with_inserted_attribute(
+            Mesh::ATTRIBUTE_POSITION,
+            mesh.positions().iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+        )
+        .with_inserted_indices(Indices::U32(mesh.indices().to_vec()))
+        .with_duplicated_vertices()
+        .with_computed_flat_normals()
+}
+
 /// Adds fin shadows. See the crate docs.
 #[derive(Default)]
 pub struct ShadowFinsPlugin;

@@ -4,10 +4,8 @@
 use std::{path::PathBuf, sync::Arc};
 
 use bevy::{
-    asset::RenderAssetUsages,
     camera::RenderTarget,
     input::mouse::AccumulatedMouseMotion,
-    mesh::{Indices, PrimitiveTopology},
     prelude::*,
     window::{FileDragAndDrop, PrimaryWindow},
 };
@@ -153,12 +151,10 @@ pub fn read_scene(source: &SceneSource) -> Result<(String, Scene, Light, CoreCam
         SceneSource::Gltf(path) => {
             let import = shadow_fins::gltf_import::load_gltf(path)
                 .map_err(|e| format!("could not open {}: {e}", path.display()))?;
-            let (lo, hi) = import.scene.bounds().ok_or_else(|| format!("{} has no usable mesh", path.display()))?;
-            let (center, size) = ((lo + hi) * 0.5, (hi - lo).length().max(1e-6));
-            let light = DiskLight::new(center + Vec3::Y * size, Vec3::NEG_Y, size * 0.05).map_err(|e| e.to_string())?;
-            let camera = CoreCamera::looking_at(center + Vec3::new(0.6, 0.7, 0.9).normalize() * size * 1.2, center);
+            let (light, camera) = shadow_fins::scenes::default_view(&import.scene)
+                .ok_or_else(|| format!("{} has no usable mesh", path.display()))?;
             let name = path.file_name().map_or("scene".into(), |n| n.to_string_lossy().into_owned());
-            Ok((name, import.scene, Light::Disk(light), camera))
+            Ok((name, import.scene, light, camera))
         }
     }
 }
@@ -255,7 +251,7 @@ fn load_scene(
     }
     let material = materials.add(StandardMaterial { perceptual_roughness: 0.8, ..default() });
     for object in &scene.objects {
-        let mesh = meshes.add(bevy_mesh(&object.mesh));
+        let mesh = meshes.add(bevy_shadow_fins::mesh_from_core(&object.mesh));
         let mut e = commands.spawn((
             EditorMesh,
             Mesh3d(mesh),
@@ -279,21 +275,6 @@ fn load_scene(
     commands.insert_resource(LoadedScene { name: name.clone(), scene: Arc::new(scene), generation });
     // An earlier error (a bad settings file, a broken glTF) stays until dismissed.
     state.status = Some(format!("loaded {name}"));
-}
-
-/// A Bevy mesh with smooth normals from a core mesh.
-pub fn bevy_mesh(mesh: &shadow_fins::mesh::Mesh) -> Mesh {
-    let mut m = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
-        .with_inserted_attribute(
-            Mesh::ATTRIBUTE_POSITION,
-            mesh.positions().iter().map(|p| p.to_array()).collect::<Vec<_>>(),
-        )
-        .with_inserted_indices(Indices::U32(mesh.indices().to_vec()));
-    // Flat normals: the core's meshes weld by position, and flat shading shows
-    // the facets the fins are built from.
-    m.duplicate_vertices();
-    m.compute_flat_normals();
-    m
 }
 
 /// The light's "drag gizmo": Shift + drag in the viewport moves the light
