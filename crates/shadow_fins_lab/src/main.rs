@@ -6,11 +6,6 @@
 //! - `report`: the error table of every built-in scene (for BENCHMARKS.md);
 //! - `export-gltf`: writes a built-in scene as a glTF file.
 
-mod compare;
-mod eval;
-mod picture;
-mod setup;
-
 use std::{io::Write, path::PathBuf};
 
 use clap::{Parser, Subcommand};
@@ -21,31 +16,13 @@ use shadow_fins::{
     scenes::SceneId,
 };
 
-use crate::{
-    compare::{Config, compare, markdown_table, standard_configs},
+use shadow_fins_lab::{
+    LabError,
+    compare::{Comparison, Config, compare, markdown_table, standard_configs},
     eval::evaluate,
-    picture::Picture,
+    picture::{Column, Picture, strip as strip_picture},
     setup::{FinArgs, SceneArgs, parse_measured, parse_vec3},
 };
-
-/// Everything that can go wrong, with what to do about it.
-#[derive(Debug, thiserror::Error)]
-pub enum LabError {
-    #[error("{0}")]
-    Usage(String),
-    #[error(transparent)]
-    Gltf(#[from] shadow_fins::GltfError),
-    #[error(transparent)]
-    Light(#[from] shadow_fins::LightError),
-    #[error(transparent)]
-    Settings(#[from] shadow_fins::SettingsError),
-    #[error("{0}: {1}")]
-    Io(String, std::io::Error),
-    #[error("points file line {line}: {reason}")]
-    Points { line: usize, reason: String },
-    #[error("cannot write PNG: {0}")]
-    Png(String),
-}
 
 #[derive(Parser)]
 #[command(
@@ -263,30 +240,13 @@ fn title(name: &str, light: &shadow_fins::light::Light, fins: &FinArgs) -> Strin
 
 /// Top row: visibility per method and the ground truth; bottom row: error maps.
 fn strip(c: &Comparison) -> Picture {
-    let (w, h) = (c.width, c.height);
-    let label_h = 14;
-    let columns = c.rows.len() as u32 + 1;
-    let mut pic = Picture::new(columns * (w + 4), 2 * (h + label_h) + 4, [12, 12, 16]);
-    let reference = c.pixels(&c.reference.values);
-    for (i, row) in c.rows.iter().enumerate() {
-        let x = i as u32 * (w + 4);
-        let values = c.pixels(&row.evaluation.values);
-        pic.blit(&Picture::visibility(w, h, &values), x, label_h);
-        // Long labels drop to the small font rather than run into the next panel.
-        let scale = if row.config.label.len() as u32 * 8 + 4 <= w { 2 } else { 1 };
-        pic.text(&row.config.label, x + 2, 3, scale, [230, 230, 230]);
-        pic.blit(&Picture::error_map(w, h, &values, &reference, 0.5), x, 2 * label_h + h + 4);
-        pic.text(&format!("mae {:.3}", row.metrics.mae), x + 2, label_h + h + 5, 2, [230, 230, 230]);
-    }
-    let x = c.rows.len() as u32 * (w + 4);
-    pic.blit(&Picture::visibility(w, h, &reference), x, label_h);
-    pic.text("ground truth", x + 2, 3, 2, [230, 230, 230]);
-    pic.text("error: red bright", x + 2, label_h + h + 5, 2, [230, 120, 60]);
-    pic.text("cyan dark", x + 2, 2 * label_h + h + 8, 2, [60, 220, 220]);
-    pic
+    let columns: Vec<Column> = c
+        .rows
+        .iter()
+        .map(|r| Column { label: r.config.label.clone(), values: c.pixels(&r.evaluation.values), mae: r.metrics.mae })
+        .collect();
+    strip_picture(c.width, c.height, &columns, &c.pixels(&c.reference.values))
 }
-
-use compare::Comparison;
 
 fn read_points(path: &std::path::Path) -> Result<Vec<(Vec3, Vec3)>, LabError> {
     let text = std::fs::read_to_string(path).map_err(|e| LabError::Io(path.display().to_string(), e))?;

@@ -71,6 +71,48 @@ impl Picture {
         }
     }
 
+    /// Sets one pixel if it lies inside.
+    pub fn put(&mut self, x: i64, y: i64, color: [u8; 3]) {
+        if x >= 0 && y >= 0 && (x as u32) < self.width && (y as u32) < self.height {
+            self.pixels[(y as u32 * self.width + x as u32) as usize] = color;
+        }
+    }
+
+    pub fn hline(&mut self, x0: u32, x1: u32, y: u32, color: [u8; 3]) {
+        for x in x0..=x1 {
+            self.put(x as i64, y as i64, color);
+        }
+    }
+
+    pub fn vline(&mut self, x: u32, y0: u32, y1: u32, color: [u8; 3]) {
+        for y in y0..=y1 {
+            self.put(x as i64, y as i64, color);
+        }
+    }
+
+    /// A one-pixel line (DDA), two pixels thick for legibility.
+    pub fn line(&mut self, a: (f64, f64), b: (f64, f64), color: [u8; 3]) {
+        let steps = (b.0 - a.0).abs().max((b.1 - a.1).abs()).ceil().clamp(1.0, 1e5) as i64;
+        for i in 0..=steps {
+            let t = i as f64 / steps as f64;
+            let (x, y) = (a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t);
+            self.put(x as i64, y as i64, color);
+            self.put(x as i64, y as i64 + 1, color);
+        }
+    }
+
+    /// A filled disc of radius `r` pixels.
+    pub fn disc(&mut self, cx: f64, cy: f64, r: f64, color: [u8; 3]) {
+        let n = r.ceil() as i64;
+        for dy in -n..=n {
+            for dx in -n..=n {
+                if ((dx * dx + dy * dy) as f64) <= r * r {
+                    self.put(cx as i64 + dx, cy as i64 + dy, color);
+                }
+            }
+        }
+    }
+
     /// Draws `text` with a 3×5 pixel font scaled by `scale`.
     pub fn text(&mut self, text: &str, x0: u32, y0: u32, scale: u32, color: [u8; 3]) {
         let mut x = x0;
@@ -106,6 +148,36 @@ impl Picture {
         let data: Vec<u8> = self.pixels.iter().flatten().copied().collect();
         w.write_image_data(&data).map_err(|e| LabError::Png(e.to_string()))
     }
+}
+
+/// One method's panel of a [`strip`].
+pub struct Column {
+    pub label: String,
+    pub values: Vec<Pixel>,
+    pub mae: f32,
+}
+
+/// Method panels side by side with the ground truth last, each method's
+/// signed error map (full scale ±0.5) below it.
+pub fn strip(w: u32, h: u32, columns: &[Column], reference: &[Pixel]) -> Picture {
+    let label_h = 14;
+    let count = columns.len() as u32 + 1;
+    let mut pic = Picture::new(count * (w + 4), 2 * (h + label_h) + 4, [12, 12, 16]);
+    for (i, c) in columns.iter().enumerate() {
+        let x = i as u32 * (w + 4);
+        pic.blit(&Picture::visibility(w, h, &c.values), x, label_h);
+        // Long labels drop to the small font rather than run into the next panel.
+        let scale = if c.label.len() as u32 * 8 + 4 <= w { 2 } else { 1 };
+        pic.text(&c.label, x + 2, 3, scale, [230, 230, 230]);
+        pic.blit(&Picture::error_map(w, h, &c.values, reference, 0.5), x, 2 * label_h + h + 4);
+        pic.text(&format!("mae {:.3}", c.mae), x + 2, label_h + h + 5, 2, [230, 230, 230]);
+    }
+    let x = columns.len() as u32 * (w + 4);
+    pic.blit(&Picture::visibility(w, h, reference), x, label_h);
+    pic.text("ground truth", x + 2, 3, 2, [230, 230, 230]);
+    pic.text("error: red bright", x + 2, label_h + h + 5, 2, [230, 120, 60]);
+    pic.text("cyan dark", x + 2, 2 * label_h + h + 8, 2, [60, 220, 220]);
+    pic
 }
 
 fn srgb(v: f32) -> u8 {
