@@ -5,8 +5,9 @@ use std::sync::{Arc, Mutex};
 use bevy::{
     asset::RenderAssetUsages,
     camera::RenderTarget,
-    core_pipeline::tonemapping::Tonemapping,
+    core_pipeline::tonemapping::{DebandDither, Tonemapping},
     diagnostic::DiagnosticsStore,
+    light::PointLightShadowMap,
     prelude::*,
     render::diagnostic::RenderDiagnosticsPlugin,
     render::{
@@ -48,6 +49,31 @@ pub struct Setup {
     pub tonemapping: Tonemapping,
     /// The light's luminous power, lumens.
     pub intensity: f32,
+    /// Shadows of the Bevy `PointLight` (with `bevy_point_light`): none, its
+    /// shadow maps (PCF) or its PCSS; the cube faces are
+    /// `settings.map_resolution` texels wide.
+    pub bevy_shadows: BevyShadows,
+    /// Read the colour back as linear floats (`Shot::linear`): an HDR camera
+    /// into an `Rgba16Float` target, no tonemapping, no dithering, so colour
+    /// ratios are light ratios.
+    pub linear_color: bool,
+    /// The global ambient light's brightness (Bevy's default when `None`);
+    /// the lab sets 0 so that a pixel's colour is the light's alone.
+    pub ambient: Option<f32>,
+    /// The cameras' near and far planes (Bevy's defaults when `None`).
+    pub near: Option<f32>,
+    pub far: Option<f32>,
+}
+
+/// How Bevy's own point light casts shadows (the lab's peers).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BevyShadows {
+    #[default]
+    None,
+    /// Cube shadow maps filtered by the camera's default PCF.
+    Hard,
+    /// Percentage-closer soft shadows sized by the light's radius.
+    Pcss,
 }
 
 impl Setup {
@@ -67,6 +93,11 @@ impl Setup {
             extra_cameras: vec![],
             tonemapping: Tonemapping::None,
             intensity: FinLight::default().intensity,
+            bevy_shadows: BevyShadows::None,
+            linear_color: false,
+            ambient: None,
+            near: None,
+            far: None,
         }
     }
 }
@@ -78,6 +109,8 @@ pub struct ViewShot {
     pub visibility: Vec<f32>,
     /// The camera's output, sRGB bytes (RGBA).
     pub color: Vec<[u8; 4]>,
+    /// The camera's output in linear RGB (only with `Setup::linear_color`).
+    pub linear: Vec<[f32; 3]>,
 }
 
 /// A rendered frame: the first camera's buffers, the others', and the counts.
@@ -87,6 +120,8 @@ pub struct Shot {
     pub height: u32,
     pub visibility: Vec<f32>,
     pub color: Vec<[u8; 4]>,
+    /// Linear RGB (only with `Setup::linear_color`).
+    pub linear: Vec<[f32; 3]>,
     /// The cameras of `Setup::extra_cameras`, in order.
     pub extra_views: Vec<ViewShot>,
     /// Silhouettes, fins and layers the frame modelled.
@@ -142,37 +177,15 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
         let mesh = world.resource_mut::<Assets<Mesh>>().add(mesh.clone());
         world.spawn((Mesh3d(mesh), MeshMaterial3d(material.clone()), Transform::from_translation(*at)));
     }
-    if let Light::Disk(d) = setup.light {
-        let target = d.center + d.normal;
-        let up = if d.normal.cross(Vec3::Z).length() > 1e-3 { Vec3::Z } else { Vec3::X };
-        let transform = Transform::from_translation(d.center).looking_at(target, up);
-        // The range covers the whole scene, whatever its scale.
-        let reach =
-            setup.scene.bounds().map_or(20.0, |(lo, hi)| (hi - lo).length() + (d.center - (lo + hi) * 0.5).length());
-        let fin = FinLight { radius: d.radius, intensity: setup.intensity, range: reach.max(20.0), ..default() };
-        if setup.bevy_point_light {
-            world.spawn((
-                PointLight {
-                    color: fin.color,
-                    intensity: fin.intensity,
-                    range: fin.range,
-                    radius: fin.radius,
-                    shadow_maps_enabled: false,
-                    ..default()
-                },
-                transform,
-            ));
-        } else {
-            world.spawn((fin, setup.settings, transform));
-        }
-    }
+    replace_light(world, setup);
     let cameras = std::iter::once(&setup.camera).chain(&setup.extra_cameras);
     let mut slots = vec![];
+    let color_format = if setup.linear_color { TextureFormat::Rgba16Float } else { TextureFormat::Rgba8UnormSrgb };
     for (order, camera) in cameras.enumerate() {
         let view = ViewSlots::default();
         let (color, visibility) = {
             let mut images = world.resource_mut::<Assets<Image>>();
-            let mut color = Image::new_target_texture(w, h, TextureFormat::Rgba8UnormSrgb, None);
+            let mut color = Image::new_target_texture(w, h, color_format, None);
             color.texture_descriptor.usage |= TextureUsages::COPY_SRC;
             let color = images.add(color);
             let mut vis = Image::new_fill(
@@ -185,18 +198,28 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
             vis.texture_descriptor.usage |= TextureUsages::COPY_DST | TextureUsages::COPY_SRC;
             (color, images.add(vis))
         };
+        let defaults = PerspectiveProjection::default();
+        let (near, far) = (setup.near.unwrap_or(defaults.near), setup.far.unwrap_or(defaults.far));
         let mut e = world.spawn((
             Camera3d::default(),
             Camera { order: order as isize, ..default() },
             setup.tonemapping,
             setup.msaa,
             RenderTarget::Image(color.clone().into()),
-            Projection::Perspective(PerspectiveProjection { fov: camera.vertical_fov.to_radians(), ..default() }),
+            Projection::Perspective(PerspectiveProjection {
+                fov: camera.vertical_fov.to_radians(),
+                near,
+                far,
+                ..default()
+            }),
             Transform::from_translation(camera.position).looking_at(camera.target, camera.up),
             FinShadowView { visibility_target: Some(visibility.clone()) },
         ));
-        if setup.hdr {
+        if setup.hdr || setup.linear_color {
             e.insert(bevy::camera::Hdr);
+        }
+        if setup.linear_color {
+            e.insert((Tonemapping::None, DebandDither::Disabled));
         }
         for (image, slot) in [(visibility, view.visibility.clone()), (color, view.color.clone())] {
             world.spawn(Readback::texture(image)).observe(move |e: On<ReadbackComplete>| {
@@ -208,21 +231,82 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
     (app, slots)
 }
 
-/// Renders at least `frames` frames, then on until the first camera's image
-/// stops changing (shaders load and pipelines compile asynchronously, and
-/// read-backs arrive a frame or two late), at most [`MAX_FRAMES`]; returns
-/// the last read-backs.
-pub fn render(setup: &Setup, frames: u32) -> Result<Shot, String> {
-    let (mut app, slots) = app(setup);
-    app.finish();
-    app.cleanup();
-    let take = |slot: &Slot| slot.lock().unwrap().take();
-    let mut latest: Vec<(Option<Vec<u8>>, Option<Vec<u8>>)> = vec![(None, None); slots.len()];
-    let mut previous_color: Option<Vec<u8>> = None;
-    let mut stable = 0;
-    for frame in 0..MAX_FRAMES {
-        app.update();
-        for (view, latest) in slots.iter().zip(&mut latest) {
+/// Despawns every fin light and Bevy point light, then spawns the light
+/// `setup` asks for (and its ambient and cube-map settings): the lab swaps
+/// methods in one app this way, so pipelines compile once per scene.
+pub fn replace_light(world: &mut World, setup: &Setup) {
+    let old: Vec<Entity> =
+        world.query_filtered::<Entity, Or<(With<FinLight>, With<PointLight>)>>().iter(world).collect();
+    for e in old {
+        world.despawn(e);
+    }
+    if let Some(brightness) = setup.ambient {
+        world.resource_mut::<GlobalAmbientLight>().brightness = brightness;
+    }
+    world.insert_resource(PointLightShadowMap { size: setup.settings.clamped().map_resolution as usize });
+    let Light::Disk(d) = setup.light else { return };
+    let target = d.center + d.normal;
+    let up = if d.normal.cross(Vec3::Z).length() > 1e-3 { Vec3::Z } else { Vec3::X };
+    let transform = Transform::from_translation(d.center).looking_at(target, up);
+    // The range covers the whole scene, whatever its scale.
+    let reach =
+        setup.scene.bounds().map_or(20.0, |(lo, hi)| (hi - lo).length() + (d.center - (lo + hi) * 0.5).length());
+    let fin = FinLight { radius: d.radius, intensity: setup.intensity, range: reach.max(20.0), ..default() };
+    if setup.bevy_point_light {
+        // Bevy's cube maps need a near plane inside the scene's scale.
+        let near = (reach * 1e-3).clamp(1e-6, 0.1);
+        world.spawn((
+            PointLight {
+                color: fin.color,
+                intensity: fin.intensity,
+                range: fin.range,
+                radius: fin.radius,
+                shadow_maps_enabled: setup.bevy_shadows != BevyShadows::None,
+                soft_shadows_enabled: setup.bevy_shadows == BevyShadows::Pcss,
+                shadow_map_near_z: near,
+                ..default()
+            },
+            transform,
+        ));
+    } else {
+        world.spawn((fin, setup.settings, transform));
+    }
+}
+
+/// A headless app kept alive across measurements: settle it, read it back,
+/// time it, change its light, settle again.
+pub struct Session {
+    pub app: App,
+    slots: Vec<ViewSlots>,
+    latest: Vec<(Option<Vec<u8>>, Option<Vec<u8>>)>,
+    width: u32,
+    height: u32,
+    linear_color: bool,
+}
+
+/// Per-frame times of [`Session::timed`].
+#[derive(Debug, Clone, Default)]
+pub struct Timing {
+    /// Wall time of each `App::update` (main and render world, GPU work
+    /// waited on by the read-back), ms.
+    pub frame_ms: Vec<f64>,
+    /// Every `render/fin_shadows/…` diagnostic, one value per frame.
+    pub passes: Vec<(String, Vec<f64>)>,
+}
+
+impl Session {
+    pub fn new(setup: &Setup) -> Self {
+        let (mut app, slots) = app(setup);
+        app.finish();
+        app.cleanup();
+        let latest = vec![(None, None); slots.len()];
+        Self { app, slots, latest, width: setup.width, height: setup.height, linear_color: setup.linear_color }
+    }
+
+    fn update(&mut self) {
+        self.app.update();
+        let take = |slot: &Slot| slot.lock().unwrap().take();
+        for (view, latest) in self.slots.iter().zip(&mut self.latest) {
             if let Some(v) = take(&view.visibility) {
                 latest.0 = Some(v);
             }
@@ -230,33 +314,111 @@ pub fn render(setup: &Setup, frames: u32) -> Result<Shot, String> {
                 latest.1 = Some(c);
             }
         }
-        let color = latest[0].1.clone();
-        stable = if color.is_some() && color == previous_color { stable + 1 } else { 0 };
-        previous_color = color;
-        if frame + 1 >= frames.max(3) && stable >= 2 {
-            break;
+    }
+
+    /// Renders at least `frames` frames, then on until the first camera's
+    /// image stops changing (shaders load and pipelines compile
+    /// asynchronously, and read-backs arrive a frame or two late), at most
+    /// [`MAX_FRAMES`]; returns the last read-backs.
+    pub fn settle(&mut self, frames: u32) -> Result<Shot, String> {
+        let mut previous_color: Option<Vec<u8>> = None;
+        let mut stable = 0;
+        for slot in &mut self.latest {
+            *slot = (None, None);
         }
+        for frame in 0..MAX_FRAMES {
+            self.update();
+            let color = self.latest[0].1.clone();
+            stable = if color.is_some() && color == previous_color { stable + 1 } else { 0 };
+            previous_color = color;
+            if frame + 1 >= frames.max(3) && stable >= 2 {
+                break;
+            }
+        }
+        self.shot()
     }
-    let mut views = vec![];
-    for (visibility, color) in latest {
-        let missing = || "no read-back (no GPU adapter?)".to_string();
-        let visibility =
-            unpad(setup.width, setup.height, &visibility.ok_or_else(missing)?).map(f32::from_le_bytes).collect();
-        let color = unpad(setup.width, setup.height, &color.ok_or_else(missing)?).collect();
-        views.push(ViewShot { visibility, color });
+
+    /// The latest read-backs of every camera.
+    pub fn shot(&self) -> Result<Shot, String> {
+        let (w, h) = (self.width, self.height);
+        let mut views = vec![];
+        for (visibility, color) in &self.latest {
+            let missing = || "no read-back (no GPU adapter?)".to_string();
+            let visibility = unpad(w, h, visibility.as_ref().ok_or_else(missing)?).map(f32::from_le_bytes).collect();
+            let color = color.as_ref().ok_or_else(missing)?;
+            let (color, linear) = if self.linear_color {
+                let linear: Vec<[f32; 3]> = unpad_texels::<8>(w, h, color)
+                    .map(|b| std::array::from_fn(|c| f16_to_f32(u16::from_le_bytes([b[2 * c], b[2 * c + 1]]))))
+                    .collect();
+                let bytes = linear.iter().map(|c| [srgb_byte(c[0]), srgb_byte(c[1]), srgb_byte(c[2]), 255]).collect();
+                (bytes, linear)
+            } else {
+                (unpad(w, h, color).collect(), vec![])
+            };
+            views.push(ViewShot { visibility, color, linear });
+        }
+        let stats = self.app.world().resource::<FinFrame>().0.as_ref().map(|f| f.stats).unwrap_or_default();
+        let pass_times = pass_times(self.app.world());
+        let first = views.remove(0);
+        Ok(Shot {
+            width: w,
+            height: h,
+            visibility: first.visibility,
+            color: first.color,
+            linear: first.linear,
+            extra_views: views,
+            stats,
+            pass_times,
+        })
     }
-    let stats = app.world().resource::<FinFrame>().0.as_ref().map(|f| f.stats).unwrap_or_default();
-    let pass_times = pass_times(app.world());
-    let first = views.remove(0);
-    Ok(Shot {
-        width: setup.width,
-        height: setup.height,
-        visibility: first.visibility,
-        color: first.color,
-        extra_views: views,
-        stats,
-        pass_times,
-    })
+
+    /// Renders `frames` frames and times each (read-backs keep running, so
+    /// every frame waits for its GPU work the same way for every method).
+    pub fn timed(&mut self, frames: u32) -> Timing {
+        let mut timing = Timing::default();
+        for _ in 0..frames {
+            let start = std::time::Instant::now();
+            self.update();
+            timing.frame_ms.push(start.elapsed().as_secs_f64() * 1e3);
+            for (path, value) in pass_times(self.app.world()) {
+                match timing.passes.iter_mut().find(|(p, _)| *p == path) {
+                    Some((_, values)) => values.push(value),
+                    None => timing.passes.push((path, vec![value])),
+                }
+            }
+        }
+        timing
+    }
+
+    /// Swaps the light for the one `setup` describes (see [`replace_light`]).
+    pub fn replace_light(&mut self, setup: &Setup) {
+        replace_light(self.app.world_mut(), setup);
+    }
+}
+
+/// Renders at least `frames` frames until the image settles (see
+/// [`Session::settle`]) and returns the last read-backs.
+pub fn render(setup: &Setup, frames: u32) -> Result<Shot, String> {
+    Session::new(setup).settle(frames)
+}
+
+/// IEEE half → single precision.
+pub fn f16_to_f32(h: u16) -> f32 {
+    let sign = if h & 0x8000 != 0 { -1.0 } else { 1.0 };
+    let exponent = (h >> 10) & 0x1f;
+    let mantissa = (h & 0x3ff) as f32;
+    match exponent {
+        0 => sign * mantissa * 2f32.powi(-24),
+        0x1f if mantissa == 0.0 => sign * f32::INFINITY,
+        0x1f => f32::NAN,
+        e => sign * (1.0 + mantissa / 1024.0) * 2f32.powi(e as i32 - 15),
+    }
+}
+
+fn srgb_byte(v: f32) -> u8 {
+    let v = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
+    let s = if v <= 0.0031308 { v * 12.92 } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 };
+    (s * 255.0 + 0.5) as u8
 }
 
 /// The latest value of every `render/fin_shadows/…` diagnostic.
@@ -274,10 +436,15 @@ pub fn pass_times(world: &World) -> Vec<(String, f64)> {
 /// The 4-byte texels of a read-back, rows unpadded (texture read-backs pad
 /// rows to 256 bytes).
 pub fn unpad(width: u32, height: u32, data: &[u8]) -> impl Iterator<Item = [u8; 4]> + '_ {
-    let row = width as usize * 4;
+    unpad_texels::<4>(width, height, data)
+}
+
+/// The `N`-byte texels of a read-back, rows unpadded.
+pub fn unpad_texels<const N: usize>(width: u32, height: u32, data: &[u8]) -> impl Iterator<Item = [u8; N]> + '_ {
+    let row = width as usize * N;
     let padded = if height > 1 { row.div_ceil(256) * 256 } else { row };
     (0..height as usize)
-        .flat_map(move |y| data[y * padded..y * padded + row].chunks_exact(4).map(|b| [b[0], b[1], b[2], b[3]]))
+        .flat_map(move |y| data[y * padded..y * padded + row].chunks_exact(N).map(|b| std::array::from_fn(|i| b[i])))
 }
 
 impl Shot {

@@ -3,3 +3,4 @@
 //! Bevy with the plugin, its visibility buffer read back to the CPU.
 
 pub mod harness;
+pub mod render_lab;

@@ -5,8 +5,10 @@
 
 pub mod compare;
 pub mod eval;
+pub mod grid;
 pub mod picture;
 pub mod plot;
+pub mod results;
 pub mod setup;
 
 /// Everything that can go wrong, with what to do about it.

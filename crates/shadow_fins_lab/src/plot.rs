@@ -74,10 +74,10 @@ pub fn pareto_plot(title: &str, time_label: &str, error_label: &str, points: &[P
     let e_hi = finite_err().fold(0.0f64, f64::max).max(1e-4) * 1.1;
     let x_of = |t: f64| left as f64 + (t.ln() - t_lo.ln()) / (t_hi.ln() - t_lo.ln()).max(1e-9) * (right - left) as f64;
     let y_of = |e: f64| bottom as f64 - (e / e_hi).clamp(0.0, 1.05) * (bottom - top) as f64;
-    // Grid: decades and their 2× and 5× on the time axis, fifths on the error axis.
+    // Grid: decades and their 1.5–7× steps on the time axis, fifths on the error axis.
     let mut decade = 10f64.powf(t_lo.log10().floor());
     while decade <= t_hi {
-        for m in [1.0, 2.0, 5.0] {
+        for m in [1.0, 1.5, 2.0, 3.0, 5.0, 7.0] {
             let t = decade * m;
             if t >= t_lo && t <= t_hi {
                 let x = x_of(t) as u32;

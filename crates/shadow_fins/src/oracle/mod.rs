@@ -297,6 +297,8 @@ pub struct FinExtractor {
     builder: FinBuilder,
     depths: Vec<f32>,
     patch_depth: Vec<(f32, u32)>,
+    /// Face patches found by the last [`FinExtractor::extract_silhouettes`].
+    patch_count: u32,
     pub silhouettes: Vec<SilhouetteEdge>,
     /// Per caster triangle (the order of [`LightSpaceScene::casters`]): its patch,
     /// or [`NO_PATCH`] when it is not drawn into the maps.
@@ -320,6 +322,13 @@ impl FinExtractor {
     /// that turns the inner penumbra of any occluder deeper than its own
     /// silhouette — a box's sides, a wall standing on the floor — into umbra.)
     pub fn extract(&mut self, scene: &Scene, light_space: &LightSpaceScene, layers: u32, sub_layers: u32) {
+        self.extract_silhouettes(scene, light_space);
+        self.build_fins(light_space);
+        self.assign_layers(layers, sub_layers);
+    }
+
+    /// Stage 1: silhouette edges (and face patches) of every casting object.
+    pub fn extract_silhouettes(&mut self, scene: &Scene, light_space: &LightSpaceScene) {
         self.silhouettes.clear();
         self.face_patches.clear();
         let frame = &light_space.frame;
@@ -340,8 +349,19 @@ impl FinExtractor {
             }
             vertex_base += object.topology.positions.len() as u32;
         }
+        self.patch_count = patches;
+    }
+
+    /// Stage 2: fins and fans of the silhouettes of stage 1 (eq. 3 widths).
+    pub fn build_fins(&mut self, light_space: &LightSpaceScene) {
         let near = near_depth(light_space);
-        self.builder.build(&self.silhouettes, frame, light_space.reference_depth, near, &mut self.fins);
+        self.builder.build(&self.silhouettes, &light_space.frame, light_space.reference_depth, near, &mut self.fins);
+    }
+
+    /// Stage 3: the sub-layer histogram cut into `layers` planes, and every
+    /// patch and fin of stages 1–2 given its layer.
+    pub fn assign_layers(&mut self, layers: u32, sub_layers: u32) {
+        let patches = self.patch_count;
         self.depths.clear();
         self.depths.extend(self.silhouettes.iter().map(SilhouetteEdge::mid_depth));
         self.plan = LayerPlan::from_edge_depths(&self.depths, sub_layers, layers);

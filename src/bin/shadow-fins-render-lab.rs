@@ -1,0 +1,335 @@
+//! `shadow-fins-render-lab`: the speed/accuracy trade of every method, as
+//! Bevy renders it with the plugin, and the numerical extremes.
+//!
+//! - `measure`: a grid of configurations per scene against 1024-sample
+//!   ground truth, frame and per-pass times, Bevy's shadow maps and PCSS and
+//!   the CPU oracle as peers; CSV, JSON, Pareto plots, image strips;
+//! - `stability`: the extremes; exits 1 if any NaN or Inf reaches the
+//!   visibility buffer.
+
+use std::{io::Write, path::PathBuf, process::ExitCode};
+
+use clap::{Args, Parser, Subcommand};
+use shadow_fins::{
+    glam::{Affine3A, Vec3},
+    light::Light,
+    refine::Falloff,
+    scene::{Scene, SceneObject},
+    scenes::SceneId,
+    shapes,
+};
+use shadow_fins_app::render_lab::{measure, stability};
+use shadow_fins_lab::{
+    LabError,
+    grid::{Axes, Technique, parse_list},
+    plot::{Point, pareto_plot},
+    results::{self, Row},
+    setup::SceneArgs,
+};
+
+#[derive(Parser)]
+#[command(
+    name = "shadow-fins-render-lab",
+    version,
+    about = "Fin shadows rendered by Bevy: speed against accuracy, and the extremes"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a grid of configurations per scene; score and time each.
+    Measure(MeasureArgs),
+    /// Render the numerical extremes; exit 1 if any NaN/Inf reaches the visibility buffer.
+    Stability {
+        /// Only these cases (comma-separated names; default all).
+        #[arg(long, default_value = "")]
+        cases: String,
+        /// Ground-truth samples on the disk (0: no error column).
+        #[arg(long, default_value_t = 1024)]
+        samples: u32,
+        /// Also write the report table here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+}
+
+#[derive(Args)]
+struct MeasureArgs {
+    /// Built-in scenes, comma-separated.
+    #[arg(long, default_value = "large-light,near-contact")]
+    scenes: String,
+    /// A glTF/GLB file instead (lit by a disk above its bounds).
+    #[arg(long)]
+    gltf: Option<PathBuf>,
+    /// Instead of scenes: the bumpy blob over a plane at these triangle counts (GPU scaling run).
+    #[arg(long)]
+    blob_triangles: Option<String>,
+    /// Techniques: fins, single-layer, outer-fins, hard, bevy-hard, bevy-pcss, cpu-oracle.
+    #[arg(long, default_value = "fins,single-layer,outer-fins,hard,bevy-hard,bevy-pcss,cpu-oracle")]
+    methods: String,
+    /// Layer counts swept for multi-layer fins (1..=32; more is clamped).
+    #[arg(long, default_value = "1,2,4,8,16,32")]
+    layers: String,
+    /// Refinement values swept: on, off.
+    #[arg(long, default_value = "on,off")]
+    refinement: String,
+    /// Falloffs swept: linear, bernstein, disk-segment.
+    #[arg(long, default_value = "linear,bernstein,disk-segment")]
+    falloff: String,
+    /// Map (and Bevy cube face) resolutions swept.
+    #[arg(long, default_value = "256,512,1024,2048")]
+    map_resolution: String,
+    /// Light radii swept (world units; default: the scene's own).
+    #[arg(long)]
+    radius: Option<String>,
+    /// The baseline's layer count.
+    #[arg(long, default_value_t = 16)]
+    base_layers: u32,
+    /// The baseline's map resolution.
+    #[arg(long, default_value_t = 1024)]
+    base_map_resolution: u32,
+    /// The whole Cartesian product instead of one factor at a time.
+    #[arg(long)]
+    full: bool,
+    #[arg(long, default_value_t = 160)]
+    width: u32,
+    #[arg(long, default_value_t = 120)]
+    height: u32,
+    /// Frames timed per configuration (≥ 30 for the record).
+    #[arg(long, default_value_t = 30)]
+    frames: u32,
+    /// Frames rendered and dropped after the image settles, before timing.
+    #[arg(long, default_value_t = 5)]
+    warmup: u32,
+    /// Ground-truth samples on the disk.
+    #[arg(long, default_value_t = 1024)]
+    samples: u32,
+    /// No ground truth: timing only (the scaling run).
+    #[arg(long)]
+    no_truth: bool,
+    /// Directory for the CSV, the Pareto plots and the image strips.
+    #[arg(long, default_value = "target/render-lab")]
+    out: PathBuf,
+    /// Also write every row as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Measure(args) => run_measure(args).map(|()| ExitCode::SUCCESS),
+        Command::Stability { cases, samples, out } => run_stability(&cases, samples, out),
+    };
+    result.unwrap_or_else(|e| {
+        eprintln!("error: {e}");
+        ExitCode::from(2)
+    })
+}
+
+fn usage(e: String) -> LabError {
+    LabError::Usage(e)
+}
+
+fn write(path: &std::path::Path, text: &str) -> Result<(), LabError> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| LabError::Io(dir.display().to_string(), e))?;
+    }
+    std::fs::write(path, text).map_err(|e| LabError::Io(path.display().to_string(), e))
+}
+
+fn inputs(args: &MeasureArgs) -> Result<Vec<measure::Input>, LabError> {
+    let disk = |light: Light| match light {
+        Light::Disk(d) => Ok(d),
+        Light::Sun(_) => Err(usage("measure needs a disk light".into())),
+    };
+    if let Some(list) = &args.blob_triangles {
+        let counts =
+            parse_list("blob-triangles", list, |s| s.parse::<u32>().ok().filter(|n| *n >= 8)).map_err(usage)?;
+        let b = SceneId::DenseBlob.build();
+        return counts
+            .into_iter()
+            .map(|n| {
+                let blob = SceneObject::new("blob", shapes::bumpy_blob(n), Affine3A::from_translation(Vec3::Y * 1.5))
+                    .map_err(|e| usage(format!("blob of {n} triangles: {e}")))?;
+                let scene = Scene::new(vec![b.scene.objects[0].clone(), blob]);
+                Ok(measure::Input { name: format!("blob-{n}"), scene, light: disk(b.light)?, camera: b.camera })
+            })
+            .collect();
+    }
+    let names: Vec<String> = match &args.gltf {
+        Some(_) => vec![String::new()],
+        None => args.scenes.split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect(),
+    };
+    names
+        .into_iter()
+        .map(|name| {
+            let loaded = SceneArgs {
+                scene: if name.is_empty() { "box-over-plane".into() } else { name },
+                gltf: args.gltf.clone(),
+                light_center: None,
+                light_normal: None,
+                radius: None,
+                sun_direction: None,
+                sun_angle: 0.05,
+            }
+            .load()?;
+            Ok(measure::Input {
+                name: loaded.name.rsplit('/').next().unwrap_or(&loaded.name).to_string(),
+                scene: loaded.scene,
+                light: disk(loaded.light)?,
+                camera: loaded.camera,
+            })
+        })
+        .collect()
+}
+
+fn run_measure(args: MeasureArgs) -> Result<(), LabError> {
+    let techniques = parse_list("methods", &args.methods, Technique::parse).map_err(usage)?;
+    let layers = parse_list("layers", &args.layers, |s| s.parse::<u32>().ok().filter(|l| *l >= 1)).map_err(usage)?;
+    let refinement = parse_list("refinement", &args.refinement, |s| match s {
+        "on" => Some(true),
+        "off" => Some(false),
+        _ => None,
+    })
+    .map_err(usage)?;
+    let falloffs = parse_list("falloff", &args.falloff, Falloff::parse).map_err(usage)?;
+    let maps = parse_list("map-resolution", &args.map_resolution, |s| {
+        s.parse::<u32>().ok().filter(|r| (16..=4096).contains(r))
+    })
+    .map_err(usage)?;
+    let radii = match &args.radius {
+        Some(list) => Some(
+            parse_list("radius", list, |s| s.parse::<f32>().ok().filter(|r| r.is_finite() && *r >= 0.0))
+                .map_err(usage)?,
+        ),
+        None => None,
+    };
+    if args.frames == 0 || args.width == 0 || args.height == 0 {
+        return Err(usage("--frames, --width and --height must be at least 1".into()));
+    }
+    let options = measure::Options {
+        width: args.width,
+        height: args.height,
+        warmup: args.warmup,
+        frames: args.frames,
+        samples: if args.no_truth { 0 } else { args.samples.clamp(1, 1 << 16) },
+    };
+    let inputs = inputs(&args)?;
+    let plans: Vec<_> = inputs
+        .iter()
+        .map(|input| {
+            let base_radius = input.light.radius;
+            let axes = Axes {
+                techniques: techniques.clone(),
+                layers: layers.clone(),
+                refinement: refinement.clone(),
+                falloffs: falloffs.clone(),
+                map_resolutions: maps.clone(),
+                radii: radii.clone().unwrap_or_else(|| vec![base_radius]),
+                base_layers: args.base_layers,
+                base_map_resolution: args.base_map_resolution,
+                base_radius,
+            };
+            axes.configs(args.full)
+        })
+        .collect();
+    let total: usize = plans.iter().map(Vec::len).sum();
+    let mut done = 0usize;
+    let mut all_rows: Vec<Row> = vec![];
+    let mut targets = vec![];
+    for (input, configs) in inputs.iter().zip(&plans) {
+        let mut progress = |c: &shadow_fins_lab::grid::Config| {
+            done += 1;
+            let filled = done * 30 / total.max(1);
+            eprint!(
+                "\r[{}{}] {done}/{total} {}: {:<40}",
+                "#".repeat(filled),
+                "-".repeat(30 - filled),
+                input.name,
+                c.label()
+            );
+            std::io::stderr().flush().ok();
+        };
+        let result =
+            measure::measure(input, configs, &options, input.light.radius, &mut progress).map_err(LabError::Usage)?;
+        eprintln!();
+        println!(
+            "### {} ({} triangles, light radius {})\n",
+            input.name,
+            input.scene.triangle_count(),
+            input.light.radius
+        );
+        println!("{}", results::markdown(&result.rows));
+        targets.extend(results::targets(&input.name, &result.rows));
+        let points: Vec<Point> = result
+            .rows
+            .iter()
+            .filter(|r| r.config.technique.is_rendered())
+            .filter_map(|r| {
+                r.metrics.map(|m| Point {
+                    series: r.config.technique.name().into(),
+                    time_ms: r.frame_ms.median,
+                    error: m.mae as f64,
+                })
+            })
+            .collect();
+        if !points.is_empty() {
+            let path = args.out.join(format!("{}-pareto.png", input.name));
+            pareto_plot(&format!("{}: MAE vs frame time", input.name), "frame ms (log)", "MAE", &points)
+                .save_png(&path)?;
+            eprintln!("wrote {}", path.display());
+        }
+        if let Some(strip) = &result.strip {
+            let path = args.out.join(format!("{}-strip.png", input.name));
+            strip.save_png(&path)?;
+            eprintln!("wrote {}", path.display());
+        }
+        all_rows.extend(result.rows);
+    }
+    if !targets.is_empty() {
+        println!("### Targets\n\n| scene | target | measured | verdict |\n|---|---|---|---|\n{}\n", targets.join("\n"));
+    }
+    let csv = args.out.join("measure.csv");
+    write(&csv, &results::csv(&all_rows))?;
+    eprintln!("wrote {}", csv.display());
+    if let Some(path) = &args.json {
+        write(path, &results::json(&all_rows))?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+fn run_stability(cases: &str, samples: u32, out: Option<PathBuf>) -> Result<ExitCode, LabError> {
+    let wanted: Vec<&str> = cases.split(',').map(str::trim).filter(|s| !s.is_empty()).collect();
+    let all = stability::cases();
+    for w in &wanted {
+        if !all.iter().any(|c| c.name == *w) {
+            let names: Vec<&str> = all.iter().map(|c| c.name).collect();
+            return Err(usage(format!("unknown case '{w}': use {}", names.join(", "))));
+        }
+    }
+    let selected: Vec<_> = all.into_iter().filter(|c| wanted.is_empty() || wanted.contains(&c.name)).collect();
+    let mut outcomes = vec![];
+    for (i, case) in selected.iter().enumerate() {
+        eprint!("\r[{}/{}] {:<40}", i + 1, selected.len(), case.name);
+        std::io::stderr().flush().ok();
+        outcomes.push(stability::run(case, samples));
+    }
+    eprintln!();
+    let table = stability::markdown(&outcomes);
+    println!("{table}");
+    if let Some(path) = &out {
+        write(path, &table)?;
+    }
+    let bad: Vec<&str> = outcomes.iter().filter(|o| o.non_finite > 0 || o.error.is_some()).map(|o| o.name).collect();
+    if bad.is_empty() {
+        Ok(ExitCode::SUCCESS)
+    } else {
+        eprintln!("NaN/Inf in the visibility buffer (or no render) in: {}", bad.join(", "));
+        Ok(ExitCode::FAILURE)
+    }
+}

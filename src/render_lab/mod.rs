@@ -1,0 +1,7 @@
+//! The lab's rendered half: the speed/accuracy trade measured on what Bevy
+//! draws with the plugin (`measure`), and the numerical extremes
+//! (`stability`). The `shadow-fins-render-lab` binary drives both; the
+//! Bevy-free parts (the grid, rows, CSV/JSON, plots) live in `shadow_fins_lab`.
+
+pub mod measure;
+pub mod stability;
