@@ -68,10 +68,10 @@ tmp=$(mktemp)
   echo "Plots and strips: \`docs/lab/\`."
   echo
   echo '```'
-  echo "$render_lab measure --scenes large-light,near-contact,box-over-plane --out docs/lab --json docs/lab/measure.json"
+  echo "$render_lab measure --scenes large-light,near-contact --out docs/lab --json docs/lab/measure.json"
   echo '```'
   echo
-  $render_lab measure --scenes large-light,near-contact,box-over-plane --out docs/lab --json docs/lab/measure.json
+  $render_lab measure --scenes large-light,near-contact --out docs/lab --json docs/lab/measure.json
   echo
   echo "## Numerical extremes (rendered)"
   echo
