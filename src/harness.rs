@@ -375,8 +375,15 @@ impl Session {
     /// Renders `frames` frames and times each (read-backs keep running, so
     /// every frame waits for its GPU work the same way for every method).
     pub fn timed(&mut self, frames: u32) -> Timing {
+        self.timed_with(frames, |_, _| {})
+    }
+
+    /// [`Session::timed`], calling `before(world, frame)` ahead of each
+    /// frame, outside the timing (to move something, say).
+    pub fn timed_with(&mut self, frames: u32, mut before: impl FnMut(&mut World, u32)) -> Timing {
         let mut timing = Timing::default();
-        for _ in 0..frames {
+        for frame in 0..frames {
+            before(self.app.world_mut(), frame);
             let start = std::time::Instant::now();
             self.update();
             timing.frame_ms.push(start.elapsed().as_secs_f64() * 1e3);

@@ -110,6 +110,10 @@ struct MeasureArgs {
     /// No ground truth: timing only (the scaling run).
     #[arg(long)]
     no_truth: bool,
+    /// Move the light a hair every timed frame, so the plugin redoes extraction
+    /// and maps each frame (a dynamic scene); default: a static scene.
+    #[arg(long)]
+    moving_light: bool,
     /// Directory for the CSV, the Pareto plots and the image strips.
     #[arg(long, default_value = "target/render-lab")]
     out: PathBuf,
@@ -217,6 +221,7 @@ fn run_measure(args: MeasureArgs) -> Result<(), LabError> {
         warmup: args.warmup,
         frames: args.frames,
         samples: if args.no_truth { 0 } else { args.samples.clamp(1, 1 << 16) },
+        moving_light: args.moving_light,
     };
     let inputs = inputs(&args)?;
     let plans: Vec<_> = inputs

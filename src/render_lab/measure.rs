@@ -43,6 +43,11 @@ pub struct Options {
     pub frames: u32,
     /// Ground-truth samples on the disk; 0: no ground truth (timing only).
     pub samples: u32,
+    /// Nudge the light every timed frame (by 1e-5 of the scene, back and
+    /// forth), so the plugin re-extracts, re-uploads and re-renders its maps
+    /// each frame as in a scene where something moves. Off: a static scene,
+    /// where the plugin reuses its maps and Bevy still redraws its cube map.
+    pub moving_light: bool,
 }
 
 /// A scene to measure.
@@ -186,8 +191,23 @@ pub fn measure(
             } else {
                 let setup = setup_for(&base, Some(config), radius);
                 let shot = session_shot(&mut session, &setup)?;
-                session.timed(options.warmup);
-                let timing = session.timed(options.frames);
+                let step = input.scene.bounds().map_or(1e-5, |(lo, hi)| (hi - lo).length() * 1e-5);
+                let moving = options.moving_light;
+                let nudge = move |world: &mut bevy::prelude::World, frame: u32| {
+                    if !moving {
+                        return;
+                    }
+                    let offset = if frame % 2 == 0 { step } else { -step };
+                    let mut lights = world.query_filtered::<&mut bevy::prelude::Transform, bevy::prelude::Or<(
+                        bevy::prelude::With<bevy_shadow_fins::FinLight>,
+                        bevy::prelude::With<bevy::prelude::PointLight>,
+                    )>>();
+                    for mut t in lights.iter_mut(world) {
+                        t.translation.x += offset;
+                    }
+                };
+                session.timed_with(options.warmup, nudge);
+                let timing = session.timed_with(options.frames, nudge);
                 row.frame_ms = Spread::of(&timing.frame_ms);
                 row.passes = timing.passes.iter().map(|(n, v)| (n.clone(), Spread::of(v))).collect();
                 let ratio: Vec<f32> = hits
