@@ -21,6 +21,7 @@ use bevy_shadow_fins::{
     FinFrame, FinLight, FinShadowSettings, FinShadowView, NotFinShadowCaster, NotFinShadowReceiver, ShadowFinsPlugin,
 };
 use shadow_fins::{camera::Camera as CoreCamera, light::Light, scene::Scene};
+use shadow_fins_lab::picture::srgb;
 
 /// A scene to render: the core's scene, a disk light and a camera.
 #[derive(Clone)]
@@ -350,7 +351,17 @@ impl Session {
                 let linear: Vec<[f32; 3]> = unpad_texels::<8>(w, h, color)
                     .map(|b| std::array::from_fn(|c| f16_to_f32(u16::from_le_bytes([b[2 * c], b[2 * c + 1]]))))
                     .collect();
-                let bytes = linear.iter().map(|c| [srgb_byte(c[0]), srgb_byte(c[1]), srgb_byte(c[2]), 255]).collect();
+                let bytes = linear
+                    .iter()
+                    .map(|c| {
+                        [
+                            shadow_fins_lab::picture::srgb(c[0]),
+                            shadow_fins_lab::picture::srgb(c[1]),
+                            shadow_fins_lab::picture::srgb(c[2]),
+                            255,
+                        ]
+                    })
+                    .collect();
                 (bytes, linear)
             } else {
                 (unpad(w, h, color).collect(), vec![])
@@ -420,12 +431,6 @@ pub fn f16_to_f32(h: u16) -> f32 {
         0x1f => f32::NAN,
         e => sign * (1.0 + mantissa / 1024.0) * 2f32.powi(e as i32 - 15),
     }
-}
-
-fn srgb_byte(v: f32) -> u8 {
-    let v = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
-    let s = if v <= 0.0031308 { v * 12.92 } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 };
-    (s * 255.0 + 0.5) as u8
 }
 
 /// The latest value of every `render/fin_shadows/…` diagnostic.

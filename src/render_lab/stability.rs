@@ -61,13 +61,14 @@ pub struct Outcome {
 
 const SIZE: (u32, u32) = (128, 96);
 
-fn base() -> Setup {
-    let b = SceneId::BoxOverPlane.build();
-    Setup::new(b.scene, b.light, b.camera, FinShadowSettings { map_resolution: 512, ..default_settings() }, SIZE)
+/// A built-in scene at the stability resolution, 16-layer fins on 512² maps.
+fn setup_of(id: SceneId) -> Setup {
+    let b = id.build();
+    Setup::new(b.scene, b.light, b.camera, FinShadowSettings { map_resolution: 512, ..Default::default() }, SIZE)
 }
 
-fn default_settings() -> FinShadowSettings {
-    FinShadowSettings::default()
+fn base() -> Setup {
+    setup_of(SceneId::BoxOverPlane)
 }
 
 fn disk(setup: &Setup) -> DiskLight {
@@ -140,13 +141,13 @@ pub fn cases() -> Vec<Case> {
     out.push(rendered("scale-1e-4", "the whole scene scaled by 1e-4 (camera near plane 1e-6)", s));
 
     for layers in [1, 64] {
-        let mut s = SceneIdSetup::sphere_grid();
+        let mut s = setup_of(SceneId::SphereGrid);
         s.settings.layers = layers;
         let name = if layers == 1 { "layers-1" } else { "layers-64" };
         let what = format!("sphere grid, {layers} layers (effective {})", s.settings.clamped().layers);
         out.push(rendered(name, what, s));
     }
-    let mut s = SceneIdSetup::sphere_grid();
+    let mut s = setup_of(SceneId::SphereGrid);
     s.settings.sub_layers = 1;
     out.push(rendered("one-sub-layer", "sphere grid, 1 sub-layer: every silhouette in it", s));
 
@@ -219,15 +220,6 @@ pub fn cases() -> Vec<Case> {
         kind: CaseKind::Oracle { scene: s.scene, light: s.light, receivers },
     });
     out
-}
-
-struct SceneIdSetup;
-
-impl SceneIdSetup {
-    fn sphere_grid() -> Setup {
-        let b = SceneId::SphereGrid.build();
-        Setup::new(b.scene, b.light, b.camera, FinShadowSettings { map_resolution: 512, ..default_settings() }, SIZE)
-    }
 }
 
 /// Runs one case; `samples` ground-truth samples (0: no truth).

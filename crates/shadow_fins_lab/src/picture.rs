@@ -180,7 +180,8 @@ pub fn strip(w: u32, h: u32, columns: &[Column], reference: &[Pixel]) -> Picture
     pic
 }
 
-fn srgb(v: f32) -> u8 {
+/// Linear value → sRGB byte (non-finite → 0, clamped to [0, 1]).
+pub fn srgb(v: f32) -> u8 {
     let v = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
     let s = if v <= 0.0031308 { v * 12.92 } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 };
     (s * 255.0 + 0.5) as u8
