@@ -111,8 +111,7 @@ pub fn measure(
 
         // The unshadowed Bevy light: the denominator and the lit mask. Shaders
         // load asynchronously: a first image can be black and already "settled".
-        session.replace_light(&setup_for(&base, None, radius));
-        let mut unshadowed = session.settle(3)?;
+        let mut unshadowed = session_shot(&mut session, &setup_for(&base, None, radius))?;
         for _ in 0..10 {
             if unshadowed.linear.iter().any(|c| energy(c) > 0.0) {
                 break;

@@ -21,7 +21,11 @@ use shadow_fins::{
     scenes::SceneId,
     shapes,
 };
-use shadow_fins_lab::{eval::camera_receivers, setup::Measured};
+use shadow_fins_lab::{
+    eval::camera_receivers,
+    results::{cell, percent},
+    setup::Measured,
+};
 
 use crate::harness::{Session, Setup};
 
@@ -296,8 +300,6 @@ pub fn markdown(outcomes: &[Outcome]) -> String {
     );
     for o in outcomes {
         let m = o.metrics;
-        let f = |v: Option<f32>| v.map_or("–".to_string(), |v| format!("{v:.4}"));
-        let pct = |v: Option<f32>| v.map_or("–".to_string(), |v| format!("{:.2}%", v * 100.0));
         let modelled = o.modelled.map_or("–".into(), |(a, b, c)| format!("{a} / {b} / {c}"));
         let what = match &o.error {
             Some(e) => format!("{} — **failed: {e}**", o.what),
@@ -310,10 +312,10 @@ pub fn markdown(outcomes: &[Outcome]) -> String {
             o.values,
             o.non_finite,
             o.out_of_range,
-            f(m.map(|m| m.mae)),
-            f(m.map(|m| m.p99)),
-            pct(m.map(|m| m.umbra_over)),
-            pct(m.map(|m| m.leak)),
+            cell(m.map(|m| m.mae), 4),
+            cell(m.map(|m| m.p99), 4),
+            percent(m.map(|m| m.umbra_over)),
+            percent(m.map(|m| m.leak)),
             modelled
         );
     }

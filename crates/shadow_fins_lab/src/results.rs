@@ -179,6 +179,16 @@ pub fn json(rows: &[Row]) -> String {
     s + "]\n"
 }
 
+/// A table cell: the value to `digits` decimals, or "–" when absent.
+pub fn cell(v: Option<f32>, digits: usize) -> String {
+    v.map_or("–".to_string(), |v| format!("{v:.digits$}"))
+}
+
+/// A table cell for a share: percent to 2 decimals, or "–" when absent.
+pub fn percent(v: Option<f32>) -> String {
+    v.map_or("–".to_string(), |v| format!("{:.2}%", v * 100.0))
+}
+
 /// A markdown table of the rows of one scene.
 pub fn markdown(rows: &[Row]) -> String {
     let mut s = String::from(
@@ -186,7 +196,6 @@ pub fn markdown(rows: &[Row]) -> String {
     );
     for r in rows {
         let m = r.metrics;
-        let f = |v: Option<f32>, d: usize| v.map_or("–".to_string(), |v| format!("{v:.d$}"));
         let time = if r.config.technique.is_rendered() {
             format!("{:.1} ({:.1}–{:.1})", r.frame_ms.median, r.frame_ms.p10, r.frame_ms.p90)
         } else {
@@ -198,13 +207,13 @@ pub fn markdown(rows: &[Row]) -> String {
             r.config.label(),
             r.config.map_resolution,
             r.config.radius,
-            f(m.map(|m| m.mae), 4),
-            f(m.map(|m| m.rmse), 4),
-            f(m.map(|m| m.p99), 3),
-            m.map_or("–".into(), |m| format!("{:.2}%", m.umbra_over * 100.0)),
-            m.map_or("–".into(), |m| format!("{:.2}%", m.leak * 100.0)),
+            cell(m.map(|m| m.mae), 4),
+            cell(m.map(|m| m.rmse), 4),
+            cell(m.map(|m| m.p99), 3),
+            percent(m.map(|m| m.umbra_over)),
+            percent(m.map(|m| m.leak)),
             time,
-            f(r.color_check, 5),
+            cell(r.color_check, 5),
             r.non_finite,
         );
     }
