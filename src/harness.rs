@@ -330,7 +330,11 @@ impl Session {
         for frame in 0..MAX_FRAMES {
             self.update();
             let color = self.latest[0].1.clone();
-            stable = if color.is_some() && color == previous_color { stable + 1 } else { 0 };
+            // GPU extraction: its counts come back a few frames late, and a
+            // frame that overflowed a buffer is redone once they do.
+            let extracted = self.app.world().resource::<bevy_shadow_fins::FinShadowStats>().0.up_to_date
+                || self.app.world().resource::<FinFrame>().0.is_none();
+            stable = if color.is_some() && color == previous_color && extracted { stable + 1 } else { 0 };
             previous_color = color;
             if frame + 1 >= frames.max(3) && stable >= 2 {
                 break;
@@ -351,24 +355,14 @@ impl Session {
                 let linear: Vec<[f32; 3]> = unpad_texels::<8>(w, h, color)
                     .map(|b| std::array::from_fn(|c| f16_to_f32(u16::from_le_bytes([b[2 * c], b[2 * c + 1]]))))
                     .collect();
-                let bytes = linear
-                    .iter()
-                    .map(|c| {
-                        [
-                            shadow_fins_lab::picture::srgb(c[0]),
-                            shadow_fins_lab::picture::srgb(c[1]),
-                            shadow_fins_lab::picture::srgb(c[2]),
-                            255,
-                        ]
-                    })
-                    .collect();
+                let bytes = linear.iter().map(|c| [srgb(c[0]), srgb(c[1]), srgb(c[2]), 255]).collect();
                 (bytes, linear)
             } else {
                 (unpad(w, h, color).collect(), vec![])
             };
             views.push(ViewShot { visibility, color, linear });
         }
-        let stats = self.app.world().resource::<FinFrame>().0.as_ref().map(|f| f.stats).unwrap_or_default();
+        let stats = self.app.world().resource::<bevy_shadow_fins::FinShadowStats>().0;
         let pass_times = pass_times(self.app.world());
         let first = views.remove(0);
         Ok(Shot {

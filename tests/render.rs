@@ -6,6 +6,7 @@ mod render {
     pub mod common;
     mod compositing;
     mod editor;
+    mod gpu_extraction;
     mod lab;
     mod oracle_agreement;
     mod robustness;

@@ -1,6 +1,11 @@
-//! Main world: the fin light and its casters, turned into one [`FinFrame`] by the
-//! core crate (silhouettes, patches, fins, layers, map-space casters), rebuilt
-//! only when a caster, the light or a setting changed.
+//! Main world: the fin light and its casters, turned into one [`FinFrame`],
+//! rebuilt only when a caster, the light or a setting changed.
+//!
+//! With [`FinExtraction::Gpu`] (the default) the frame holds the packed caster
+//! geometry (built once per mesh) and one transform per caster instance; the
+//! render world's compute passes do the rest. With [`FinExtraction::Cpu`] the
+//! core crate extracts silhouettes, patches, fins and layers here and the frame
+//! holds the map-space casters and fins.
 
 use std::{
     collections::HashMap,
@@ -22,7 +27,10 @@ use shadow_fins::{
     scene::{LightSpaceScene, Scene, SceneObject},
 };
 
-use crate::light::{FinLight, FinShadowSettings, NotFinShadowCaster};
+use crate::{
+    gpu_scene::{GpuCapacity, GpuMeshGeometry, GpuScene, GpuSceneBuilder},
+    light::{FinExtraction, FinLight, FinShadowSettings, NotFinShadowCaster},
+};
 
 /// Why a mesh could not be used as a caster (logged once per mesh).
 #[derive(Debug, Clone, PartialEq)]
@@ -36,6 +44,10 @@ pub enum FinSceneError {
 }
 
 /// Counts of what the current frame models.
+///
+/// With GPU extraction, silhouettes, fins and layers are read back from the
+/// GPU a few frames later; `up_to_date` says whether they belong to the latest
+/// frame. Read them from the [`FinShadowStats`] resource.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct FinFrameStats {
     pub casters: usize,
@@ -43,9 +55,16 @@ pub struct FinFrameStats {
     pub silhouettes: usize,
     pub fins: usize,
     pub layers: usize,
-    /// CPU time of extraction (silhouettes … layers, map-space casters), ms.
+    /// Main-world CPU time of building the frame, ms: the whole extraction on
+    /// the CPU path; packing instance transforms on the GPU path.
     pub extract_ms: f32,
+    /// The counts describe the current frame (always true on the CPU path).
+    pub up_to_date: bool,
 }
+
+/// What the fin light's shadows currently model (see [`FinFrameStats`]).
+#[derive(Resource, Debug, Clone, Copy, Default, PartialEq)]
+pub struct FinShadowStats(pub FinFrameStats);
 
 /// One caster triangle in light-map space (see the core's `MapTriangle`).
 #[repr(C)]
@@ -86,22 +105,31 @@ pub struct FinFrameData {
     pub(crate) near: f32,
     pub(crate) scene_extent: f32,
     pub(crate) settings: FinShadowSettings,
+    /// GPU extraction: geometry, instances and buffer capacities (`None` on the CPU path).
+    pub(crate) gpu: Option<GpuScene>,
 }
 
 /// The current fin frame (`None` without a fin light). Read `stats` for counts.
 #[derive(Resource, Clone, Default, ExtractResource)]
 pub struct FinFrame(pub Option<Arc<FinFrameData>>);
 
+type CachedMesh = Result<(Arc<CoreMesh>, Arc<Topology>, Arc<GpuMeshGeometry>), FinSceneError>;
+
 #[derive(Resource, Default)]
-struct MeshCache {
-    meshes: HashMap<AssetId<Mesh>, Result<(Arc<CoreMesh>, Arc<Topology>), FinSceneError>>,
+pub(crate) struct MeshCache {
+    meshes: HashMap<AssetId<Mesh>, CachedMesh>,
     signature: u64,
     generation: u64,
+    gpu: GpuSceneBuilder,
+    /// GPU buffer sizes, grown when a read-back says a frame overflowed them.
+    pub(crate) capacity: Option<GpuCapacity>,
+    pub(crate) capacity_epoch: u64,
 }
 
 pub(crate) fn build(app: &mut App) {
     app.init_resource::<FinFrame>()
         .init_resource::<MeshCache>()
+        .init_resource::<FinShadowStats>()
         .add_systems(PostUpdate, update_fin_frame.after(TransformSystems::Propagate));
 }
 
@@ -114,6 +142,7 @@ fn update_fin_frame(
     mut mesh_events: MessageReader<AssetEvent<Mesh>>,
     mut cache: ResMut<MeshCache>,
     mut frame: ResMut<FinFrame>,
+    mut stats: ResMut<FinShadowStats>,
 ) {
     for event in mesh_events.read() {
         if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
@@ -124,6 +153,7 @@ fn update_fin_frame(
     let Some((light, settings, light_transform)) = lights.iter().next() else {
         if frame.0.is_some() {
             frame.0 = None;
+            stats.0 = FinFrameStats::default();
         }
         return;
     };
@@ -140,6 +170,8 @@ fn update_fin_frame(
         meshes.contains(mesh.id()).hash(&mut hasher);
         hash_floats(&mut hasher, &transform.to_matrix().to_cols_array());
     }
+    // A read-back that grew the GPU buffers asks for the frame again.
+    cache.capacity_epoch.hash(&mut hasher);
     let signature = hasher.finish();
     if signature == cache.signature && frame.0.is_some() {
         return;
@@ -147,7 +179,7 @@ fn update_fin_frame(
     cache.signature = signature;
 
     let start = std::time::Instant::now();
-    let mut objects = Vec::new();
+    let (mut objects, mut gpu_meshes) = (Vec::new(), Vec::new());
     for (_, mesh3d, transform, not_caster) in &casters {
         let Some(mesh) = meshes.get(mesh3d.id()) else { continue };
         let entry = cache.meshes.entry(mesh3d.id()).or_insert_with(|| {
@@ -157,23 +189,68 @@ fn update_fin_frame(
             }
             converted
         });
-        let Ok((core, topology)) = entry else { continue };
+        let Ok((core, topology, geometry)) = entry else { continue };
         let affine = transform.affine();
         if let Ok(mut o) = SceneObject::shared("mesh", core.clone(), topology.clone(), affine) {
             // Meshes that do not cast still receive: they count for the reference plane.
             o.casts_shadows = !not_caster;
             objects.push(o);
+            gpu_meshes.push(geometry.clone());
         }
     }
-    let scene = Scene::new(objects);
     let center = light_transform.translation();
     let normal = light_transform.forward().as_vec3();
     let radius = light.effective_radius();
     let Ok(disk) = DiskLight::new(center, normal, radius) else {
         frame.0 = None;
+        stats.0 = FinFrameStats::default();
         return;
     };
     let settings = settings.clamped();
+    cache.generation += 1;
+    let data = match settings.extraction {
+        FinExtraction::Cpu => cpu_frame(Scene::new(objects), disk, settings, cache.generation, start),
+        FinExtraction::Gpu => {
+            let MeshCache { gpu, capacity, generation, .. } = &mut *cache;
+            let scene = gpu.build(&objects, &gpu_meshes, &disk, capacity);
+            let stats = FinFrameStats {
+                casters: objects.iter().filter(|o| o.casts_shadows).count(),
+                triangles: objects.iter().map(|o| o.mesh.triangle_count()).sum(),
+                extract_ms: start.elapsed().as_secs_f32() * 1e3,
+                // No caster face: the GPU runs no pass and there is nothing to read back.
+                up_to_date: scene.totals[1] == 0,
+                ..default()
+            };
+            FinFrameData {
+                generation: *generation,
+                stats,
+                casters: Vec::new(),
+                fins: Vec::new(),
+                region: MapRegion { min: Vec2::ZERO, texel: 1.0, resolution: settings.map_resolution },
+                origin: disk.center,
+                axes: scene.axes,
+                radius,
+                reference_depth: 0.0,
+                near: 0.0,
+                scene_extent: scene.extent,
+                settings,
+                gpu: Some(scene),
+            }
+        }
+    };
+    stats.0 = data.stats;
+    frame.0 = Some(Arc::new(data));
+}
+
+/// The whole extraction on the CPU with the core crate.
+fn cpu_frame(
+    scene: Scene,
+    disk: DiskLight,
+    settings: FinShadowSettings,
+    generation: u64,
+    start: std::time::Instant,
+) -> FinFrameData {
+    let radius = disk.radius;
     let ls = LightSpaceScene::new(&scene, Light::Disk(disk));
     let model = FinShadowModel::new(&scene, &ls, settings.method.into(), settings.core());
     let region = RasterMaps::covering_region(&model, settings.map_resolution);
@@ -192,7 +269,6 @@ fn update_fin_frame(
         })
         .collect();
     let fins_gpu: Vec<GpuFin> = model.fins.iter().zip(&model.fin_layers).map(|(f, &l)| gpu_fin(f, l)).collect();
-    cache.generation += 1;
     let stats = FinFrameStats {
         casters: scene.objects.iter().filter(|o| o.casts_shadows).count(),
         triangles: scene.triangle_count(),
@@ -201,9 +277,10 @@ fn update_fin_frame(
         // Nothing casts: no layer, no map, and the passes have nothing to do.
         layers: if model.casters.is_empty() && model.fins.is_empty() { 0 } else { model.plan.len() },
         extract_ms: start.elapsed().as_secs_f32() * 1e3,
+        up_to_date: true,
     };
-    frame.0 = Some(Arc::new(FinFrameData {
-        generation: cache.generation,
+    FinFrameData {
+        generation,
         stats,
         casters: casters_gpu,
         fins: fins_gpu,
@@ -215,7 +292,8 @@ fn update_fin_frame(
         near: model.near,
         scene_extent: ls.extent,
         settings,
-    }));
+        gpu: None,
+    }
 }
 
 fn hash_floats(h: &mut impl Hasher, v: &[f32]) {
@@ -241,8 +319,9 @@ fn gpu_fin(f: &Fin, layer: u32) -> GpuFin {
     }
 }
 
-/// A Bevy mesh's triangles as the core's mesh, with its topology.
-fn core_mesh(mesh: &Mesh) -> Result<(Arc<CoreMesh>, Arc<Topology>), FinSceneError> {
+/// A Bevy mesh's triangles as the core's mesh, with its topology and its
+/// packed GPU geometry.
+fn core_mesh(mesh: &Mesh) -> CachedMesh {
     if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
         return Err(FinSceneError::NotTriangles);
     }
@@ -259,5 +338,6 @@ fn core_mesh(mesh: &Mesh) -> Result<(Arc<CoreMesh>, Arc<Topology>), FinSceneErro
     };
     let core = CoreMesh::new(positions, indices).map_err(FinSceneError::Invalid)?;
     let topology = Topology::build(&core);
-    Ok((Arc::new(core), Arc::new(topology)))
+    let geometry = GpuMeshGeometry::pack(&topology);
+    Ok((Arc::new(core), Arc::new(topology), Arc::new(geometry)))
 }

@@ -26,9 +26,19 @@
 //! `OpaqueRendererMethod::Forward` are not lit by the fin light.
 //!
 //! Stages, per frame and only when something moved or a setting changed:
-//! 1. **fin extraction and layer assignment** on the CPU with the core crate
-//!    (silhouettes, patches, fins, the 1024-bin histogram cut into layers), as
-//!    the paper does;
+//! 1. **fin extraction and layer assignment** in compute passes
+//!    (`render/extract.wgsl`): per-face facing test, patches (connected
+//!    light-facing regions) by a lock-free union-find, per-edge silhouette test
+//!    appending oriented edges, fins and fans appended per silhouette edge and
+//!    vertex, the sub-layer histogram of edge depths (atomics), its prefix sum
+//!    cut at the k/N quantiles, every fin and caster given its patch's layer,
+//!    and the indirect dispatch arguments of the map passes — all on the GPU.
+//!    Caster geometry is uploaded once per mesh; when something moves only the
+//!    instance transforms go up. The counts come back a few frames later in
+//!    [`FinShadowStats`]; output buffers start at a size guessed from the
+//!    scene and grow (the frame is redone) when a read-back says a frame
+//!    needed more. [`FinExtraction::Cpu`] runs the core crate instead, as the
+//!    paper does, and is what the GPU path is tested against;
 //! 2. **penumbra maps** on the GPU: compute passes rasterise every layer's slab
 //!    depth and its inner and outer fin extremes into one storage buffer, texel
 //!    for texel the core's raster oracle;
@@ -40,16 +50,24 @@
 //!    plus the fin light's direct light (Bevy's point-light BRDF) times the
 //!    visibility, in one pass that replaces Bevy's deferred lighting pass.
 //!
+//! With no caster at all, neither extraction nor map passes run, and the
+//! visibility pass writes 1 without reading the prepass.
+//!
 //! GPU time per pass is recorded under the diagnostic paths
-//! `render/fin_shadows/penumbra_maps`, `render/fin_shadows/visibility` and
-//! `render/fin_shadows/composite` (add Bevy's `RenderDiagnosticsPlugin`).
+//! `render/fin_shadows/extraction`, `render/fin_shadows/penumbra_maps`,
+//! `render/fin_shadows/visibility` and `render/fin_shadows/composite` (add
+//! Bevy's `RenderDiagnosticsPlugin`); extraction and maps only on frames where
+//! something changed.
 
 mod extract;
+mod gpu_scene;
 mod light;
 mod render;
 
-pub use extract::{FinFrame, FinFrameStats, FinSceneError};
-pub use light::{FinLight, FinMethod, FinShadowSettings, FinShadowView, NotFinShadowCaster, NotFinShadowReceiver};
+pub use extract::{FinFrame, FinFrameStats, FinSceneError, FinShadowStats};
+pub use light::{
+    FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, NotFinShadowCaster, NotFinShadowReceiver,
+};
 pub use shadow_fins;
 
 use bevy::prelude::*;

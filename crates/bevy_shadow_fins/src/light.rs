@@ -65,6 +65,19 @@ impl From<FinMethod> for Method {
     }
 }
 
+/// Where fins are extracted and layers assigned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Reflect)]
+pub enum FinExtraction {
+    /// Compute passes (`render/extract.wgsl`): caster geometry is uploaded once
+    /// per mesh and only instance transforms when something moves; silhouettes,
+    /// patches, fins, the depth histogram and the layer cut all run on the GPU.
+    #[default]
+    Gpu,
+    /// The core crate on the CPU (the paper's split), uploading map-space
+    /// casters and fins. The reference the GPU path is tested against.
+    Cpu,
+}
+
 /// Settings of the fin light's shadows, on the [`FinLight`] entity. Every field
 /// can change at runtime and takes effect the next frame.
 ///
@@ -85,6 +98,8 @@ pub struct FinShadowSettings {
     pub falloff: Falloff,
     #[reflect(ignore)]
     pub overlap: Overlap,
+    /// GPU (default) or CPU fin extraction and layer assignment.
+    pub extraction: FinExtraction,
 }
 
 impl Default for FinShadowSettings {
@@ -98,6 +113,7 @@ impl Default for FinShadowSettings {
             refinement: core.refinement,
             falloff: core.falloff,
             overlap: core.overlap,
+            extraction: FinExtraction::Gpu,
         }
     }
 }

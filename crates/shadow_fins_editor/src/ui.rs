@@ -10,7 +10,7 @@ use bevy::{
     render::view::screenshot::{Screenshot, save_to_disk},
 };
 use bevy_egui::{EguiContexts, EguiPrimaryContextPass, egui};
-use bevy_shadow_fins::{FinFrame, FinShadowSettings};
+use bevy_shadow_fins::{FinFrame, FinShadowSettings, FinShadowStats};
 use shadow_fins::{oracle::Overlap, refine::Falloff};
 
 use crate::{
@@ -22,7 +22,7 @@ use crate::{
 };
 
 /// The passes whose GPU time the stats show, as diagnostic names.
-const PASSES: [&str; 3] = ["penumbra_maps", "visibility", "composite"];
+const PASSES: [&str; 4] = ["extraction", "penumbra_maps", "visibility", "composite"];
 
 /// Files the UI reads and writes, editable in the UI.
 #[derive(Resource)]
@@ -84,6 +84,7 @@ fn panels(
     mut settings: Query<&mut FinShadowSettings, With<EditorLight>>,
     mut paths: ResMut<FilePaths>,
     mut load: MessageWriter<LoadScene>,
+    fin_stats: Res<FinShadowStats>,
     (frame, store, truth, analysis, error, latest, history, scene): (
         Res<FinFrame>,
         Res<DiagnosticsStore>,
@@ -162,7 +163,7 @@ fn panels(
             for v in ViewKind::ALL {
                 ui.radio_value(&mut state.view, v, v.label());
             }
-            let layers = frame.0.as_ref().map_or(1, |f| f.stats.layers.max(1)) as u32;
+            let layers = fin_stats.0.layers.max(1) as u32;
             ui.add(egui::Slider::new(&mut state.layer, 0..=layers - 1).text("map layer"));
         });
     });
@@ -177,11 +178,11 @@ fn panels(
                 let t = pass_ms(&store, pass).map_or("–".into(), |ms| format!("{ms:.3} ms"));
                 ui.label(format!("{pass}: {t}"));
             }
-            if let Some(f) = frame.0.as_ref() {
-                let s = f.stats;
+            if frame.0.is_some() {
+                let s = fin_stats.0;
                 ui.label(format!("casters {} · triangles {}", s.casters, s.triangles));
                 ui.label(format!("silhouette edges {} · fins {}", s.silhouettes, s.fins));
-                ui.label(format!("layers in use {} · extraction {:.2} ms (CPU)", s.layers, s.extract_ms));
+                ui.label(format!("layers in use {} · CPU {:.2} ms", s.layers, s.extract_ms));
             }
 
             ui.separator();

@@ -37,6 +37,7 @@ use crate::{
 };
 
 mod composite;
+mod extract_gpu;
 
 pub(crate) fn build(app: &mut App) {
     load_shader_library!(app, "fin_types.wgsl");
@@ -44,6 +45,7 @@ pub(crate) fn build(app: &mut App) {
     embedded_asset!(app, "visibility.wgsl");
     app.add_plugins((ExtractResourcePlugin::<FinFrame>::default(), ExtractComponentPlugin::<FinShadowView>::default()));
     composite::build(app);
+    extract_gpu::build(app);
 }
 
 pub(crate) fn finish(app: &mut App) {
@@ -111,6 +113,7 @@ struct FinPipelines {
     casters: CachedComputePipelineId,
     fins: CachedComputePipelineId,
     visibility: CachedComputePipelineId,
+    extract: extract_gpu::ExtractPipelines,
 }
 
 fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, asset_server: Res<AssetServer>) {
@@ -157,6 +160,7 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
         casters: compute("fin_raster_casters", &maps_layout, &maps_shader, "raster_casters"),
         fins: compute("fin_raster_fins", &maps_layout, &maps_shader, "raster_fins"),
         visibility: compute("fin_visibility", &view_layout, &visibility_shader, "visibility_pass"),
+        extract: extract_gpu::ExtractPipelines::queue(&pipeline_cache, &asset_server),
         maps_layout,
         view_layout,
     });
@@ -174,6 +178,20 @@ struct FinMapsGpu {
     fins: Option<Buffer>,
     bind_group: Option<BindGroup>,
     counts: (u32, u32, u64),
+    mode: MapsSource,
+    extraction: extract_gpu::ExtractBuffers,
+}
+
+/// Where this frame's casters and fins come from.
+#[derive(Default, Clone, Copy, PartialEq, Eq)]
+enum MapsSource {
+    /// Uploaded from the CPU extraction; dispatch sizes known here.
+    #[default]
+    Cpu,
+    /// Written by the GPU extraction; dispatched indirectly.
+    Gpu,
+    /// No caster at all: no extraction, no map pass (zero layers).
+    Nothing,
 }
 
 fn params_of(f: &FinFrameData) -> FinParams {
@@ -218,50 +236,75 @@ fn prepare_maps(
         return;
     }
     let mut params = params_of(f);
+    // GPU extraction decides the layer count itself, up to the allocated capacity.
+    let layers = match &f.gpu {
+        Some(scene) => scene.capacity.layers,
+        None => f.stats.layers as u32,
+    } as u64;
     // The maps must fit the device's largest storage binding: halve the
     // resolution (over the same region) until they do.
-    let limit = device.limits().max_storage_buffer_binding_size as u64;
-    let mut resolution = f.region.resolution;
-    while f.stats.layers as u64 * (resolution as u64).pow(2) * CHANNELS * 4 > limit && resolution > 16 {
+    let limit = device.limits().max_storage_buffer_binding_size;
+    let mut resolution = f.settings.map_resolution;
+    while layers * (resolution as u64).pow(2) * CHANNELS * 4 > limit && resolution > 16 {
         resolution /= 2;
     }
-    if resolution != f.region.resolution {
+    if resolution != f.settings.map_resolution {
         warn_once!(
-            "fin shadows: {} layers at {}² exceed this GPU's storage binding limit; using {}²",
-            f.stats.layers,
-            f.region.resolution,
-            resolution
+            "fin shadows: {layers} layers at {}² exceed this GPU's storage binding limit; using {resolution}²",
+            f.settings.map_resolution,
         );
         params.counts[0] = resolution;
         params.map[2] = f.region.texel * f.region.resolution as f32 / resolution as f32;
     }
-    let texels = f.stats.layers as u64 * resolution as u64 * resolution as u64;
+    let texels = layers * resolution as u64 * resolution as u64;
     let maps_size = (texels * CHANNELS * 4).max(16);
-    fn ensure(buf: &mut Option<Buffer>, device: &RenderDevice, label: &str, size: u64, usage: BufferUsages) {
-        if buf.as_ref().is_none_or(|b| b.size() < size) {
-            // Grow by half again so a slowly growing scene does not reallocate every frame.
-            let cap = device.limits().max_storage_buffer_binding_size as u64;
-            *buf = Some(device.create_buffer(&BufferDescriptor {
-                label: Some(label),
-                size: (size + size / 2).min(cap.max(size)).max(64).next_multiple_of(16),
-                usage,
-                mapped_at_creation: false,
-            }));
-        }
-    }
     let storage = BufferUsages::STORAGE | BufferUsages::COPY_DST;
+    use extract_gpu::ensure;
     ensure(&mut gpu.params, &device, "fin_params", 128, BufferUsages::UNIFORM | BufferUsages::COPY_DST);
     ensure(&mut gpu.maps, &device, "fin_maps", maps_size, storage | BufferUsages::COPY_SRC);
-    let caster_bytes: &[u8] = bytemuck::cast_slice(&f.casters);
-    let fin_bytes: &[u8] = bytemuck::cast_slice(&f.fins);
-    ensure(&mut gpu.casters, &device, "fin_casters", caster_bytes.len().max(64) as u64, storage);
-    ensure(&mut gpu.fins, &device, "fin_fins", fin_bytes.len().max(64) as u64, storage);
-    queue.write_buffer(gpu.params.as_ref().unwrap(), 0, bytemuck::bytes_of(&params));
-    if !caster_bytes.is_empty() {
-        queue.write_buffer(gpu.casters.as_ref().unwrap(), 0, caster_bytes);
-    }
-    if !fin_bytes.is_empty() {
-        queue.write_buffer(gpu.fins.as_ref().unwrap(), 0, fin_bytes);
+    let (caster_bytes, fin_bytes) = match &f.gpu {
+        Some(scene) => (
+            scene.capacity.casters as u64 * extract_gpu::CASTER_BYTES,
+            scene.capacity.fins as u64 * extract_gpu::FIN_BYTES,
+        ),
+        None => (size_of_val(f.casters.as_slice()) as u64, size_of_val(f.fins.as_slice()) as u64),
+    };
+    ensure(&mut gpu.casters, &device, "fin_casters", caster_bytes.max(64), storage);
+    ensure(&mut gpu.fins, &device, "fin_fins", fin_bytes.max(64), storage);
+    gpu.mode = match &f.gpu {
+        None => MapsSource::Cpu,
+        Some(scene) if scene.totals[1] == 0 => MapsSource::Nothing,
+        Some(_) => MapsSource::Gpu,
+    };
+    match (&f.gpu, gpu.mode) {
+        (Some(scene), MapsSource::Gpu) => {
+            let FinMapsGpu { extraction, fins, casters, .. } = &mut *gpu;
+            extract_gpu::prepare(
+                extraction,
+                f,
+                scene,
+                resolution,
+                fins.as_ref().unwrap(),
+                casters.as_ref().unwrap(),
+                &pipelines.extract,
+                &pipeline_cache,
+                &device,
+                &queue,
+            );
+        }
+        _ => {
+            // CPU extraction (or nothing to extract): the parameters are known here.
+            if gpu.mode == MapsSource::Nothing {
+                params.counts = [resolution, 0, 0, 0];
+            }
+            queue.write_buffer(gpu.params.as_ref().unwrap(), 0, bytemuck::bytes_of(&params));
+            if !f.casters.is_empty() {
+                queue.write_buffer(gpu.casters.as_ref().unwrap(), 0, bytemuck::cast_slice(&f.casters));
+            }
+            if !f.fins.is_empty() {
+                queue.write_buffer(gpu.fins.as_ref().unwrap(), 0, bytemuck::cast_slice(&f.fins));
+            }
+        }
     }
     gpu.bind_group = Some(device.create_bind_group(
         "fin_maps_bind_group",
@@ -283,11 +326,14 @@ fn workgroups(n: u32) -> (u32, u32) {
     if n <= 65535 { (n, 1) } else { (65535, n.div_ceil(65535)) }
 }
 
-/// Renders every layer's maps: clear, casters (slab depths), fins (keys).
+/// Extracts fins on the GPU when that is the source, then renders every
+/// layer's maps: clear, casters (slab depths), fins (keys).
 fn render_maps(
     mut gpu: ResMut<FinMapsGpu>,
     pipelines: Option<Res<FinPipelines>>,
     pipeline_cache: Res<PipelineCache>,
+    stats_handle: Option<Res<extract_gpu::FinStatsBuffer>>,
+    shader_buffers: Res<RenderAssets<bevy::render::storage::GpuShaderBuffer>>,
     mut ctx: RenderContext,
 ) {
     if !gpu.dirty {
@@ -304,6 +350,49 @@ fn render_maps(
     let (n_casters, n_fins, texels) = gpu.counts;
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
+    match gpu.mode {
+        MapsSource::Nothing => {
+            gpu.dirty = false;
+            return;
+        }
+        MapsSource::Gpu => {
+            let (Some(params), Some(control)) = (gpu.params.as_ref(), gpu.extraction.indirect.as_ref()) else { return };
+            let stats = extract_gpu::stats_buffer(stats_handle.as_deref(), &shader_buffers);
+            let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/extraction");
+            let recorded = extract_gpu::record(
+                &gpu.extraction,
+                &pipelines.extract,
+                &pipeline_cache,
+                params,
+                stats,
+                ctx.command_encoder(),
+            );
+            span.end(ctx.command_encoder());
+            if !recorded {
+                return;
+            }
+            let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/penumbra_maps");
+            {
+                let mut pass = ctx.command_encoder().begin_compute_pass(&ComputePassDescriptor {
+                    label: Some("fin_penumbra_maps"),
+                    timestamp_writes: None,
+                });
+                pass.set_bind_group(0, &bind_group, &[]);
+                for (pipeline, args) in [
+                    (clear, extract_gpu::C_ARGS_CLEAR),
+                    (casters, extract_gpu::C_ARGS_CASTERS),
+                    (fins, extract_gpu::C_ARGS_FINS),
+                ] {
+                    pass.set_pipeline(pipeline);
+                    pass.dispatch_workgroups_indirect(control, args * 4);
+                }
+            }
+            span.end(ctx.command_encoder());
+            gpu.dirty = false;
+            return;
+        }
+        MapsSource::Cpu => {}
+    }
     let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/penumbra_maps");
     {
         let mut pass = ctx
@@ -353,7 +442,9 @@ fn prepare_view_textures(
     views: Query<(Entity, &ExtractedCamera), With<FinShadowView>>,
 ) {
     for (entity, camera) in &views {
-        let Some(size) = camera.physical_viewport_size else { continue };
+        // Target-sized like the prepass textures, so that a camera with a
+        // `Camera::viewport` reads and writes at the same (target) pixels.
+        let Some(size) = camera.physical_target_size else { continue };
         let texture = cache.get(
             &device,
             TextureDescriptor {

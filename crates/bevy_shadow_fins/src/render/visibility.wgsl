@@ -87,8 +87,9 @@ fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let pixel = vec2<i32>(id.xy);
     let depth = textureLoad(depth_prepass, pixel, 0);
-    if (depth <= 0.0) {
-        // Background (reverse-Z far plane): fully lit.
+    // No layer (nothing casts) or background (reverse-Z far plane): fully lit.
+    // The light's own half-space test is the compositing pass's.
+    if (params.counts.y == 0u || depth <= 0.0) {
         textureStore(visibility, pixel, vec4<f32>(1.0));
         return;
     }

@@ -1,0 +1,318 @@
+//! Main world side of GPU fin extraction: caster geometry packed once per mesh
+//! for `render/extract.wgsl`, and one small record per caster instance (its
+//! transform into the light frame) rebuilt when something moves.
+
+use std::{
+    collections::HashMap,
+    hash::{Hash, Hasher},
+    sync::Arc,
+};
+
+use bevy::prelude::*;
+use shadow_fins::{
+    light::{DiskLight, LightFrame},
+    mesh::{NO_FACE, Topology},
+    scene::{LightInObject, ObjectToFrame, SceneObject},
+};
+
+/// Word offsets of a packed mesh's header (`G_*` in `extract.wgsl`):
+/// vertex count, face count, edge count, then where the faces, vertices,
+/// edges, vertex → edge lists and non-manifold face lists start.
+const HEADER_WORDS: usize = 8;
+const EDGE_FORWARD0: u32 = 1;
+const EDGE_FORWARD1: u32 = 2;
+const EDGE_CREASE: u32 = 4;
+const EDGE_NON_MANIFOLD: u32 = 8;
+
+/// One mesh's light-independent topology as `u32` words (floats as bits):
+/// - vertices: position, area-weighted normal (6 words);
+/// - faces: three vertex ids, plane normal and offset (7 words);
+/// - edges (one- and two-face, then non-manifold): `v0, v1, f0, f1, flags`;
+///   a non-manifold edge has the offset and length of its face list instead of
+///   `f0, f1`;
+/// - per vertex the edges at it (CSR), which the fin pass walks to find the
+///   silhouette edges meeting at a silhouette vertex;
+/// - non-manifold face lists: `face | forward << 31`.
+#[derive(Debug)]
+pub(crate) struct GpuMeshGeometry {
+    pub words: Vec<u32>,
+    pub vertices: u32,
+    pub faces: u32,
+    pub edges: u32,
+    pub closed: bool,
+    /// Object-space bounds (for the scene extent without touching vertices).
+    pub bounds: (Vec3, Vec3),
+}
+
+impl GpuMeshGeometry {
+    pub fn pack(t: &Topology) -> Self {
+        let (v, f) = (t.positions.len(), t.faces.len());
+        let e = t.edges.len() + t.non_manifold_edges.len();
+        let mut w = vec![0u32; HEADER_WORDS];
+        let bits = |x: f32| x.to_bits();
+
+        let faces_at = w.len();
+        for (face, (n, d)) in t.faces.iter().zip(&t.face_planes) {
+            w.extend_from_slice(face);
+            w.extend([bits(n.x), bits(n.y), bits(n.z), bits(*d)]);
+        }
+        let vertices_at = w.len();
+        for (p, n) in t.positions.iter().zip(&t.vertex_normals) {
+            w.extend([p.x, p.y, p.z, n.x, n.y, n.z].map(bits));
+        }
+        let edges_at = w.len();
+        let mut non_manifold = Vec::new();
+        for (edge, &crease) in t.edges.iter().zip(&t.crease) {
+            let flags = if edge.forward[0] { EDGE_FORWARD0 } else { 0 }
+                | if edge.forward[1] { EDGE_FORWARD1 } else { 0 }
+                | if crease { EDGE_CREASE } else { 0 };
+            let f1 = if edge.faces[1] == NO_FACE { u32::MAX } else { edge.faces[1] };
+            w.extend([edge.vertices[0], edge.vertices[1], edge.faces[0], f1, flags]);
+        }
+        for edge in &t.non_manifold_edges {
+            w.extend([
+                edge.vertices[0],
+                edge.vertices[1],
+                non_manifold.len() as u32,
+                edge.faces.len() as u32,
+                EDGE_NON_MANIFOLD | EDGE_CREASE,
+            ]);
+            non_manifold.extend(edge.faces.iter().map(|&(face, forward)| face | (forward as u32) << 31));
+        }
+        // Vertex → edge lists (CSR): starts (v + 1 words), then the edge ids.
+        let csr_at = w.len();
+        let mut degree = vec![0u32; v + 1];
+        let endpoints: Vec<[u32; 2]> =
+            t.edges.iter().map(|e| e.vertices).chain(t.non_manifold_edges.iter().map(|e| e.vertices)).collect();
+        for ends in &endpoints {
+            for &x in ends {
+                degree[x as usize + 1] += 1;
+            }
+        }
+        for i in 0..v {
+            degree[i + 1] += degree[i];
+        }
+        let mut fill = degree.clone();
+        let mut list = vec![0u32; endpoints.len() * 2];
+        for (edge, ends) in endpoints.iter().enumerate() {
+            for &x in ends {
+                list[fill[x as usize] as usize] = edge as u32;
+                fill[x as usize] += 1;
+            }
+        }
+        w.extend(&degree);
+        w.extend(&list);
+        let non_manifold_at = w.len();
+        w.extend(&non_manifold);
+        w[..HEADER_WORDS].copy_from_slice(&[
+            v as u32,
+            f as u32,
+            e as u32,
+            faces_at as u32,
+            vertices_at as u32,
+            edges_at as u32,
+            csr_at as u32,
+            non_manifold_at as u32,
+        ]);
+        let bounds =
+            t.positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+        Self { words: w, vertices: v as u32, faces: f as u32, edges: e as u32, closed: t.is_closed_manifold(), bounds }
+    }
+}
+
+/// One caster instance, the layout of `Instance` in `extract.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct GpuInstance {
+    linear: [[f32; 4]; 3],
+    translation: [f32; 4],
+    normal: [[f32; 4]; 3],
+    light: [f32; 4],
+    /// (geometry word offset, first vertex, first caster face, first caster edge)
+    ids: [u32; 4],
+    /// (flags 1 casts / 2 closed / 4 mirrors, vertices, caster faces, caster edges)
+    info: [u32; 4],
+}
+
+/// Sizes of the GPU extraction's output buffers. They start from the scene's
+/// size and grow when a read-back shows a frame needed more (see
+/// `FinShadowStats`); they never shrink.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub(crate) struct GpuCapacity {
+    pub silhouettes: u32,
+    pub fins: u32,
+    pub casters: u32,
+    /// Layers the maps are allocated for.
+    pub layers: u32,
+}
+
+impl GpuCapacity {
+    /// A first guess for a scene: silhouettes are a small share of its edges.
+    fn initial(faces: u32, edges: u32) -> Self {
+        let silhouettes = edges.min(4096 + edges / 16).max(64);
+        Self { silhouettes, fins: 4 * silhouettes + 64, casters: faces + faces / 8 + 64, layers: 1 }
+    }
+
+    fn max(self, o: Self) -> Self {
+        Self {
+            silhouettes: self.silhouettes.max(o.silhouettes),
+            fins: self.fins.max(o.fins),
+            casters: self.casters.max(o.casters),
+            layers: self.layers.max(o.layers),
+        }
+    }
+
+    /// Grown to hold what a read-back says a frame wanted; `None` if it fits.
+    pub fn grown_for(self, wanted: Self) -> Option<Self> {
+        let grow = |have: u32, want: u32| if want > have { want + want / 2 } else { have };
+        let next = Self {
+            silhouettes: grow(self.silhouettes, wanted.silhouettes),
+            fins: grow(self.fins, wanted.fins),
+            casters: grow(self.casters, wanted.casters),
+            // Layers exactly: each one is a full set of maps.
+            layers: self.layers.max(wanted.layers),
+        };
+        (next != self).then_some(next)
+    }
+}
+
+/// Everything the GPU extraction needs for one frame.
+#[derive(Debug)]
+pub(crate) struct GpuScene {
+    /// Every caster mesh's packed geometry, concatenated; replaced only when
+    /// the set of meshes changes (`geometry_key`).
+    pub geometry: Arc<Vec<u32>>,
+    pub geometry_key: u64,
+    pub instances: Vec<GpuInstance>,
+    /// (instance vertices, caster faces, caster edges)
+    pub totals: [u32; 3],
+    pub capacity: GpuCapacity,
+    pub axes: [Vec3; 3],
+    /// World-space diagonal of the scene's bounds (epsilons; L0 when nothing is in front).
+    pub extent: f32,
+}
+
+/// Builds [`GpuScene`]s, keeping the concatenated geometry between frames.
+#[derive(Debug, Default)]
+pub(crate) struct GpuSceneBuilder {
+    geometry: Arc<Vec<u32>>,
+    geometry_key: u64,
+    offsets: HashMap<usize, u32>,
+}
+
+impl GpuSceneBuilder {
+    pub fn build(
+        &mut self,
+        objects: &[SceneObject],
+        meshes: &[Arc<GpuMeshGeometry>],
+        disk: &DiskLight,
+        capacity: &mut Option<GpuCapacity>,
+    ) -> GpuScene {
+        // The distinct meshes in first-use order; re-pack only when that list changes.
+        let mut distinct: Vec<&Arc<GpuMeshGeometry>> = Vec::new();
+        let mut hasher = std::collections::hash_map::DefaultHasher::new();
+        for m in meshes {
+            if !distinct.iter().any(|d| Arc::ptr_eq(d, m)) {
+                distinct.push(m);
+                (Arc::as_ptr(m) as usize).hash(&mut hasher);
+            }
+        }
+        let key = hasher.finish();
+        if key != self.geometry_key || self.geometry.is_empty() {
+            let mut words = Vec::with_capacity(distinct.iter().map(|d| d.words.len()).sum());
+            self.offsets.clear();
+            for d in &distinct {
+                self.offsets.insert(Arc::as_ptr(d) as usize, words.len() as u32);
+                words.extend_from_slice(&d.words);
+            }
+            // A binding may not be empty.
+            words.resize(words.len().max(HEADER_WORDS), 0);
+            self.geometry = Arc::new(words);
+            self.geometry_key = key;
+        }
+
+        let frame = LightFrame::disk(disk);
+        let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        let mut instances = Vec::with_capacity(objects.len());
+        let (mut vertices, mut faces, mut edges) = (0u32, 0u32, 0u32);
+        for (object, mesh) in objects.iter().zip(meshes) {
+            let to_frame = ObjectToFrame::new(object, &frame);
+            let LightInObject::Point(light) = to_frame.light_in_object(&frame) else { continue };
+            let c = to_frame.linear;
+            let sign = if to_frame.mirrors { -1.0 } else { 1.0 };
+            let cofactor = [c.y_axis.cross(c.z_axis), c.z_axis.cross(c.x_axis), c.x_axis.cross(c.y_axis)];
+            let v4 = |v: Vec3| [v.x, v.y, v.z, 0.0];
+            let casts = object.casts_shadows;
+            let (f, e) = if casts { (mesh.faces, mesh.edges) } else { (0, 0) };
+            let flags = casts as u32 | (mesh.closed as u32) << 1 | (to_frame.mirrors as u32) << 2;
+            instances.push(GpuInstance {
+                linear: [v4(c.x_axis), v4(c.y_axis), v4(c.z_axis)],
+                translation: v4(to_frame.translation),
+                normal: cofactor.map(|n| v4(n * sign)),
+                light: v4(light),
+                ids: [self.offsets[&(Arc::as_ptr(mesh) as usize)], vertices, faces, edges],
+                info: [flags, mesh.vertices, f, e],
+            });
+            vertices += mesh.vertices;
+            faces += f;
+            edges += e;
+            let (a, b) = mesh.bounds;
+            for k in 0..8 {
+                let corner = Vec3::new(
+                    if k & 1 == 0 { a.x } else { b.x },
+                    if k & 2 == 0 { a.y } else { b.y },
+                    if k & 4 == 0 { a.z } else { b.z },
+                );
+                let w = object.transform.transform_point3(corner);
+                lo = lo.min(w);
+                hi = hi.max(w);
+            }
+        }
+        let extent = if lo.x <= hi.x { (hi - lo).length().max(1e-30) } else { 1.0 };
+        let needed = GpuCapacity::initial(faces, edges);
+        let capacity = *capacity.insert(capacity.map_or(needed, |c| c.max(GpuCapacity { layers: 1, ..needed })));
+        GpuScene {
+            geometry: self.geometry.clone(),
+            geometry_key: self.geometry_key,
+            instances,
+            totals: [vertices, faces, edges],
+            capacity,
+            axes: frame.axes(),
+            extent,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use shadow_fins::shapes;
+
+    #[test]
+    fn capacity_grows_past_what_a_frame_wanted_and_never_shrinks() {
+        let have = GpuCapacity { silhouettes: 100, fins: 400, casters: 1000, layers: 2 };
+        assert_eq!(have.grown_for(GpuCapacity { silhouettes: 100, fins: 10, casters: 0, layers: 2 }), None);
+        let grown = have.grown_for(GpuCapacity { silhouettes: 300, fins: 10, casters: 0, layers: 5 }).unwrap();
+        assert_eq!(grown, GpuCapacity { silhouettes: 450, fins: 400, casters: 1000, layers: 5 });
+    }
+
+    #[test]
+    fn packed_geometry_lists_every_edge_at_both_its_vertices() {
+        let topology = Topology::build(&shapes::cuboid(Vec3::ONE));
+        let g = GpuMeshGeometry::pack(&topology);
+        let [v, f, e, faces_at, _, edges_at, csr_at, _] = std::array::from_fn(|i| g.words[i] as usize);
+        assert_eq!((v, f, e), (8, 12, 18));
+        assert!(g.closed);
+        assert_eq!(g.words[faces_at..faces_at + 3], topology.faces[0]);
+        for edge in 0..e {
+            let ends = &g.words[edges_at + 5 * edge..edges_at + 5 * edge + 2];
+            for &x in ends {
+                let (start, end) = (g.words[csr_at + x as usize], g.words[csr_at + x as usize + 1]);
+                let list = &g.words[csr_at + v + 1 + start as usize..csr_at + v + 1 + end as usize];
+                assert!(list.contains(&(edge as u32)), "edge {edge} missing at vertex {x}");
+            }
+        }
+        // A closed box: every vertex has three or more edges, 2·18 entries in all.
+        assert_eq!(g.words[csr_at + v] as usize, 2 * e);
+    }
+}

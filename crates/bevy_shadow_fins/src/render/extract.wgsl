@@ -1,0 +1,926 @@
+// Fin extraction and layer assignment on the GPU (Cai et al. §3.1 and §4.1),
+// the same semantics as the core crate's `FinExtractor` (silhouette.rs,
+// fins.rs, layers.rs), stage for stage:
+//
+//  1. transform_vertices   every vertex into the light frame; deepest depth → L0
+//  2. classify_faces       facing test against the light in object space
+//  3. join_patches         patches = connected light-facing regions: lock-free
+//                          union-find over non-silhouette edges
+//  4. flatten_patches      every face points at its patch_id's root
+//  5. find_silhouettes     per-edge silhouette test, oriented edges appended
+//  6. silhouette_args      indirect dispatch sizes for the silhouette passes
+//  7. silhouette_vertices  histogram of edge depths over the sub-layers; per
+//                          silhouette vertex: smooth end directions, fans,
+//                          caps, junction sectors (one owner thread per vertex)
+//  8. silhouette_quads     inner and outer quads of every silhouette edge
+//  9. map_casters          light-facing faces clipped at the near plane, in map space
+// 10. plan_layers          prefix sum of the histogram cut at the k/N
+//                          quantiles; map region; the maps' parameters and
+//                          indirect arguments
+// 11. assign_*_layers      every fin and caster to its patch_id's layer
+//
+// Caster geometry (`geometry`) is uploaded once per mesh; only `instances`
+// (object → light-frame transforms) change when something moves.
+#import bevy_shadow_fins::fin_types::cross2
+
+struct ExtractParams {
+    // (instances, instance vertices, caster faces, caster edges)
+    totals: vec4<u32>,
+    // (sub-layers S, layers N, layer capacity, map resolution)
+    layering: vec4<u32>,
+    // (silhouette capacity, fin capacity, caster capacity, method 0 hard 1 outer-fins 2 single 3 multi)
+    capacity: vec4<u32>,
+    // (light radius R, scene extent, unused, unused)
+    light: vec4<f32>,
+    // (refinement, falloff, overlap, generation)
+    flags: vec4<u32>,
+    origin: vec4<f32>,
+    axis_u: vec4<f32>,
+    axis_v: vec4<f32>,
+    axis_n: vec4<f32>,
+}
+
+struct Instance {
+    // Object → light frame: linear part (columns) and translation.
+    linear0: vec4<f32>,
+    linear1: vec4<f32>,
+    linear2: vec4<f32>,
+    translation: vec4<f32>,
+    // Normals: cofactor matrix (columns), sign-corrected for mirroring transforms.
+    normal0: vec4<f32>,
+    normal1: vec4<f32>,
+    normal2: vec4<f32>,
+    // The light centre in object space (for the facing test).
+    light: vec4<f32>,
+    // (geometry word offset, first vertex, first caster face, first caster edge)
+    ids: vec4<u32>,
+    // (flags: 1 casts, 2 closed mesh, 4 mirrors; vertices; caster faces; caster edges)
+    info: vec4<u32>,
+}
+
+struct Silhouette {
+    a: vec4<f32>,
+    b: vec4<f32>,
+    normal_a: vec4<f32>,
+    normal_b: vec4<f32>,
+    // (instance, local vertex a, local vertex b, patch_id)
+    ids: vec4<u32>,
+    // (crease, unused, unused, unused)
+    info: vec4<u32>,
+    // Fin directions at a (xy) and b (zw); zero when degenerate.
+    dirs: vec4<f32>,
+}
+
+struct Fin {
+    header: vec4<u32>,
+    data: array<f32, 12>,
+}
+
+struct Caster {
+    corners: array<f32, 6>,
+    normal: array<f32, 3>,
+    offset: f32,
+    min_depth: f32,
+    max_depth: f32,
+    layer: u32,
+    pad: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: ExtractParams;
+@group(0) @binding(1) var<storage, read> instances: array<Instance>;
+@group(0) @binding(2) var<storage, read> geometry: array<u32>;
+@group(0) @binding(3) var<storage, read_write> control: array<atomic<u32>>;
+@group(0) @binding(4) var<storage, read_write> state: array<atomic<u32>>;
+@group(0) @binding(5) var<storage, read_write> positions: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read_write> silhouettes: array<Silhouette>;
+@group(0) @binding(7) var<storage, read_write> fins: array<Fin>;
+@group(0) @binding(8) var<storage, read_write> casters: array<Caster>;
+
+// `control` layout (u32 words). Keep in sync with `render/extract_gpu.rs`.
+const C_SILHOUETTES: u32 = 0u;
+const C_FINS: u32 = 1u;
+const C_CASTERS: u32 = 2u;
+const C_DEPTH_MIN: u32 = 3u;
+const C_DEPTH_MAX: u32 = 4u;
+const C_DEEPEST: u32 = 5u;
+const C_REGION: u32 = 6u; // min x, min y (ordered-key minima), max x, max y (maxima)
+const C_LAYERS_WANTED: u32 = 10u;
+const C_GENERATION: u32 = 11u;
+const C_LAYERS: u32 = 12u;
+const C_HEADER: u32 = 16u;
+const C_PARAMS: u32 = 16u; // 32 words: the maps' `FinParams`
+const C_ARGS_CLEAR: u32 = 48u;
+const C_ARGS_CASTERS: u32 = 51u;
+const C_ARGS_FINS: u32 = 54u;
+const C_ARGS_SILHOUETTES: u32 = 57u;
+const C_ARGS_FIN_THREADS: u32 = 60u;
+const C_ARGS_CASTER_THREADS: u32 = 63u;
+const C_PLANES: u32 = 66u; // count, then up to 31 planes
+const C_HISTOGRAM: u32 = 128u;
+
+// `state` per caster face: parent (union-find), flags (1 facing, 2 in the
+// maps), and the patch_id's silhouette-depth sum (64-bit fixed point) and count
+// at its root; then per caster edge its silhouette index.
+const FACE_WORDS: u32 = 5u;
+const FACING: u32 = 1u;
+const IN_MAPS: u32 = 2u;
+const NONE: u32 = 0xffffffffu;
+const FIXED_ONE: f32 = 4194304.0; // 2^22
+
+const WORKGROUP: u32 = 64u;
+const MAX_GROUPS_X: u32 = 65535u;
+
+// Geometry blob header (relative word offsets), see `GpuMeshGeometry`.
+const G_VERTICES: u32 = 0u;
+const G_FACES_AT: u32 = 3u;
+const G_VERTICES_AT: u32 = 4u;
+const G_EDGES_AT: u32 = 5u;
+const G_CSR_AT: u32 = 6u;
+const G_NON_MANIFOLD_AT: u32 = 7u;
+const EDGE_BACK_FACE_MISSING: u32 = 0xffffffffu;
+const EDGE_FORWARD0: u32 = 1u;
+const EDGE_FORWARD1: u32 = 2u;
+const EDGE_CREASE: u32 = 4u;
+const EDGE_NON_MANIFOLD: u32 = 8u;
+
+fn thread_index(wg: vec3<u32>, lane: u32) -> u32 {
+    return (wg.y * MAX_GROUPS_X + wg.x) * WORKGROUP + lane;
+}
+
+// Floats as u32 keys whose unsigned order is the float order (atomic min/max).
+fn order_key(f: f32) -> u32 {
+    let b = bitcast<u32>(f);
+    return select(b | 0x80000000u, ~b, (b & 0x80000000u) != 0u);
+}
+
+fn order_value(k: u32) -> f32 {
+    return bitcast<f32>(select(~k, k & 0x7fffffffu, (k & 0x80000000u) != 0u));
+}
+
+fn finite(x: f32) -> bool {
+    return x == x && abs(x) <= 3.0e38;
+}
+
+// The instance whose range (`which`: 1 vertices, 2 faces, 3 edges) holds item i:
+// the last one whose first item is ≤ i.
+fn instance_of(i: u32, which: u32) -> u32 {
+    var lo = 0u;
+    var hi = params.totals.x;
+    while (hi - lo > 1u) {
+        let mid = (lo + hi) / 2u;
+        if (instances[mid].ids[which] <= i) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    return lo;
+}
+
+fn g(inst: Instance, word: u32) -> u32 {
+    return geometry[inst.ids.x + word];
+}
+
+fn gf(inst: Instance, word: u32) -> f32 {
+    return bitcast<f32>(geometry[inst.ids.x + word]);
+}
+
+fn vertex_position(inst: Instance, v: u32) -> vec3<f32> {
+    let at = g(inst, G_VERTICES_AT) + 6u * v;
+    return vec3<f32>(gf(inst, at), gf(inst, at + 1u), gf(inst, at + 2u));
+}
+
+fn vertex_normal_in_frame(inst: Instance, v: u32) -> vec3<f32> {
+    let at = g(inst, G_VERTICES_AT) + 6u * v + 3u;
+    let n = vec3<f32>(gf(inst, at), gf(inst, at + 1u), gf(inst, at + 2u));
+    return inst.normal0.xyz * n.x + inst.normal1.xyz * n.y + inst.normal2.xyz * n.z;
+}
+
+fn frame_position(inst: Instance, v: u32) -> vec3<f32> {
+    return positions[inst.ids.y + v].xyz;
+}
+
+fn reference_depth() -> f32 {
+    let deepest = order_value(atomicLoad(&control[C_DEEPEST]));
+    return select(params.light.y, deepest, deepest > 0.0);
+}
+
+fn near_depth() -> f32 {
+    return reference_depth() * 1e-5;
+}
+
+// `LightFrame::map` and `map_direction` (disk light: perspective).
+fn map_point(p: vec3<f32>) -> vec2<f32> {
+    return p.xy / p.z;
+}
+
+fn map_direction(p: vec3<f32>, d: vec3<f32>) -> vec2<f32> {
+    return (d.xy - p.xy / p.z * d.z) / p.z;
+}
+
+// Penumbra half-width on the reference plane, map units (eq. 3).
+fn fin_width(z: f32) -> f32 {
+    let w = params.light.x * (1.0 / z - 1.0 / reference_depth());
+    return select(0.0, w, w > 0.0);
+}
+
+// Unit vector, or zero when it has no direction (the core's `normalize_or(NAN)`).
+fn direction(v: vec2<f32>) -> vec2<f32> {
+    let l = length(v);
+    if (!(l > 0.0) || !finite(l)) {
+        return vec2<f32>(0.0);
+    }
+    return v / l;
+}
+
+fn valid(d: vec2<f32>) -> bool {
+    return dot(d, d) > 0.0;
+}
+
+fn grow_region(lo: vec2<f32>, hi: vec2<f32>) {
+    if (!(finite(lo.x) && finite(lo.y) && finite(hi.x) && finite(hi.y))) {
+        return;
+    }
+    atomicMin(&control[C_REGION], order_key(lo.x));
+    atomicMin(&control[C_REGION + 1u], order_key(lo.y));
+    atomicMax(&control[C_REGION + 2u], order_key(hi.x));
+    atomicMax(&control[C_REGION + 3u], order_key(hi.y));
+}
+
+// ---------------------------------------------------------------- 0. reset
+
+@compute @workgroup_size(64, 1, 1)
+fn reset(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (i < C_HISTOGRAM) {
+        var value = 0u;
+        if (i == C_DEPTH_MIN || i == C_REGION || i == C_REGION + 1u) {
+            value = 0xffffffffu;
+        }
+        atomicStore(&control[i], value);
+    } else if (i < C_HISTOGRAM + params.layering.x) {
+        atomicStore(&control[i], 0u);
+    }
+}
+
+// ---------------------------------------------------------------- 1. vertices
+
+@compute @workgroup_size(64, 1, 1)
+fn transform_vertices(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (i >= params.totals.y) {
+        return;
+    }
+    let inst = instances[instance_of(i, 1u)];
+    let p = vertex_position(inst, i - inst.ids.y);
+    let q = inst.linear0.xyz * p.x + inst.linear1.xyz * p.y + inst.linear2.xyz * p.z + inst.translation.xyz;
+    positions[i] = vec4<f32>(q, 1.0);
+    // L0 is the deepest receiver; every mesh receives.
+    atomicMax(&control[C_DEEPEST], order_key(q.z));
+}
+
+// ---------------------------------------------------------------- 2. facing
+
+@compute @workgroup_size(64, 1, 1)
+fn classify_faces(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (i >= params.totals.z) {
+        return;
+    }
+    let inst = instances[instance_of(i, 2u)];
+    let at = g(inst, G_FACES_AT) + 7u * (i - inst.ids.z);
+    let n = vec3<f32>(gf(inst, at + 3u), gf(inst, at + 4u), gf(inst, at + 5u));
+    let facing = (dot(n, inst.light.xyz) > gf(inst, at + 6u)) != ((inst.info.x & 4u) != 0u);
+    // Back faces of closed meshes stay out of the maps.
+    let in_maps = facing || (inst.info.x & 2u) == 0u;
+    let s = FACE_WORDS * i;
+    atomicStore(&state[s], select(NONE, i, in_maps));
+    atomicStore(&state[s + 1u], select(0u, FACING, facing) | select(0u, IN_MAPS, in_maps));
+    atomicStore(&state[s + 2u], 0u);
+    atomicStore(&state[s + 3u], 0u);
+    atomicStore(&state[s + 4u], 0u);
+}
+
+// ---------------------------------------------------------------- 3./4. patches
+
+fn find_root(x: u32) -> u32 {
+    var r = x;
+    for (var guard = 0u; guard < 1000000u; guard++) {
+        let p = atomicLoad(&state[FACE_WORDS * r]);
+        if (p == r || p == NONE) {
+            break;
+        }
+        r = p;
+    }
+    return r;
+}
+
+// Hooks the larger root under the smaller one (so no cycle can form).
+fn join(a: u32, b: u32) {
+    var ra = a;
+    var rb = b;
+    for (var guard = 0u; guard < 1000000u; guard++) {
+        ra = find_root(ra);
+        rb = find_root(rb);
+        if (ra == rb) {
+            return;
+        }
+        if (ra < rb) {
+            let t = ra;
+            ra = rb;
+            rb = t;
+        }
+        if (atomicCompareExchangeWeak(&state[FACE_WORDS * ra], ra, rb).exchanged) {
+            return;
+        }
+    }
+}
+
+fn edge_at(inst: Instance, e: u32) -> u32 {
+    return g(inst, G_EDGES_AT) + 5u * e;
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn join_patches(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (i >= params.totals.w) {
+        return;
+    }
+    let inst = instances[instance_of(i, 3u)];
+    let at = edge_at(inst, i - inst.ids.w);
+    let f1 = g(inst, at + 3u);
+    if ((g(inst, at + 4u) & EDGE_NON_MANIFOLD) != 0u || f1 == EDGE_BACK_FACE_MISSING) {
+        return;
+    }
+    let a = inst.ids.z + g(inst, at + 2u);
+    let b = inst.ids.z + f1;
+    let sa = atomicLoad(&state[FACE_WORDS * a + 1u]);
+    let sb = atomicLoad(&state[FACE_WORDS * b + 1u]);
+    if ((sa & IN_MAPS) != 0u && (sb & IN_MAPS) != 0u && (sa & FACING) == (sb & FACING)) {
+        join(a, b);
+    }
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn flatten_patches(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (i >= params.totals.z || atomicLoad(&state[FACE_WORDS * i]) == NONE) {
+        return;
+    }
+    atomicStore(&state[FACE_WORDS * i], find_root(i));
+}
+
+// ---------------------------------------------------------------- 5. silhouettes
+
+fn facing_face(f: u32) -> bool {
+    return (atomicLoad(&state[FACE_WORDS * f + 1u]) & FACING) != 0u;
+}
+
+fn edge_silhouette_slot(edge: u32) -> u32 {
+    return FACE_WORDS * params.totals.z + edge;
+}
+
+fn emit_silhouette(k: u32, inst: Instance, edge: u32, v0: u32, v1: u32, forward: bool, face: u32, crease: bool) {
+    let va = select(v1, v0, forward);
+    let vb = select(v0, v1, forward);
+    let a = frame_position(inst, va);
+    let b = frame_position(inst, vb);
+    let patch_id = atomicLoad(&state[FACE_WORDS * (inst.ids.z + face)]);
+    let index = atomicAdd(&control[C_SILHOUETTES], 1u);
+    if (index >= params.capacity.x) {
+        atomicStore(&state[edge_silhouette_slot(edge)], NONE);
+        return;
+    }
+    silhouettes[index] = Silhouette(
+        vec4<f32>(a, 0.0),
+        vec4<f32>(b, 0.0),
+        vec4<f32>(vertex_normal_in_frame(inst, va), 0.0),
+        vec4<f32>(vertex_normal_in_frame(inst, vb), 0.0),
+        vec4<u32>(k, va, vb, patch_id),
+        vec4<u32>(select(0u, 1u, crease), 0u, 0u, 0u),
+        vec4<f32>(0.0),
+    );
+    atomicStore(&state[edge_silhouette_slot(edge)], index);
+    let mid = 0.5 * (a.z + b.z);
+    atomicMin(&control[C_DEPTH_MIN], order_key(mid));
+    atomicMax(&control[C_DEPTH_MAX], order_key(mid));
+    // The patch_id's mean silhouette depth picks its layer: sum mid/L0 + 1 in
+    // fixed point (64 bits: low word with carry into the high word).
+    let q = u32(clamp(mid / reference_depth() + 1.0, 0.0, 2.0) * FIXED_ONE);
+    let old = atomicAdd(&state[FACE_WORDS * patch_id + 2u], q);
+    if (old + q < old) {
+        atomicAdd(&state[FACE_WORDS * patch_id + 3u], 1u);
+    }
+    atomicAdd(&state[FACE_WORDS * patch_id + 4u], 1u);
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn find_silhouettes(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (i >= params.totals.w) {
+        return;
+    }
+    let k = instance_of(i, 3u);
+    let inst = instances[k];
+    let at = edge_at(inst, i - inst.ids.w);
+    let v0 = g(inst, at);
+    let v1 = g(inst, at + 1u);
+    let flags = g(inst, at + 4u);
+    atomicStore(&state[edge_silhouette_slot(i)], NONE);
+    if ((flags & EDGE_NON_MANIFOLD) != 0u) {
+        // Three or more faces: a silhouette when they disagree; the first
+        // light-facing face orients it.
+        let list = g(inst, G_NON_MANIFOLD_AT) + g(inst, at + 2u);
+        let count = g(inst, at + 3u);
+        var first = NONE;
+        var any_back = false;
+        for (var j = 0u; j < count; j++) {
+            let entry = g(inst, list + j);
+            let face = entry & 0x7fffffffu;
+            if (facing_face(inst.ids.z + face)) {
+                if (first == NONE) {
+                    first = entry;
+                }
+            } else {
+                any_back = true;
+            }
+        }
+        if (first != NONE && any_back) {
+            emit_silhouette(k, inst, i, v0, v1, (first >> 31u) != 0u, first & 0x7fffffffu, true);
+        }
+        return;
+    }
+    let f0 = g(inst, at + 2u);
+    let f1 = g(inst, at + 3u);
+    let facing0 = facing_face(inst.ids.z + f0);
+    if (f1 == EDGE_BACK_FACE_MISSING) {
+        if (facing0) {
+            emit_silhouette(k, inst, i, v0, v1, (flags & EDGE_FORWARD0) != 0u, f0, true);
+        }
+        return;
+    }
+    let facing1 = facing_face(inst.ids.z + f1);
+    if (facing0 != facing1) {
+        let crease = (flags & EDGE_CREASE) != 0u;
+        if (facing0) {
+            emit_silhouette(k, inst, i, v0, v1, (flags & EDGE_FORWARD0) != 0u, f0, crease);
+        } else {
+            emit_silhouette(k, inst, i, v0, v1, (flags & EDGE_FORWARD1) != 0u, f1, crease);
+        }
+    }
+}
+
+// Workgroups (x, y) for `n` items at `per_group` items a group.
+fn write_args(at: u32, n: u32, per_group: u32) {
+    let groups = (n + per_group - 1u) / per_group;
+    let x = min(groups, MAX_GROUPS_X);
+    let y = select(0u, (groups + MAX_GROUPS_X - 1u) / MAX_GROUPS_X, groups > 0u);
+    atomicStore(&control[at], x);
+    atomicStore(&control[at + 1u], y);
+    atomicStore(&control[at + 2u], select(0u, 1u, groups > 0u));
+}
+
+fn silhouette_count() -> u32 {
+    return min(atomicLoad(&control[C_SILHOUETTES]), params.capacity.x);
+}
+
+@compute @workgroup_size(1, 1, 1)
+fn silhouette_args() {
+    write_args(C_ARGS_SILHOUETTES, silhouette_count(), WORKGROUP);
+}
+
+// ---------------------------------------------------------------- 7. vertices of the silhouette
+
+fn method_has_fins() -> bool {
+    return params.capacity.w != 0u;
+}
+
+fn method_has_inner_fins() -> bool {
+    return params.capacity.w >= 2u;
+}
+
+// Outer side 1, inner side 0, as in `maps.wgsl`.
+fn emit_fin(kind: u32, outer: bool, patch_id: u32, data: array<f32, 12>, lo: vec2<f32>, hi: vec2<f32>) {
+    if (!method_has_fins() || (!outer && !method_has_inner_fins())) {
+        return;
+    }
+    let index = atomicAdd(&control[C_FINS], 1u);
+    if (index < params.capacity.y) {
+        fins[index] = Fin(vec4<u32>(kind, select(0u, 1u, outer), patch_id, 0u), data);
+        grow_region(lo, hi);
+    }
+}
+
+fn emit_sector(center: vec2<f32>, radius: f32, from_dir: vec2<f32>, to_dir: vec2<f32>, depth: f32, outer: bool, patch_id: u32) {
+    // Skip empty or degenerate sectors (collinear fins need no fan).
+    if (!valid(from_dir) || !valid(to_dir) || (abs(cross2(from_dir, to_dir)) < 1e-6 && dot(from_dir, to_dir) > 0.0)) {
+        return;
+    }
+    let data = array<f32, 12>(center.x, center.y, from_dir.x, from_dir.y, to_dir.x, to_dir.y, radius, depth, 0.0, 0.0, 0.0, 0.0);
+    emit_fin(1u, outer, patch_id, data, center - radius, center + radius);
+}
+
+// Unit left normal of the projected edge (the fins' outward direction), zero if degenerate.
+fn edge_direction(s: Silhouette) -> vec2<f32> {
+    let m0 = map_point(s.a.xyz);
+    let m1 = map_point(s.b.xyz);
+    return direction(vec2<f32>(m0.y - m1.y, m1.x - m0.x));
+}
+
+fn set_end_direction(s: u32, end: u32, d: vec2<f32>) {
+    if (end == 0u) {
+        silhouettes[s].dirs = vec4<f32>(d, silhouettes[s].dirs.zw);
+    } else {
+        silhouettes[s].dirs = vec4<f32>(silhouettes[s].dirs.xy, d);
+    }
+}
+
+// Visits every silhouette edge at local vertex `v` of instance `k`: through the
+// mesh's vertex → edge lists. Returns (first in, first out, n in, n out), the
+// smallest silhouette indices of the edges ending and starting at v.
+fn vertex_silhouettes(inst: Instance, v: u32) -> vec4<u32> {
+    let csr = g(inst, G_CSR_AT);
+    let start = g(inst, csr + v);
+    let end = g(inst, csr + v + 1u);
+    let list = csr + g(inst, G_VERTICES) + 1u;
+    var r = vec4<u32>(NONE, NONE, 0u, 0u);
+    for (var j = start; j < end; j++) {
+        let s = atomicLoad(&state[edge_silhouette_slot(inst.ids.w + g(inst, list + j))]);
+        if (s == NONE) {
+            continue;
+        }
+        if (silhouettes[s].ids.z == v) {
+            r.x = min(r.x, s);
+            r.z += 1u;
+        }
+        if (silhouettes[s].ids.y == v) {
+            r.y = min(r.y, s);
+            r.w += 1u;
+        }
+    }
+    return r;
+}
+
+// Fin ends, fans, caps and junction sectors at one silhouette vertex (the core's
+// `FinBuilder::build`, first loop). Run by the vertex's lowest silhouette.
+fn process_vertex(s: u32, inst: Instance, v: u32) {
+    let csr = g(inst, G_CSR_AT);
+    let start = g(inst, csr + v);
+    let end = g(inst, csr + v + 1u);
+    let list = csr + g(inst, G_VERTICES) + 1u;
+    // Every incident silhouette's end starts with its own edge normal.
+    for (var j = start; j < end; j++) {
+        let t = atomicLoad(&state[edge_silhouette_slot(inst.ids.w + g(inst, list + j))]);
+        if (t != NONE) {
+            set_end_direction(t, select(1u, 0u, silhouettes[t].ids.y == v), edge_direction(silhouettes[t]));
+        }
+    }
+    let incident = vertex_silhouettes(inst, v);
+    let pos = frame_position(inst, v);
+    if (pos.z <= near_depth()) {
+        return;
+    }
+    let normal = vertex_normal_in_frame(inst, v);
+    let n_in = incident.z;
+    let n_out = incident.w;
+    if (n_in == 1u && n_out == 1u) {
+        let a = incident.x;
+        let b = incident.y;
+        let da = edge_direction(silhouettes[a]);
+        let db = edge_direction(silhouettes[b]);
+        if (silhouettes[a].info.x == 0u && silhouettes[b].info.x == 0u) {
+            // Smooth vertex: both quads bend to the projected vertex normal.
+            var d = direction(map_direction(pos, normal));
+            if (!(dot(d, da) > 0.05 && dot(d, db) > 0.05)) {
+                d = direction(da + db);
+                if (!valid(da) || !valid(db)) {
+                    d = vec2<f32>(0.0);
+                }
+            }
+            if (valid(d)) {
+                set_end_direction(a, 1u, d);
+                set_end_direction(b, 0u, d);
+                return;
+            }
+        }
+    }
+    let radius = fin_width(pos.z);
+    if (!(radius > 0.0)) {
+        return;
+    }
+    let center = map_point(pos);
+    let patch_id = silhouettes[s].ids.w;
+    if (n_in == 1u && n_out == 1u) {
+        let sa = silhouettes[incident.x];
+        let sb = silhouettes[incident.y];
+        let ea = map_point(sa.b.xyz) - map_point(sa.a.xyz);
+        let eb = map_point(sb.b.xyz) - map_point(sb.a.xyz);
+        let da = edge_direction(sa);
+        let db = edge_direction(sb);
+        // Interior is on the right: a right turn (negative cross) is convex.
+        let turn = cross2(ea, eb);
+        if (turn < 0.0) {
+            emit_sector(center, radius, da, db, pos.z, true, patch_id);
+        } else if (turn > 0.0) {
+            emit_sector(center, radius, -da, -db, pos.z, false, patch_id);
+        }
+    } else if (n_in + n_out == 1u) {
+        // Open chain end: outer half-disk cap around the edge's extension.
+        let only = silhouettes[select(incident.y, incident.x, n_in == 1u)];
+        let m0 = map_point(only.a.xyz);
+        let m1 = map_point(only.b.xyz);
+        let d = edge_direction(only);
+        let along = direction(m1 - m0);
+        let ext = select(along, -along, n_in == 0u);
+        emit_sector(center, radius, d, ext, pos.z, true, patch_id);
+        emit_sector(center, radius, ext, -d, pos.z, true, patch_id);
+    } else {
+        // Junction: sectors from each fin to the projected averaged normal.
+        let avg = direction(map_direction(pos, normal));
+        for (var j = start; j < end; j++) {
+            let t = atomicLoad(&state[edge_silhouette_slot(inst.ids.w + g(inst, list + j))]);
+            if (t == NONE) {
+                continue;
+            }
+            let d = edge_direction(silhouettes[t]);
+            if (dot(d, avg) > -0.999) {
+                emit_sector(center, radius, d, avg, pos.z, true, patch_id);
+                emit_sector(center, radius, -d, -avg, pos.z, false, patch_id);
+            }
+        }
+    }
+}
+
+fn owns_vertex(s: u32, inst: Instance, v: u32) -> bool {
+    let incident = vertex_silhouettes(inst, v);
+    return min(incident.x, incident.y) == s;
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn silhouette_vertices(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let s = thread_index(wg, lane);
+    if (s >= silhouette_count()) {
+        return;
+    }
+    let sil = silhouettes[s];
+    // Sub-layer histogram of edge midpoints (§4.1).
+    let lo = order_value(atomicLoad(&control[C_DEPTH_MIN]));
+    let hi = order_value(atomicLoad(&control[C_DEPTH_MAX]));
+    let bins = params.layering.x;
+    let mid = 0.5 * (sil.a.z + sil.b.z);
+    if (hi > lo) {
+        let step = (hi - lo) / f32(bins);
+        let bin = min(u32(max((mid - lo) / step, 0.0)), bins - 1u);
+        atomicAdd(&control[C_HISTOGRAM + bin], 1u);
+    } else {
+        atomicAdd(&control[C_HISTOGRAM], 1u);
+    }
+    let inst = instances[sil.ids.x];
+    for (var e = 0u; e < 2u; e++) {
+        let v = select(sil.ids.z, sil.ids.y, e == 0u);
+        if (owns_vertex(s, inst, v)) {
+            process_vertex(s, inst, v);
+        }
+    }
+}
+
+// ---------------------------------------------------------------- 8. quads
+
+@compute @workgroup_size(64, 1, 1)
+fn silhouette_quads(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let s = thread_index(wg, lane);
+    if (s >= silhouette_count()) {
+        return;
+    }
+    let sil = silhouettes[s];
+    let near = near_depth();
+    let dir = edge_direction(sil);
+    if (sil.a.z <= near || sil.b.z <= near || !valid(dir)) {
+        return;
+    }
+    let w0 = fin_width(sil.a.z);
+    let w1 = fin_width(sil.b.z);
+    if (!(w0 > 0.0 || w1 > 0.0)) {
+        return;
+    }
+    let m0 = map_point(sil.a.xyz);
+    let m1 = map_point(sil.b.xyz);
+    let d0 = sil.dirs.xy;
+    let d1 = sil.dirs.zw;
+    // A staircase step almost along the fin direction spans no area.
+    let along = direction(m1 - m0);
+    if (abs(cross2(along, d0)) < 0.05 || abs(cross2(along, d1)) < 0.05) {
+        return;
+    }
+    for (var side = 0u; side < 2u; side++) {
+        let sign = select(-1.0, 1.0, side == 1u);
+        let a0 = d0 * sign;
+        let a1 = d1 * sign;
+        let data = array<f32, 12>(m0.x, m0.y, m1.x, m1.y, a0.x, a0.y, a1.x, a1.y, w0, w1, sil.a.z, sil.b.z);
+        let p2 = m0 + a0 * w0;
+        let p3 = m1 + a1 * w1;
+        emit_fin(0u, side == 1u, sil.ids.w, data, min(min(m0, m1), min(p2, p3)), max(max(m0, m1), max(p2, p3)));
+    }
+}
+
+// ---------------------------------------------------------------- 9. casters
+
+fn emit_caster(p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, normal: vec3<f32>, offset: f32, patch_id: u32) {
+    let c0 = map_point(p0);
+    let c1 = map_point(p1);
+    let c2 = map_point(p2);
+    let area = cross2(c1 - c0, c2 - c0);
+    if (!(abs(area) > 0.0) || !finite(area)) {
+        return;
+    }
+    let index = atomicAdd(&control[C_CASTERS], 1u);
+    if (index >= params.capacity.z) {
+        return;
+    }
+    casters[index] = Caster(
+        array<f32, 6>(c0.x, c0.y, c1.x, c1.y, c2.x, c2.y),
+        array<f32, 3>(normal.x, normal.y, normal.z),
+        offset,
+        min(p0.z, min(p1.z, p2.z)),
+        max(p0.z, max(p1.z, p2.z)),
+        patch_id,
+        0u,
+    );
+    grow_region(min(c0, min(c1, c2)), max(c0, max(c1, c2)));
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn map_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (i >= params.totals.z) {
+        return;
+    }
+    let patch_id = atomicLoad(&state[FACE_WORDS * i]);
+    if (patch_id == NONE) {
+        return;
+    }
+    let inst = instances[instance_of(i, 2u)];
+    let at = g(inst, G_FACES_AT) + 7u * (i - inst.ids.z);
+    let p = array<vec3<f32>, 3>(
+        frame_position(inst, g(inst, at)),
+        frame_position(inst, g(inst, at + 1u)),
+        frame_position(inst, g(inst, at + 2u)),
+    );
+    let normal = cross(p[1] - p[0], p[2] - p[0]);
+    let offset = dot(normal, p[0]);
+    let near = near_depth();
+    if (p[0].z >= near && p[1].z >= near && p[2].z >= near) {
+        emit_caster(p[0], p[1], p[2], normal, offset, patch_id);
+        return;
+    }
+    // Sutherland–Hodgman against z = near (`MapTriangle::clipped`).
+    var poly: array<vec3<f32>, 4>;
+    var n = 0u;
+    for (var k = 0u; k < 3u; k++) {
+        let a = p[k];
+        let b = p[(k + 1u) % 3u];
+        let ina = a.z >= near;
+        let inb = b.z >= near;
+        if (ina) {
+            poly[n] = a;
+            n += 1u;
+        }
+        if (ina != inb) {
+            poly[n] = a + (b - a) * ((near - a.z) / (b.z - a.z));
+            n += 1u;
+        }
+    }
+    for (var k = 1u; k + 1u < n; k++) {
+        emit_caster(poly[0], poly[k], poly[k + 1u], normal, offset, patch_id);
+    }
+}
+
+// ---------------------------------------------------------------- 10. plan
+
+const MAP_LIMIT: f32 = 8.0;
+
+fn plane(j: u32) -> f32 {
+    return bitcast<f32>(atomicLoad(&control[C_PLANES + 1u + j]));
+}
+
+@compute @workgroup_size(1, 1, 1)
+fn plan_layers() {
+    let total = silhouette_count();
+    let lo = order_value(atomicLoad(&control[C_DEPTH_MIN]));
+    let hi = order_value(atomicLoad(&control[C_DEPTH_MAX]));
+    let bins = params.layering.x;
+    let layers = params.layering.y;
+    let capacity = max(params.layering.z, 1u);
+    // Cut the cumulative histogram at the k/N quantiles (`LayerPlan::from_edge_depths`).
+    var planes = 0u;
+    var wanted = 0u;
+    var last = 0.0;
+    if (layers > 1u && hi > lo && total > 0u) {
+        let step = (hi - lo) / f32(bins);
+        var cumulative = 0u;
+        var next_cut = 1u;
+        for (var i = 0u; i < bins; i++) {
+            cumulative += atomicLoad(&control[C_HISTOGRAM + i]);
+            var reached = false;
+            while (next_cut < layers && cumulative * layers >= next_cut * total) {
+                next_cut += 1u;
+                reached = true;
+            }
+            if (reached && cumulative < total && i + 1u < bins) {
+                let p = lo + step * f32(i + 1u);
+                if (wanted == 0u || p != last) {
+                    wanted += 1u;
+                    last = p;
+                    // Past the allocated layers the deepest ones merge (the
+                    // CPU grows the maps once it reads `wanted` back).
+                    if (planes + 1u < capacity) {
+                        atomicStore(&control[C_PLANES + 1u + planes], bitcast<u32>(p));
+                        planes += 1u;
+                    }
+                }
+            }
+        }
+    }
+    atomicStore(&control[C_PLANES], planes);
+    let n_casters = min(atomicLoad(&control[C_CASTERS]), params.capacity.z);
+    let n_fins = min(atomicLoad(&control[C_FINS]), params.capacity.y);
+    // Nothing casts: no layer, no map.
+    let used = select(planes + 1u, 0u, n_casters == 0u && n_fins == 0u);
+    atomicStore(&control[C_LAYERS_WANTED], select(wanted + 1u, 0u, used == 0u));
+    atomicStore(&control[C_LAYERS], used);
+    atomicStore(&control[C_GENERATION], params.flags.w);
+
+    // Map region: the bounds of every caster and fin (`RasterMaps::covering_region`).
+    var rlo = vec2<f32>(order_value(atomicLoad(&control[C_REGION])), order_value(atomicLoad(&control[C_REGION + 1u])));
+    var rhi = vec2<f32>(order_value(atomicLoad(&control[C_REGION + 2u])), order_value(atomicLoad(&control[C_REGION + 3u])));
+    rlo = max(rlo, vec2<f32>(-MAP_LIMIT));
+    rhi = min(rhi, vec2<f32>(MAP_LIMIT));
+    if (!(rlo.x <= rhi.x && rlo.y <= rhi.y)) {
+        rlo = vec2<f32>(0.0);
+        rhi = vec2<f32>(1.0);
+    }
+    let size = max(max(rhi.x - rlo.x, rhi.y - rlo.y), 1e-9) * 1.001;
+    let region_min = (rlo + rhi) * 0.5 - vec2<f32>(size * 0.5);
+    let resolution = params.layering.w;
+    let l0 = reference_depth();
+
+    // The maps' `FinParams` (fin_types.wgsl), copied into their uniform.
+    let p = array<u32, 32>(
+        bitcast<u32>(region_min.x), bitcast<u32>(region_min.y), bitcast<u32>(size / f32(resolution)), bitcast<u32>(l0),
+        resolution, used, n_casters, n_fins,
+        bitcast<u32>(params.light.x), bitcast<u32>(l0 * 1e-5), bitcast<u32>(params.light.y * 1e-5), 0u,
+        params.flags.x, params.flags.y, params.flags.z, 0u,
+        bitcast<u32>(params.origin.x), bitcast<u32>(params.origin.y), bitcast<u32>(params.origin.z), 0u,
+        bitcast<u32>(params.axis_u.x), bitcast<u32>(params.axis_u.y), bitcast<u32>(params.axis_u.z), 0u,
+        bitcast<u32>(params.axis_v.x), bitcast<u32>(params.axis_v.y), bitcast<u32>(params.axis_v.z), 0u,
+        bitcast<u32>(params.axis_n.x), bitcast<u32>(params.axis_n.y), bitcast<u32>(params.axis_n.z), 0u,
+    );
+    for (var i = 0u; i < 32u; i++) {
+        atomicStore(&control[C_PARAMS + i], p[i]);
+    }
+    write_args(C_ARGS_CLEAR, used * resolution * resolution, WORKGROUP);
+    write_args(C_ARGS_CASTERS, n_casters, 1u);
+    write_args(C_ARGS_FINS, n_fins, 1u);
+    write_args(C_ARGS_FIN_THREADS, n_fins, WORKGROUP);
+    write_args(C_ARGS_CASTER_THREADS, n_casters, WORKGROUP);
+}
+
+// ---------------------------------------------------------------- 11. layers
+
+// A patch_id's layer: that of its mean silhouette depth; patches with no
+// silhouette (a closed mesh seen from inside) go to the last layer.
+fn patch_layer(patch_id: u32) -> u32 {
+    let planes = atomicLoad(&control[C_PLANES]);
+    let count = atomicLoad(&state[FACE_WORDS * patch_id + 4u]);
+    if (count == 0u) {
+        return planes;
+    }
+    let sum = f32(atomicLoad(&state[FACE_WORDS * patch_id + 3u])) * 4294967296.0
+        + f32(atomicLoad(&state[FACE_WORDS * patch_id + 2u]));
+    let mean = (sum / f32(count) / FIXED_ONE - 1.0) * reference_depth();
+    var layer = 0u;
+    for (var j = 0u; j < planes; j++) {
+        if (plane(j) <= mean) {
+            layer = j + 1u;
+        }
+    }
+    return layer;
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn assign_fin_layers(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (i >= min(atomicLoad(&control[C_FINS]), params.capacity.y)) {
+        return;
+    }
+    fins[i].header.z = patch_layer(fins[i].header.z);
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn assign_caster_layers(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (i >= min(atomicLoad(&control[C_CASTERS]), params.capacity.z)) {
+        return;
+    }
+    casters[i].layer = patch_layer(casters[i].layer);
+}

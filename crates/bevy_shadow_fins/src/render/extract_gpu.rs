@@ -1,0 +1,379 @@
+//! Render world side of GPU fin extraction and layer assignment: the buffers
+//! and compute passes of `extract.wgsl`, run before the penumbra-map passes
+//! whenever the fin frame changed, and the read-back of their counts.
+
+use std::borrow::Cow;
+
+use bevy::{
+    asset::{embedded_asset, load_embedded_asset},
+    prelude::*,
+    render::{
+        extract_resource::{ExtractResource, ExtractResourcePlugin},
+        gpu_readback::{Readback, ReadbackComplete},
+        render_asset::RenderAssets,
+        render_resource::{
+            binding_types::{storage_buffer_read_only_sized, storage_buffer_sized, uniform_buffer_sized},
+            *,
+        },
+        renderer::{RenderDevice, RenderQueue},
+        storage::{GpuShaderBuffer, ShaderBuffer},
+    },
+};
+
+use crate::{
+    extract::{FinFrame, FinFrameData, FinFrameStats, FinShadowStats, MeshCache},
+    gpu_scene::{GpuCapacity, GpuScene},
+    light::FinMethod,
+};
+
+/// `control` buffer layout (u32 words), as in `extract.wgsl`.
+pub(super) const C_PARAMS: u64 = 16;
+pub(super) const C_ARGS_CLEAR: u64 = 48;
+pub(super) const C_ARGS_CASTERS: u64 = 51;
+pub(super) const C_ARGS_FINS: u64 = 54;
+const C_ARGS_SILHOUETTES: u64 = 57;
+const C_ARGS_FIN_THREADS: u64 = 60;
+const C_ARGS_CASTER_THREADS: u64 = 63;
+const C_HISTOGRAM: u64 = 128;
+/// Words 0..16 of `control` go back to the main world: counts, generation, layers.
+const STATS_WORDS: u64 = 16;
+const FACE_WORDS: u64 = 5;
+const WORKGROUP: u32 = 64;
+
+/// Bytes per silhouette record (`Silhouette` in `extract.wgsl`).
+const SILHOUETTE_BYTES: u64 = 7 * 16;
+pub(super) const FIN_BYTES: u64 = 64;
+pub(super) const CASTER_BYTES: u64 = 56;
+
+/// The entry points, in the order they run.
+const ENTRY_POINTS: [&str; 13] = [
+    "reset",
+    "transform_vertices",
+    "classify_faces",
+    "join_patches",
+    "flatten_patches",
+    "find_silhouettes",
+    "silhouette_args",
+    "silhouette_vertices",
+    "silhouette_quads",
+    "map_casters",
+    "plan_layers",
+    "assign_fin_layers",
+    "assign_caster_layers",
+];
+
+pub(super) fn build(app: &mut App) {
+    embedded_asset!(app, "extract.wgsl");
+    app.add_plugins(ExtractResourcePlugin::<FinStatsBuffer>::default()).add_systems(Startup, spawn_stats_readback);
+}
+
+/// The small buffer the extraction's counts are copied into, read back every
+/// frame into [`FinShadowStats`].
+#[derive(Resource, Clone, ExtractResource)]
+pub(crate) struct FinStatsBuffer(Handle<ShaderBuffer>);
+
+fn spawn_stats_readback(mut commands: Commands, mut buffers: ResMut<Assets<ShaderBuffer>>) {
+    let handle =
+        buffers.add(ShaderBuffer::new(&[0u8; STATS_WORDS as usize * 4], bevy::asset::RenderAssetUsages::RENDER_WORLD));
+    commands.insert_resource(FinStatsBuffer(handle.clone()));
+    commands.spawn((Name::new("fin shadow stats read-back"), Readback::buffer(handle))).observe(on_stats_readback);
+}
+
+/// Counts of the latest GPU extraction: stats for the main world, and the
+/// buffers grown (and the frame redone) when it wanted more than they hold.
+fn on_stats_readback(
+    readback: On<ReadbackComplete>,
+    frame: Res<FinFrame>,
+    mut cache: ResMut<MeshCache>,
+    mut stats: ResMut<FinShadowStats>,
+) {
+    let words: Vec<u32> = readback.data.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    let (Some(f), Some(w)) = (frame.0.as_ref(), words.get(..STATS_WORDS as usize)) else { return };
+    let Some(gpu) = f.gpu.as_ref() else { return };
+    // Counts of an older frame (or of none yet) say nothing about this one.
+    if w[11] != f.generation as u32 || gpu.totals[1] == 0 {
+        return;
+    }
+    let wanted = GpuCapacity { silhouettes: w[0], fins: w[1], casters: w[2], layers: w[10] };
+    let grown = gpu.capacity.grown_for(wanted);
+    if let Some(next) = grown {
+        cache.capacity = Some(next);
+        cache.capacity_epoch += 1;
+    }
+    let stats_now = FinFrameStats {
+        silhouettes: w[0] as usize,
+        fins: w[1] as usize,
+        layers: w[12] as usize,
+        up_to_date: grown.is_none(),
+        ..f.stats
+    };
+    if stats.0 != stats_now {
+        stats.0 = stats_now;
+    }
+}
+
+/// `ExtractParams` in `extract.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct ExtractParams {
+    totals: [u32; 4],
+    layering: [u32; 4],
+    capacity: [u32; 4],
+    light: [f32; 4],
+    flags: [u32; 4],
+    origin: [f32; 4],
+    axis_u: [f32; 4],
+    axis_v: [f32; 4],
+    axis_n: [f32; 4],
+}
+
+pub(super) struct ExtractPipelines {
+    layout: BindGroupLayoutDescriptor,
+    ids: Vec<CachedComputePipelineId>,
+}
+
+impl ExtractPipelines {
+    pub(super) fn queue(pipeline_cache: &PipelineCache, asset_server: &AssetServer) -> Self {
+        let layout = BindGroupLayoutDescriptor::new(
+            "fin_extract_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (
+                    uniform_buffer_sized(false, None),
+                    storage_buffer_read_only_sized(false, None),
+                    storage_buffer_read_only_sized(false, None),
+                    storage_buffer_sized(false, None),
+                    storage_buffer_sized(false, None),
+                    storage_buffer_sized(false, None),
+                    storage_buffer_sized(false, None),
+                    storage_buffer_sized(false, None),
+                    storage_buffer_sized(false, None),
+                ),
+            ),
+        );
+        let shader = load_embedded_asset!(asset_server, "extract.wgsl");
+        let ids = ENTRY_POINTS
+            .iter()
+            .map(|entry| {
+                pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
+                    label: Some(format!("fin_extract_{entry}").into()),
+                    layout: vec![layout.clone()],
+                    shader: shader.clone(),
+                    entry_point: Some(Cow::from(*entry)),
+                    ..default()
+                })
+            })
+            .collect();
+        Self { layout, ids }
+    }
+
+    fn ready<'a>(&self, cache: &'a PipelineCache) -> Option<Vec<&'a ComputePipeline>> {
+        self.ids.iter().map(|&id| cache.get_compute_pipeline(id)).collect()
+    }
+}
+
+/// GPU copies of the extraction's inputs and its work buffers.
+#[derive(Default)]
+pub(super) struct ExtractBuffers {
+    params: Option<Buffer>,
+    instances: Option<Buffer>,
+    geometry: Option<Buffer>,
+    geometry_key: u64,
+    control: Option<Buffer>,
+    /// Indirect dispatch arguments, copied out of `control` between passes.
+    pub(super) indirect: Option<Buffer>,
+    state: Option<Buffer>,
+    positions: Option<Buffer>,
+    silhouettes: Option<Buffer>,
+    bind_group: Option<BindGroup>,
+    /// (instance vertices, caster faces, caster edges, sub-layers)
+    sizes: [u32; 4],
+}
+
+/// Allocates `buf` (half again as large, so a growing scene does not reallocate
+/// every frame) when it is missing or smaller than `size`.
+pub(super) fn ensure(buf: &mut Option<Buffer>, device: &RenderDevice, label: &str, size: u64, usage: BufferUsages) {
+    if buf.as_ref().is_none_or(|b| b.size() < size) {
+        let cap = device.limits().max_storage_buffer_binding_size;
+        *buf = Some(device.create_buffer(&BufferDescriptor {
+            label: Some(label),
+            size: (size + size / 2).min(cap.max(size)).max(64).next_multiple_of(16),
+            usage,
+            mapped_at_creation: false,
+        }));
+    }
+}
+
+/// Uploads what changed (instances always, geometry when its key changed) and
+/// binds the work buffers; `fins` and `casters` are the maps' input buffers.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn prepare(
+    buffers: &mut ExtractBuffers,
+    frame: &FinFrameData,
+    scene: &GpuScene,
+    resolution: u32,
+    fins: &Buffer,
+    casters: &Buffer,
+    pipelines: &ExtractPipelines,
+    pipeline_cache: &PipelineCache,
+    device: &RenderDevice,
+    queue: &RenderQueue,
+) {
+    let s = frame.settings;
+    let storage = BufferUsages::STORAGE | BufferUsages::COPY_DST;
+    let [vertices, faces, edges] = scene.totals;
+    let method = match s.method {
+        FinMethod::Hard => 0,
+        FinMethod::OuterFins => 1,
+        FinMethod::SingleLayer => 2,
+        FinMethod::MultiLayer => 3,
+    };
+    let layers = if s.method == FinMethod::MultiLayer { s.layers } else { 1 };
+    let v4 = |v: Vec3| [v.x, v.y, v.z, 0.0];
+    let super_params = super::params_of(frame);
+    let params = ExtractParams {
+        totals: [scene.instances.len() as u32, vertices, faces, edges],
+        layering: [s.sub_layers, layers, scene.capacity.layers, resolution],
+        capacity: [scene.capacity.silhouettes, scene.capacity.fins, scene.capacity.casters, method],
+        light: [frame.radius, scene.extent, 0.0, 0.0],
+        flags: [super_params.flags[0], super_params.flags[1], super_params.flags[2], frame.generation as u32],
+        origin: v4(frame.origin),
+        axis_u: v4(scene.axes[0]),
+        axis_v: v4(scene.axes[1]),
+        axis_n: v4(scene.axes[2]),
+    };
+    ensure(&mut buffers.params, device, "fin_extract_params", 144, BufferUsages::UNIFORM | BufferUsages::COPY_DST);
+    queue.write_buffer(buffers.params.as_ref().unwrap(), 0, bytemuck::bytes_of(&params));
+    let instance_bytes: &[u8] = bytemuck::cast_slice(&scene.instances);
+    ensure(&mut buffers.instances, device, "fin_extract_instances", instance_bytes.len() as u64, storage);
+    queue.write_buffer(buffers.instances.as_ref().unwrap(), 0, instance_bytes);
+    let geometry_bytes: &[u8] = bytemuck::cast_slice(scene.geometry.as_slice());
+    let old_geometry = buffers.geometry.as_ref().map(|b| b.id());
+    ensure(&mut buffers.geometry, device, "fin_extract_geometry", geometry_bytes.len() as u64, storage);
+    // Caster geometry goes up once per set of meshes; moving casters only change instances.
+    if buffers.geometry_key != scene.geometry_key || old_geometry != buffers.geometry.as_ref().map(|b| b.id()) {
+        queue.write_buffer(buffers.geometry.as_ref().unwrap(), 0, geometry_bytes);
+        buffers.geometry_key = scene.geometry_key;
+    }
+    let control_words = C_HISTOGRAM + s.sub_layers as u64;
+    ensure(
+        &mut buffers.control,
+        device,
+        "fin_extract_control",
+        control_words * 4,
+        BufferUsages::STORAGE | BufferUsages::COPY_SRC,
+    );
+    ensure(
+        &mut buffers.indirect,
+        device,
+        "fin_extract_indirect",
+        C_HISTOGRAM * 4,
+        BufferUsages::INDIRECT | BufferUsages::COPY_DST,
+    );
+    ensure(&mut buffers.state, device, "fin_extract_state", (faces as u64 * FACE_WORDS + edges as u64) * 4, storage);
+    ensure(&mut buffers.positions, device, "fin_extract_positions", vertices as u64 * 16, storage);
+    ensure(
+        &mut buffers.silhouettes,
+        device,
+        "fin_extract_silhouettes",
+        scene.capacity.silhouettes as u64 * SILHOUETTE_BYTES,
+        storage,
+    );
+    buffers.bind_group = Some(device.create_bind_group(
+        "fin_extract_bind_group",
+        &pipeline_cache.get_bind_group_layout(&pipelines.layout),
+        &BindGroupEntries::sequential((
+            buffers.params.as_ref().unwrap().as_entire_binding(),
+            buffers.instances.as_ref().unwrap().as_entire_binding(),
+            buffers.geometry.as_ref().unwrap().as_entire_binding(),
+            buffers.control.as_ref().unwrap().as_entire_binding(),
+            buffers.state.as_ref().unwrap().as_entire_binding(),
+            buffers.positions.as_ref().unwrap().as_entire_binding(),
+            buffers.silhouettes.as_ref().unwrap().as_entire_binding(),
+            fins.as_entire_binding(),
+            casters.as_entire_binding(),
+        )),
+    ));
+    buffers.sizes = [vertices, faces, edges, s.sub_layers];
+}
+
+/// Records the extraction passes; then copies the maps' parameters into their
+/// uniform and the counts into the read-back buffer. `false`: not ready yet.
+pub(super) fn record(
+    buffers: &ExtractBuffers,
+    pipelines: &ExtractPipelines,
+    pipeline_cache: &PipelineCache,
+    maps_params: &Buffer,
+    stats: Option<&Buffer>,
+    encoder: &mut CommandEncoder,
+) -> bool {
+    let (Some(ready), Some(bind_group), Some(control)) =
+        (pipelines.ready(pipeline_cache), buffers.bind_group.as_ref(), buffers.control.as_ref())
+    else {
+        return false;
+    };
+    let [vertices, faces, edges, sub_layers] = buffers.sizes;
+    let Some(args) = buffers.indirect.as_ref() else { return false };
+    let threads = |n: u32| super::workgroups(n.div_ceil(WORKGROUP));
+    // Dispatch sizes known here: the scene's vertices, faces, edges.
+    fn direct(pass: &mut ComputePass, pipeline: &ComputePipeline, (x, y): (u32, u32)) {
+        if x > 0 {
+            pass.set_pipeline(pipeline);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+    }
+    // Sizes only the GPU knows (silhouettes, fins, casters), written into
+    // `control` by `silhouette_args` / `plan_layers` and copied to `indirect`
+    // (a buffer may not be indirect arguments and writable storage in one dispatch).
+    fn indirect(pass: &mut ComputePass, pipeline: &ComputePipeline, args: &Buffer, at: u64) {
+        pass.set_pipeline(pipeline);
+        pass.dispatch_workgroups_indirect(args, at * 4);
+    }
+    let begin = |encoder: &mut CommandEncoder, f: &mut dyn FnMut(&mut ComputePass)| {
+        let mut pass = encoder
+            .begin_compute_pass(&ComputePassDescriptor { label: Some("fin_extraction"), timestamp_writes: None });
+        pass.set_bind_group(0, bind_group, &[]);
+        f(&mut pass);
+    };
+    begin(encoder, &mut |pass| {
+        direct(pass, ready[0], threads(C_HISTOGRAM as u32 + sub_layers));
+        direct(pass, ready[1], threads(vertices));
+        direct(pass, ready[2], threads(faces));
+        direct(pass, ready[3], threads(edges));
+        direct(pass, ready[4], threads(faces));
+        direct(pass, ready[5], threads(edges));
+        direct(pass, ready[6], (1, 1));
+    });
+    encoder.copy_buffer_to_buffer(control, C_ARGS_SILHOUETTES * 4, args, C_ARGS_SILHOUETTES * 4, 12);
+    begin(encoder, &mut |pass| {
+        indirect(pass, ready[7], args, C_ARGS_SILHOUETTES);
+        indirect(pass, ready[8], args, C_ARGS_SILHOUETTES);
+        direct(pass, ready[9], threads(faces));
+        direct(pass, ready[10], (1, 1));
+    });
+    encoder.copy_buffer_to_buffer(
+        control,
+        C_ARGS_CLEAR * 4,
+        args,
+        C_ARGS_CLEAR * 4,
+        (C_ARGS_SILHOUETTES - C_ARGS_CLEAR) * 4,
+    );
+    encoder.copy_buffer_to_buffer(control, C_ARGS_FIN_THREADS * 4, args, C_ARGS_FIN_THREADS * 4, 6 * 4);
+    begin(encoder, &mut |pass| {
+        indirect(pass, ready[11], args, C_ARGS_FIN_THREADS);
+        indirect(pass, ready[12], args, C_ARGS_CASTER_THREADS);
+    });
+    encoder.copy_buffer_to_buffer(control, C_PARAMS * 4, maps_params, 0, 128);
+    if let Some(stats) = stats {
+        encoder.copy_buffer_to_buffer(control, 0, stats, 0, STATS_WORDS * 4);
+    }
+    true
+}
+
+/// The read-back buffer's GPU copy, once its asset is prepared.
+pub(super) fn stats_buffer<'a>(
+    handle: Option<&FinStatsBuffer>,
+    buffers: &'a RenderAssets<GpuShaderBuffer>,
+) -> Option<&'a Buffer> {
+    handle.and_then(|h| buffers.get(&h.0)).map(|b| &b.buffer)
+}
