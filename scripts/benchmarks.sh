@@ -108,6 +108,22 @@ tmp=$(mktemp)
   $render_lab measure --blob-triangles 1000,10000,100000,1000000 --no-truth --methods fins,bevy-hard --layers 16 \
     --refinement on --falloff disk-segment --map-resolution 1024 --out target/render-lab/scaling
   echo
+  echo "## Fin extraction on the GPU against the CPU, moving light"
+  echo
+  echo "The light moves a hair every frame, so the plugin extracts fins and renders every map each frame."
+  echo "\`--extraction gpu\`: the compute passes of render/extract.wgsl (only instance transforms are uploaded);"
+  echo "\`--extraction cpu\`: the core crate on the CPU, uploading map-space casters and fins. Same process,"
+  echo "same scenes, side by side. On a CPU-only machine both 'GPU' sides run on lavapipe's CPU threads."
+  echo
+  for extraction in gpu cpu; do
+    echo '```'
+    echo "$render_lab measure --blob-triangles 10000,100000,1000000 --no-truth --methods fins --layers 16 --refinement on --falloff disk-segment --map-resolution 1024 --moving-light --extraction $extraction --out target/render-lab/extraction-$extraction"
+    echo '```'
+    echo
+    $render_lab measure --blob-triangles 10000,100000,1000000 --no-truth --methods fins --layers 16 --refinement on \
+      --falloff disk-segment --map-resolution 1024 --moving-light --extraction $extraction --out target/render-lab/extraction-$extraction
+    echo
+  done
   echo "## CPU stages against triangle count (one core)"
   echo
   echo '```'

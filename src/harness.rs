@@ -64,6 +64,9 @@ pub struct Setup {
     /// The cameras' near and far planes (Bevy's defaults when `None`).
     pub near: Option<f32>,
     pub far: Option<f32>,
+    /// The first camera draws only into this part of the target
+    /// (`Camera::viewport`: pixel position and size); the whole target when `None`.
+    pub viewport: Option<(UVec2, UVec2)>,
 }
 
 /// How Bevy's own point light casts shadows (the lab's peers).
@@ -99,6 +102,7 @@ impl Setup {
             ambient: None,
             near: None,
             far: None,
+            viewport: None,
         }
     }
 }
@@ -203,7 +207,13 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
         let (near, far) = (setup.near.unwrap_or(defaults.near), setup.far.unwrap_or(defaults.far));
         let mut e = world.spawn((
             Camera3d::default(),
-            Camera { order: order as isize, ..default() },
+            Camera {
+                order: order as isize,
+                viewport: setup.viewport.filter(|_| order == 0).map(|(physical_position, physical_size)| {
+                    bevy::camera::Viewport { physical_position, physical_size, ..default() }
+                }),
+                ..default()
+            },
             setup.tonemapping,
             setup.msaa,
             RenderTarget::Image(color.clone().into()),

@@ -9,6 +9,7 @@
 
 use std::{io::Write, path::PathBuf, process::ExitCode};
 
+use bevy_shadow_fins::FinExtraction;
 use clap::{Args, Parser, Subcommand};
 use shadow_fins::{
     glam::{Affine3A, Vec3},
@@ -114,6 +115,9 @@ struct MeasureArgs {
     /// and maps each frame (a dynamic scene); default: a static scene.
     #[arg(long)]
     moving_light: bool,
+    /// Where the plugin extracts fins and assigns layers: gpu (compute passes) or cpu (the core crate).
+    #[arg(long, default_value = "gpu")]
+    extraction: String,
     /// Directory for the CSV, the Pareto plots and the image strips.
     #[arg(long, default_value = "target/render-lab")]
     out: PathBuf,
@@ -222,6 +226,11 @@ fn run_measure(args: MeasureArgs) -> Result<(), LabError> {
         frames: args.frames,
         samples: if args.no_truth { 0 } else { args.samples.clamp(1, 1 << 16) },
         moving_light: args.moving_light,
+        extraction: match args.extraction.as_str() {
+            "gpu" => FinExtraction::Gpu,
+            "cpu" => FinExtraction::Cpu,
+            other => return Err(LabError::Usage(format!("--extraction: `{other}` is neither gpu nor cpu"))),
+        },
     };
     let inputs = inputs(&args)?;
     let plans: Vec<_> = inputs

@@ -14,7 +14,7 @@
 //! it, and the unshadowed light reaches it (≥ 1e-3 of the brightest pixel),
 //! the same set for every technique.
 
-use bevy_shadow_fins::{FinMethod, FinShadowSettings};
+use bevy_shadow_fins::{FinExtraction, FinMethod, FinShadowSettings};
 use shadow_fins::{
     camera::Camera as CoreCamera,
     light::{DiskLight, Light},
@@ -48,6 +48,8 @@ pub struct Options {
     /// each frame as in a scene where something moves. Off: a static scene,
     /// where the plugin reuses its maps and Bevy still redraws its cube map.
     pub moving_light: bool,
+    /// Where the plugin extracts fins: on the GPU (default) or with the core on the CPU.
+    pub extraction: FinExtraction,
 }
 
 /// A scene to measure.
@@ -88,6 +90,7 @@ pub fn measure(
     let (w, h) = (options.width, options.height);
     let mut base =
         Setup::new(input.scene.clone(), Light::Disk(input.light), input.camera, FinShadowSettings::default(), (w, h));
+    base.settings.extraction = options.extraction;
     base.linear_color = true;
     base.ambient = Some(0.0);
     base.bevy_point_light = true;
@@ -285,7 +288,7 @@ fn setup_for(base: &Setup, config: Option<&Config>, radius: f32) -> Setup {
         s.bevy_shadows = BevyShadows::None;
         return s;
     };
-    s.settings = fin_settings(c);
+    s.settings = FinShadowSettings { extraction: base.settings.extraction, ..fin_settings(c) };
     (s.bevy_point_light, s.bevy_shadows) = match c.technique {
         Technique::BevyHard => (true, BevyShadows::Hard),
         Technique::BevyPcss => (true, BevyShadows::Pcss),

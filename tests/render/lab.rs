@@ -35,7 +35,15 @@ fn measure_ranks_fins_above_bevy_hard_shadows_and_reads_bevy_visibility_from_col
     };
     let configs = axes.configs(false);
     assert_eq!(configs.len(), 4);
-    let options = measure::Options { width: 96, height: 72, warmup: 1, frames: 3, samples: 128, moving_light: true };
+    let options = measure::Options {
+        width: 96,
+        height: 72,
+        warmup: 1,
+        frames: 3,
+        samples: 128,
+        moving_light: true,
+        extraction: bevy_shadow_fins::FinExtraction::Gpu,
+    };
     let mut seen = 0;
     let result =
         measure::measure(&input, &configs, &options, input.light.radius, &mut |_| seen += 1).expect("headless render");

@@ -48,3 +48,26 @@ fn no_caster_means_lit_everywhere() {
     assert!(shot.visibility.iter().all(|v| *v == 1.0), "nothing casts, so everything is lit");
     assert_eq!((shot.stats.casters, shot.stats.fins, shot.stats.layers), (0, 0, 0), "no caster: no fin, no layer");
 }
+
+/// A camera drawing into part of its target (`Camera::viewport`, split
+/// screen) reads the prepass and writes its visibility at target pixels: the
+/// right half of the target must hold what the oracle sees through a camera
+/// with that half's aspect, and the left half (not drawn) stays lit.
+#[test]
+fn a_camera_viewport_gets_its_shadows_at_its_own_pixels() {
+    use bevy::math::UVec2;
+    let mut setup = setup(SceneId::BoxOverPlane, settings());
+    let half = WIDTH / 2;
+    setup.viewport = Some((UVec2::new(half, 0), UVec2::new(half, HEIGHT)));
+    let shot = render(&setup);
+    let right: Vec<f32> = (0..HEIGHT)
+        .flat_map(|y| (half..WIDTH).map(move |x| (x, y)))
+        .map(|(x, y)| shot.visibility[(y * WIDTH + x) as usize])
+        .collect();
+    assert_visibility_not_trivial(&right);
+    let mut narrow = setup.clone();
+    (narrow.width, narrow.viewport) = (half, None);
+    let (mad, far) = compare(&right, &oracle(&narrow, Method::MultiLayer));
+    println!("viewport: mean |gpu − oracle| = {mad:.5}, share > 0.1 = {:.2}%", far * 100.0);
+    assert!(mad <= 0.01 && far <= 0.03, "viewport: {mad} / {far}");
+}

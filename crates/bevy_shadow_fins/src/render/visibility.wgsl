@@ -89,11 +89,13 @@ fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
     let depth = textureLoad(depth_prepass, pixel, 0);
     // No layer (nothing casts) or background (reverse-Z far plane): fully lit.
     // The light's own half-space test is the compositing pass's.
-    if (params.counts.y == 0u || depth <= 0.0) {
+    let in_viewport = all(vec2<f32>(id.xy) >= view.viewport.xy) && all(vec2<f32>(id.xy) < view.viewport.xy + view.viewport.zw);
+    if (params.counts.y == 0u || depth <= 0.0 || !in_viewport) {
         textureStore(visibility, pixel, vec4<f32>(1.0));
         return;
     }
-    let uv = (vec2<f32>(id.xy) + 0.5) / vec2<f32>(size);
+    // Target pixel → the camera's clip space, through its viewport (split screen).
+    let uv = (vec2<f32>(id.xy) + 0.5 - view.viewport.xy) / view.viewport.zw;
     let ndc = vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
     let world = view.world_from_clip * ndc;
     let position = to_frame(world.xyz / world.w);
