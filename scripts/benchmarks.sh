@@ -80,7 +80,7 @@ tmp=$(mktemp)
   echo
   echo "The rows above time a static scene: the plugin then reuses its extraction and maps, while Bevy redraws"
   echo "its cube map every frame. Here the light moves by 1e-5 of the scene every timed frame, so the plugin"
-  echo "re-extracts (CPU), re-uploads and re-renders every map each frame: the dynamic-scene cost."
+  echo "re-extracts, re-uploads and re-renders every map each frame: the dynamic-scene cost."
   echo
   echo '```'
   echo "$render_lab measure --scenes large-light,near-contact --methods fins,outer-fins,bevy-hard,bevy-pcss --layers 16 --refinement on --falloff disk-segment --map-resolution 1024 --moving-light --out target/render-lab/moving"
