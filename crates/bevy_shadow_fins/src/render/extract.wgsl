@@ -21,7 +21,7 @@
 //
 // Caster geometry (`geometry`) is uploaded once per mesh; only `instances`
 // (object → light-frame transforms) change when something moves.
-#import bevy_shadow_fins::fin_types::cross2
+#import bevy_shadow_fins::fin_types::{Caster, Fin, cross2}
 
 struct ExtractParams {
     // (instances, instance vertices, caster faces, caster edges)
@@ -69,21 +69,6 @@ struct Silhouette {
     info: vec4<u32>,
     // Fin directions at a (xy) and b (zw); zero when degenerate.
     dirs: vec4<f32>,
-}
-
-struct Fin {
-    header: vec4<u32>,
-    data: array<f32, 12>,
-}
-
-struct Caster {
-    corners: array<f32, 6>,
-    normal: array<f32, 3>,
-    offset: f32,
-    min_depth: f32,
-    max_depth: f32,
-    layer: u32,
-    pad: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: ExtractParams;

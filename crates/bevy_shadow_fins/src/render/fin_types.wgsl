@@ -17,6 +17,26 @@ struct FinParams {
     axis_n: vec4<f32>,
 }
 
+// One caster triangle in light-map space (`GpuCaster`, the core's `MapTriangle`):
+// corners, plane `normal · X = offset` in the light frame, depth range, layer.
+struct Caster {
+    corners: array<f32, 6>,
+    normal: array<f32, 3>,
+    offset: f32,
+    min_depth: f32,
+    max_depth: f32,
+    layer: u32,
+    pad: u32,
+}
+
+// One fin (`GpuFin`): header = (kind 0 quad / 1 sector, side 0 inner / 1 outer,
+// layer, 0); a quad's data is m0, m1, d0, d1, w0, w1, z0, z1, a sector's is
+// centre, from, to, radius, depth.
+struct Fin {
+    header: vec4<u32>,
+    data: array<f32, 12>,
+}
+
 // Five channels per layer texel: slab depth (f32 bits, atomicMin), inner min
 // key, inner max key, outer min key, outer max key. Keys pack a fin's weight
 // (15 bits, high) and depth (16 bits) so that one atomicMin/Max keeps the weight

@@ -2,22 +2,7 @@
 // evaluated at texel centres exactly as `shadow_fins::oracle::RasterMaps` does.
 // One workgroup per primitive; its threads stride over the primitive's texels.
 #import bevy_shadow_fins::fin_types::{
-    FinParams, CHANNELS, NO_MIN, NO_MAX, INF_BITS, texel_index, min_key, max_key, texel_center, cross2,
-}
-
-struct Caster {
-    corners: array<f32, 6>,
-    normal: array<f32, 3>,
-    offset: f32,
-    min_depth: f32,
-    max_depth: f32,
-    layer: u32,
-    pad: u32,
-}
-
-struct Fin {
-    header: vec4<u32>,
-    data: array<f32, 12>,
+    FinParams, Caster, Fin, CHANNELS, NO_MIN, NO_MAX, INF_BITS, texel_index, min_key, max_key, texel_center, cross2,
 }
 
 @group(0) @binding(0) var<uniform> params: FinParams;
