@@ -210,9 +210,10 @@ impl GpuSceneBuilder {
     ) -> GpuScene {
         // The distinct meshes in first-use order; re-pack only when that list changes.
         let mut distinct: Vec<&Arc<GpuMeshGeometry>> = Vec::new();
+        let mut seen = std::collections::HashSet::new();
         let mut hasher = std::collections::hash_map::DefaultHasher::new();
         for m in meshes {
-            if !distinct.iter().any(|d| Arc::ptr_eq(d, m)) {
+            if seen.insert(Arc::as_ptr(m)) {
                 distinct.push(m);
                 (Arc::as_ptr(m) as usize).hash(&mut hasher);
             }
