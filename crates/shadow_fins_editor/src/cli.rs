@@ -18,7 +18,8 @@ pub struct EditorOptions {
     pub scene: Option<PathBuf>,
     /// A settings file (RON) to load at start.
     pub settings: Option<PathBuf>,
-    /// Save a screenshot of the window here after `frames` frames, then exit.
+    /// Save a screenshot of the window here after `frames` frames (and once the
+    /// fin shadows of the current settings have settled), then exit.
     pub screenshot: Option<PathBuf>,
     /// Frames before the screenshot (default 30).
     pub frames: u32,
@@ -74,22 +75,39 @@ fn count_frames(mut state: ResMut<EditorState>) {
     state.frames += 1;
 }
 
-/// In screenshot mode: on frame N capture the window, save it, exit.
+/// Frames a screenshot waits past `--frames` for the fin shadows to settle
+/// (GPU extraction: pipelines compiled, counts read back) before it is taken anyway.
+const SETTLE_LIMIT_FRAMES: u32 = 600;
+
+/// In screenshot mode: from frame N on, once the fin shadows of the current
+/// settings are extracted and their counts read back, capture the window,
+/// save it, exit.
 fn take_screenshot_when_due(
     mut commands: Commands,
     options: Res<EditorOptions>,
     state: Res<EditorState>,
+    stats: Res<bevy_shadow_fins::FinShadowStats>,
+    frame: Res<bevy_shadow_fins::FinFrame>,
+    mut requested_at: Local<Option<u32>>,
     mut exit: MessageWriter<AppExit>,
 ) {
     let Some(path) = options.screenshot.clone() else { return };
-    let due = options.frames.max(1);
-    if state.frames == due + SCREENSHOT_TIMEOUT_FRAMES {
-        error!("no screenshot arrived {SCREENSHOT_TIMEOUT_FRAMES} frames after it was asked for; giving up");
-        exit.write(AppExit::error());
-    }
-    if state.frames != due {
+    if let Some(at) = *requested_at {
+        if state.frames == at + SCREENSHOT_TIMEOUT_FRAMES {
+            error!("no screenshot arrived {SCREENSHOT_TIMEOUT_FRAMES} frames after it was asked for; giving up");
+            exit.write(AppExit::error());
+        }
         return;
     }
+    let due = options.frames.max(1);
+    let settled = stats.0.up_to_date || frame.0.is_none();
+    if state.frames < due || (!settled && state.frames < due + SETTLE_LIMIT_FRAMES) {
+        return;
+    }
+    if !settled {
+        warn!("fin shadows not settled {SETTLE_LIMIT_FRAMES} frames after --frames; taking the screenshot anyway");
+    }
+    *requested_at = Some(state.frames);
     commands.spawn(Screenshot::primary_window()).observe(
         move |captured: On<ScreenshotCaptured>, mut exit: MessageWriter<AppExit>| {
             let saved = captured.image.clone().try_into_dynamic().map_err(|e| e.to_string()).and_then(|image| {
