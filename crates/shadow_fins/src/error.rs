@@ -58,4 +58,8 @@ pub enum GltfError {
     Mesh { mesh: String, primitive: usize, source: MeshError },
     #[error("glTF file has no triangle meshes: export the scene with triangulated meshes")]
     NoMeshes,
+    #[error("glTF {what} claims {amount}, more than the {limit} this importer reads: is the file damaged?")]
+    TooLarge { what: String, amount: u64, limit: u64 },
+    #[error("glTF accessor {index} is unusable: {reason}")]
+    Accessor { index: usize, reason: String },
 }

@@ -105,7 +105,7 @@ impl Fin {
                 if !(r2 <= radius * radius) || (r2 == 0.0 && self.side == FinSide::Outer) {
                     return None;
                 }
-                let s = from.perp_dot(to).signum();
+                let s = sector_orientation(from, to);
                 if from.perp_dot(rel) * s < 0.0 || rel.perp_dot(to) * s < 0.0 {
                     return None;
                 }
@@ -125,6 +125,19 @@ impl Fin {
             FinShape::Sector { center, radius, .. } => (center - Vec2::splat(radius), center + Vec2::splat(radius)),
         }
     }
+}
+
+/// The turning sense of a sector from `from` to `to`: `+1` counter-clockwise,
+/// `−1` clockwise.
+///
+/// When the bounds are exactly opposite (`from × to = 0`, ±0 included) the
+/// sector is the half disk counter-clockwise from `from`. Spelled out because
+/// `f32::signum(0.0)` is 1 and `signum(-0.0)` is −1 in Rust while WGSL's
+/// `sign(0.0)` is 0, which made such a sector the whole disk on the GPU and
+/// half of it on the CPU; `maps.wgsl` implements this same rule.
+#[inline]
+pub fn sector_orientation(from: Vec2, to: Vec2) -> f32 {
+    if from.perp_dot(to) >= 0.0 { 1.0 } else { -1.0 }
 }
 
 /// `(α, t)` of `q` in the quad `lerp(m0, m1, α) + t · lerp(a0, a1, α)`, both in
@@ -338,6 +351,25 @@ mod tests {
         assert!(quad_coordinates(Vec2::new(0.5, -0.1), m0, m1, d, d * 2.0).is_none());
         assert!(quad_coordinates(Vec2::new(2.5, 0.1), m0, m1, d, d * 2.0).is_none());
         assert_eq!(quad_coordinates(Vec2::new(1.0, 0.0), m0, m1, d, d).map(|x| x.1), Some(0.0));
+    }
+
+    #[test]
+    fn a_sector_with_opposite_bounds_is_the_half_disk_counter_clockwise_from_its_start() {
+        let sector = |from: Vec2, to: Vec2| Fin {
+            shape: FinShape::Sector { center: Vec2::ZERO, radius: 1.0, from, to, depth: 1.0 },
+            side: FinSide::Outer,
+            patch: 0,
+        };
+        // Exactly opposite bounds, with +0 and −0 cross products.
+        for (from, to) in [(Vec2::X, Vec2::NEG_X), (Vec2::new(-0.0, 1.0), Vec2::new(0.0, -1.0))] {
+            assert_eq!(from.perp_dot(to).abs(), 0.0);
+            let f = sector(from, to);
+            let left = from.perp() * 0.5;
+            assert!(f.sample(left, true).is_some(), "{from:?}→{to:?}: the counter-clockwise half is in");
+            assert!(f.sample(-left, true).is_none(), "{from:?}→{to:?}: the other half is out");
+        }
+        assert_eq!(sector_orientation(Vec2::X, Vec2::Y), 1.0);
+        assert_eq!(sector_orientation(Vec2::Y, Vec2::X), -1.0);
     }
 
     #[test]

@@ -6,6 +6,14 @@
 //! positions, out-of-range indices, no area) is skipped and reported in
 //! [`GltfImport::skipped`] with its typed error, so one broken mesh does not
 //! lose the rest of the file; a file with no usable mesh is an error.
+//!
+//! Hostile files (fuzzed: `fuzz/`, and the corpus test in the suite) get a
+//! typed error, never a panic, a hang or an allocation the file's own bytes do
+//! not pay for: buffers are capped at [`MAX_BUFFER_BYTES`] before anything is
+//! read, every accessor is checked against its buffer (type, stride, range,
+//! count) before the `gltf` crate's readers touch it, the element count of the
+//! whole file is capped at [`MAX_ELEMENTS`], and the node graph is walked with
+//! each node visited once, so a child cycle cannot loop.
 
 use std::path::Path;
 
@@ -33,12 +41,24 @@ pub fn load_gltf(path: impl AsRef<Path>) -> Result<GltfImport, GltfError> {
     parse_gltf(&bytes, path.parent())
 }
 
+/// The largest buffer a file may declare or bring (1 GiB).
+pub const MAX_BUFFER_BYTES: u64 = 1 << 30;
+/// The most vertices and indices, all primitives together, a file may ask for.
+pub const MAX_ELEMENTS: u64 = 1 << 27;
+
 /// Parses glTF/GLB bytes; `base_dir` resolves external buffer files.
 pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, GltfError> {
     let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| GltfError::Parse(e.to_string()))?;
     let mut buffers = Vec::new();
     for buffer in gltf.buffers() {
         let index = buffer.index();
+        if buffer.length() as u64 > MAX_BUFFER_BYTES {
+            return Err(GltfError::TooLarge {
+                what: format!("buffer {index}"),
+                amount: buffer.length() as u64,
+                limit: MAX_BUFFER_BYTES,
+            });
+        }
         let data = match buffer.source() {
             gltf::buffer::Source::Bin => {
                 gltf.blob.clone().ok_or_else(|| GltfError::Buffer { index, reason: "GLB has no BIN chunk".into() })?
@@ -64,13 +84,37 @@ pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, G
         None => gltf.nodes().collect(),
     };
     let mut stack: Vec<(gltf::Node, Mat4)> = roots.into_iter().map(|n| (n, Mat4::IDENTITY)).collect();
+    // A valid file's nodes form a forest: each is reached once. A damaged one
+    // may list a node as its own descendant; visiting each node once ends that.
+    let mut visited = vec![false; gltf.nodes().len()];
+    let mut elements = 0u64;
     while let Some((node, parent)) = stack.pop() {
+        if std::mem::replace(&mut visited[node.index()], true) {
+            continue;
+        }
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
         stack.extend(node.children().map(|c| (c, world)));
         let Some(mesh) = node.mesh() else { continue };
         let mesh_name = mesh.name().unwrap_or("unnamed").to_string();
         for (pi, prim) in mesh.primitives().enumerate() {
             let fail = |source: MeshError| GltfError::Mesh { mesh: mesh_name.clone(), primitive: pi, source };
+            let Some(position_accessor) = prim.get(&gltf::Semantic::Positions) else {
+                skipped.push(fail(MeshError::Empty));
+                continue;
+            };
+            let checked = check_accessor(&position_accessor, Usage::Positions, &buffers).and_then(|n| {
+                prim.indices().map_or(Ok(0), |a| check_accessor(&a, Usage::Indices, &buffers)).map(|i| n + i)
+            });
+            match checked {
+                Ok(n) => elements += n,
+                Err(e) => {
+                    skipped.push(e);
+                    continue;
+                }
+            }
+            if elements > MAX_ELEMENTS {
+                return Err(GltfError::TooLarge { what: "mesh data".into(), amount: elements, limit: MAX_ELEMENTS });
+            }
             let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
             let Some(positions) = reader.read_positions() else {
                 skipped.push(fail(MeshError::Empty));
@@ -101,6 +145,84 @@ pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, G
     Ok(GltfImport { scene: Scene::new(objects), skipped })
 }
 
+/// What an accessor is read as.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Usage {
+    /// `VEC3` of `f32`, not normalised.
+    Positions,
+    /// `SCALAR` of `u8`, `u16` or `u32`.
+    Indices,
+}
+
+/// Checks an accessor against what the `gltf` crate's readers assume (they
+/// index and debug-assert rather than return errors) and against its buffer;
+/// returns its element count.
+fn check_accessor(a: &gltf::Accessor, usage: Usage, buffers: &[Vec<u8>]) -> Result<u64, GltfError> {
+    use gltf::accessor::{DataType, Dimensions};
+    let bad = |reason: String| Err(GltfError::Accessor { index: a.index(), reason });
+    let count = a.count() as u64;
+    if count == 0 {
+        return bad("its count is 0".into());
+    }
+    if count > MAX_ELEMENTS {
+        return Err(GltfError::TooLarge {
+            what: format!("accessor {}", a.index()),
+            amount: count,
+            limit: MAX_ELEMENTS,
+        });
+    }
+    let element = match (usage, a.dimensions(), a.data_type()) {
+        (Usage::Positions, Dimensions::Vec3, DataType::F32) if !a.normalized() => 12u64,
+        (Usage::Indices, Dimensions::Scalar, DataType::U8) => 1,
+        (Usage::Indices, Dimensions::Scalar, DataType::U16) => 2,
+        (Usage::Indices, Dimensions::Scalar, DataType::U32) => 4,
+        (u, d, t) => return bad(format!("{t:?} {d:?} cannot be read as {u:?}")),
+    };
+    // Every view the accessor reads must lie inside its buffer, and every
+    // element inside its view.
+    let check_view = |view: gltf::buffer::View, offset: u64, count: u64, element: u64| -> Result<(), GltfError> {
+        let buffer = buffers.get(view.buffer().index()).map_or(0, |b| b.len() as u64);
+        let (start, length) = (view.offset() as u64, view.length() as u64);
+        if start.checked_add(length).is_none_or(|end| end > buffer) {
+            return Err(GltfError::Accessor {
+                index: a.index(),
+                reason: format!("its buffer view ({start} + {length} bytes) overruns its {buffer}-byte buffer"),
+            });
+        }
+        let stride = view.stride().map_or(element, |s| s as u64);
+        if stride < element {
+            return Err(GltfError::Accessor {
+                index: a.index(),
+                reason: format!("stride {stride} is shorter than its {element}-byte elements"),
+            });
+        }
+        let end =
+            (count - 1).checked_mul(stride).and_then(|x| x.checked_add(offset)).and_then(|x| x.checked_add(element));
+        if end.is_none_or(|end| end > length) {
+            return Err(GltfError::Accessor {
+                index: a.index(),
+                reason: format!("{count} elements from offset {offset} overrun its {length}-byte view"),
+            });
+        }
+        Ok(())
+    };
+    match a.view() {
+        Some(view) => check_view(view, a.offset() as u64, count, element)?,
+        None if a.sparse().is_none() => return bad("it has neither a buffer view nor sparse values".into()),
+        None => {}
+    }
+    if let Some(sparse) = a.sparse() {
+        let n = sparse.count() as u64;
+        if n == 0 || n > count {
+            return bad(format!("{n} sparse values for {count} elements"));
+        }
+        let index_size = sparse.indices().index_type().size() as u64;
+        check_view(sparse.indices().view(), sparse.indices().offset() as u64, n, index_size)?;
+        check_view(sparse.values().view(), sparse.values().offset() as u64, n, element)?;
+    }
+    Ok(count)
+}
+
 fn strip_to_list(s: &[u32]) -> Vec<u32> {
     (2..s.len())
         .flat_map(|i| if i % 2 == 0 { [s[i - 2], s[i - 1], s[i]] } else { [s[i - 1], s[i - 2], s[i]] })
@@ -118,6 +240,18 @@ fn read_uri(uri: &str, base_dir: Option<&Path>) -> Result<Vec<u8>, String> {
     }
     let dir = base_dir.ok_or("external buffer but no directory to resolve it in")?;
     let file = dir.join(percent_decode(uri));
+    let meta = std::fs::metadata(&file).map_err(|e| format!("cannot read {}: {e}", file.display()))?;
+    // Not a device or a pipe: `/dev/zero` reports 0 bytes and never ends.
+    if !meta.is_file() {
+        return Err(format!("{} is not a regular file", file.display()));
+    }
+    let size = meta.len();
+    if size > MAX_BUFFER_BYTES {
+        return Err(format!(
+            "{} is {size} bytes, more than the {MAX_BUFFER_BYTES} this importer reads",
+            file.display()
+        ));
+    }
     std::fs::read(&file).map_err(|e| format!("cannot read {}: {e}", file.display()))
 }
 

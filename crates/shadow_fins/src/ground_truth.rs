@@ -50,11 +50,11 @@ impl<'a> GroundTruth<'a> {
     /// method for a shading term on surfaces that face the light at a grazing
     /// angle. When the whole disk is below the horizon, the result is 0.
     ///
-    /// The receiver is lifted off its surface by 1e-5 of the scene size along its
-    /// normal (the same lift the oracle uses). Points at or behind the light
-    /// plane see nothing of the one-sided disk.
+    /// The receiver is lifted off its surface along its normal by the same
+    /// lift the oracle uses ([`crate::scene::surface_epsilon`]). Points at or
+    /// behind the light plane see nothing of the one-sided disk.
     pub fn visibility(&self, receiver: Receiver) -> f32 {
-        let eps = self.scene.extent * 1e-5;
+        let eps = crate::scene::surface_epsilon(receiver.position, self.scene.extent);
         let p = receiver.position + receiver.normal * eps;
         if !p.is_finite() {
             return 0.0;

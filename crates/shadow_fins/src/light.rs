@@ -174,6 +174,12 @@ impl LightFrame {
         self.axes.map(|a| a.as_vec3())
     }
 
+    /// The frame axes `(u, v, n)` in f64, for composing transforms into the
+    /// frame without losing what the f64 origin keeps.
+    pub fn axes_f64(&self) -> [DVec3; 3] {
+        self.axes
+    }
+
     /// Light size: `R` for a disk, `tan θ` for the sun.
     pub fn size(&self) -> f32 {
         match self.projection {
@@ -205,11 +211,17 @@ impl LightFrame {
     /// behind the edge).
     ///
     /// Disk: the world width `B_r = R(L_r − L_b)/L_r` of eq. 3 at the edge's depth
-    /// is `R(1/L_b − 1/L_r)` in map units. Sun: `tan θ (L_r − L_b)`.
+    /// is `R(1/L_b − 1/L_r)` in map units, computed as `R((L_r − L_b)/L_b)/L_r`:
+    /// the difference of two reciprocals cancels catastrophically when the
+    /// receiver is just behind the edge far from the light (at `L ≈ 1e4` a gap of
+    /// 1e-2 kept one significant digit), while `L_r − L_b` of two nearby floats is
+    /// exact. Sun: `tan θ (L_r − L_b)`.
     #[inline]
     pub fn penumbra_half_width(&self, edge_depth: f32, receiver_depth: f32) -> f32 {
         let w = match self.projection {
-            Projection::Perspective { radius } => radius * (1.0 / edge_depth - 1.0 / receiver_depth),
+            Projection::Perspective { radius } => {
+                radius * ((receiver_depth - edge_depth) / edge_depth) / receiver_depth
+            }
             Projection::Orthographic { tan_angle } => tan_angle * (receiver_depth - edge_depth),
         };
         if w > 0.0 { w } else { 0.0 }
@@ -273,5 +285,17 @@ mod tests {
         let f = LightFrame::disk(&DiskLight::new(Vec3::ZERO, Vec3::Z, 0.5).unwrap());
         assert!((f.penumbra_half_width(1.0, 3.0) - 1.0 / 3.0).abs() < 1e-6);
         assert_eq!(f.penumbra_half_width(3.0, 1.0), 0.0);
+    }
+
+    #[test]
+    fn penumbra_width_keeps_its_digits_for_a_small_gap_far_from_the_light() {
+        // 1/L_b − 1/L_r in f32 at L ≈ 1e4 keeps about one digit of a 1e-2 gap.
+        let f = LightFrame::disk(&DiskLight::new(Vec3::ZERO, Vec3::Z, 1.0).unwrap());
+        for (lb, gap) in [(1e4f32, 1e-2f32), (1e3, 1e-3), (5e4, 0.5), (1.0, 1e-6)] {
+            let lr = lb + gap;
+            let exact = (lr as f64 - lb as f64) / (lb as f64 * lr as f64);
+            let w = f.penumbra_half_width(lb, lr) as f64;
+            assert!((w - exact).abs() <= 1e-5 * exact, "L_b {lb}, gap {gap}: {w} vs {exact}");
+        }
     }
 }

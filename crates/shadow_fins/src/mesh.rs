@@ -127,6 +127,8 @@ pub struct Topology {
     pub degenerate_faces: usize,
     /// Two-face edges whose faces walk them in the same direction (flipped winding).
     pub inconsistent_edges: usize,
+    /// Object-space bounds of the welded positions.
+    pub bounds: (Vec3, Vec3),
 }
 
 impl Topology {
@@ -210,8 +212,10 @@ impl Topology {
                 }
             })
             .collect();
+        let bounds = positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
         Self {
             crease,
+            bounds,
             positions,
             faces,
             face_planes,
@@ -235,6 +239,94 @@ impl Topology {
             && self.inconsistent_edges == 0
             && self.edges.iter().all(|e| e.faces[1] != NO_FACE)
     }
+
+    /// True when `p` (object space) lies inside this closed mesh, by the parity
+    /// of a ray's crossings. Always false for a mesh that is not closed (it has
+    /// no inside) and outside the bounds (the common case costs one box test).
+    ///
+    /// Robustness: the crossings are counted in f64 along a direction no
+    /// modelled axis or diagonal follows; a ray that passes within a relative
+    /// 1e-9 of an edge or vertex, or starts on a face, is ambiguous and the next
+    /// of three directions is tried; if all three are ambiguous the majority of
+    /// their parities decides.
+    pub fn contains_point(&self, p: Vec3) -> bool {
+        let (lo, hi) = self.bounds;
+        if !self.is_closed_manifold() || !(p.cmpge(lo).all() && p.cmple(hi).all()) {
+            return false;
+        }
+        const DIRECTIONS: [[f64; 3]; 3] =
+            [[0.5773, 0.5775, 0.5771], [-0.2672, 0.8018, -0.5346], [0.8944, -0.1234, 0.4297]];
+        let p = p.as_dvec3();
+        let mut votes = 0;
+        for (k, d) in DIRECTIONS.iter().enumerate() {
+            let d = glam::DVec3::from_array(*d).normalize();
+            match self.ray_crossings(p, d) {
+                Some(n) => return n % 2 == 1,
+                None => votes += self.ray_crossings_lenient(p, d) % 2,
+            }
+            if k == DIRECTIONS.len() - 1 {
+                return votes >= 2;
+            }
+        }
+        false
+    }
+
+    /// Faces crossed by the ray `p + t d, t > 0`; `None` when a hit is too close
+    /// to an edge or to the origin to count reliably.
+    fn ray_crossings(&self, p: glam::DVec3, d: glam::DVec3) -> Option<usize> {
+        let mut n = 0;
+        for f in &self.faces {
+            match ray_triangle(p, d, f.map(|i| self.positions[i as usize].as_dvec3())) {
+                RayTriangle::Miss => {}
+                RayTriangle::Hit => n += 1,
+                RayTriangle::Ambiguous => return None,
+            }
+        }
+        Some(n)
+    }
+
+    fn ray_crossings_lenient(&self, p: glam::DVec3, d: glam::DVec3) -> usize {
+        let faces = self.faces.iter().map(|f| ray_triangle(p, d, f.map(|i| self.positions[i as usize].as_dvec3())));
+        faces.filter(|r| *r != RayTriangle::Miss).count()
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum RayTriangle {
+    Miss,
+    Hit,
+    Ambiguous,
+}
+
+/// Möller–Trumbore in f64 with a margin: barycentrics within 1e-9 of an edge,
+/// or a hit within 1e-9 (relative) of the origin, are ambiguous.
+fn ray_triangle(p: glam::DVec3, d: glam::DVec3, [a, b, c]: [glam::DVec3; 3]) -> RayTriangle {
+    const MARGIN: f64 = 1e-9;
+    let (e1, e2) = (b - a, c - a);
+    let h = d.cross(e2);
+    let det = e1.dot(h);
+    let scale = e1.length() * e2.length();
+    if det.abs() <= 1e-14 * scale {
+        // The ray runs in the triangle's plane: counts only if it could touch it.
+        return if (p - a).dot(e1.cross(e2)).abs() <= MARGIN * scale * (p - a).length().max(1.0) {
+            RayTriangle::Ambiguous
+        } else {
+            RayTriangle::Miss
+        };
+    }
+    let s = p - a;
+    let u = s.dot(h) / det;
+    let q = s.cross(e1);
+    let v = d.dot(q) / det;
+    let t = e2.dot(q) / det;
+    let (w, size) = (1.0 - u - v, scale.sqrt());
+    if u < -MARGIN || v < -MARGIN || w < -MARGIN || t < -MARGIN * size {
+        return RayTriangle::Miss;
+    }
+    if u < MARGIN || v < MARGIN || w < MARGIN || t < MARGIN * size {
+        return RayTriangle::Ambiguous;
+    }
+    RayTriangle::Hit
 }
 
 /// Merges vertices with bit-identical positions (`-0.0` and `0.0` are one).
@@ -299,6 +391,27 @@ mod tests {
         let t = Topology::build(&Mesh::new(p, vec![0, 1, 2, 1, 0, 3, 0, 1, 4]).unwrap());
         assert_eq!(t.non_manifold_edges.len(), 1);
         assert_eq!(t.non_manifold_edges[0].faces.len(), 3);
+    }
+
+    #[test]
+    fn points_inside_a_closed_mesh_are_found_by_ray_parity() {
+        let cube = Topology::build(&crate::shapes::cuboid(Vec3::splat(0.5)));
+        assert!(cube.is_closed_manifold());
+        for p in [Vec3::ZERO, Vec3::splat(0.45), Vec3::new(-0.49, 0.0, 0.3), Vec3::new(0.0, 0.25, 0.0)] {
+            assert!(cube.contains_point(p), "{p:?} is inside");
+        }
+        for p in [Vec3::splat(0.51), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, -0.7, 0.0)] {
+            assert!(!cube.contains_point(p), "{p:?} is outside");
+        }
+        // Just off the centre, where the diagonal ray would graze edges.
+        assert!(cube.contains_point(Vec3::new(1e-12, 1e-12, 1e-12)));
+        let sphere = Topology::build(&crate::shapes::uv_sphere(1.0, 24, 12));
+        assert!(sphere.contains_point(Vec3::new(0.1, -0.2, 0.3)));
+        assert!(!sphere.contains_point(Vec3::new(0.8, 0.8, 0.0)));
+        // An open quad has no inside.
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
+        let quad = Topology::build(&Mesh::new(p, vec![0, 1, 2, 0, 2, 3]).unwrap());
+        assert!(!quad.contains_point(Vec3::new(0.5, 0.5, 0.0)));
     }
 
     #[test]

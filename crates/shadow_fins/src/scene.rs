@@ -102,6 +102,13 @@ pub struct ObjectToFrame {
     pub translation: Vec3,
     /// The transform mirrors (negative determinant): face orientation flips.
     pub mirrors: bool,
+    /// The disk light's centre lies inside this closed mesh (ray parity, see
+    /// [`Topology::contains_point`]). Seen from inside, every face of a closed
+    /// mesh faces away from the light, so the usual rule (back faces of closed
+    /// meshes stay out of the maps) would leave nothing to block it and the
+    /// whole world outside would be lit; such an instance is drawn as an open
+    /// mesh instead, both sides, and shadows everything outside it.
+    pub light_inside: bool,
 }
 
 impl ObjectToFrame {
@@ -111,7 +118,23 @@ impl ObjectToFrame {
         let rows = glam::DMat3::from_cols(u, v, n).transpose();
         let linear = rows * m.matrix3;
         let translation = rows * (m.translation - frame.origin());
-        Self { linear: linear.as_mat3(), translation: translation.as_vec3(), mirrors: linear.determinant() < 0.0 }
+        let light_inside = frame.is_perspective() && {
+            // The light centre (the frame origin) in object space, in f64.
+            let centre = m.matrix3.inverse() * (frame.origin() - m.translation);
+            object.topology.contains_point(centre.as_vec3())
+        };
+        Self {
+            linear: linear.as_mat3(),
+            translation: translation.as_vec3(),
+            mirrors: linear.determinant() < 0.0,
+            light_inside,
+        }
+    }
+
+    /// Whether this instance's back faces stay out of the maps: a closed mesh
+    /// the light is outside of.
+    pub fn culls_back_faces(&self, topology: &Topology) -> bool {
+        topology.is_closed_manifold() && !self.light_inside
     }
 
     #[inline]
@@ -161,8 +184,25 @@ pub struct LightSpaceScene {
     pub object_frames: Vec<ObjectToFrame>,
     /// Reference plane depth `L0`: the deepest receiver (so real receivers never lie beyond it).
     pub reference_depth: f32,
-    /// World-space diagonal of the scene's bounds, the yardstick for epsilons.
+    /// World-space diagonal of the scene's bounds.
     pub extent: f32,
+}
+
+/// Relative size of the lift that keeps a receiver off its own surface.
+pub const SURFACE_EPSILON: f32 = 1e-5;
+
+/// The lift off its surface of a receiver at light-frame point `p`:
+/// [`SURFACE_EPSILON`] of its distance from the light's centre (the frame
+/// origin), never less than 1e-7 of the scene's size.
+///
+/// Why relative to the receiver, not to the scene: f32 positions are as
+/// precise as their own magnitude, and a scene's size says nothing about its
+/// details. With 1e-5 of the diagonal, a 2e6-wide ground lifted receivers by
+/// 28 units — above a light 4.5 units over it — and every method and the
+/// ground truth then agreed on "unlit", scoring 0 error on a blank image.
+#[inline]
+pub fn surface_epsilon(p: Vec3, extent: f32) -> f32 {
+    (SURFACE_EPSILON * p.length()).max(1e-7 * extent)
 }
 
 impl LightSpaceScene {
@@ -185,5 +225,22 @@ impl LightSpaceScene {
         // A scene entirely behind the light still needs a positive L0.
         let reference_depth = if deepest > 0.0 { deepest } else { extent };
         Self { light, frame, casters, object_frames, reference_depth, extent }
+    }
+
+    /// Moves the reference plane `L0` down to the deepest of `receivers` (light
+    /// frame) when one lies beyond it, so that every receiver is in front of
+    /// the plane the fins are built for (DESIGN §3).
+    ///
+    /// Why: a fin is as wide as the penumbra on the reference plane; a receiver
+    /// behind it has a wider penumbra, whose outer part no fin covers, and
+    /// refinement then leaves a step of `½(1 − B0/Br)` at the fin's end. The
+    /// scene's own surfaces never lie beyond `L0` (it is their deepest vertex);
+    /// points given from outside (the lab's CSV points) can.
+    pub fn cover_receivers(&mut self, receivers: impl IntoIterator<Item = Vec3>) {
+        for p in receivers {
+            if p.z.is_finite() && p.z > self.reference_depth {
+                self.reference_depth = p.z;
+            }
+        }
     }
 }

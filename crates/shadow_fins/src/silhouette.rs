@@ -97,7 +97,7 @@ pub fn extract_object_silhouettes(
     }
 
     // Patches: flood fill over map faces across non-silhouette edges.
-    let closed = topology.is_closed_manifold();
+    let closed = to_frame.culls_back_faces(topology);
     let first = face_patches.len();
     face_patches.resize(first + facing.len(), NO_PATCH);
     let labels = &mut face_patches[first..];

@@ -120,7 +120,7 @@ impl<'m, 'a> AnalyticIndex<'m, 'a> {
     /// [`Self::visibility`] reusing a buffer.
     pub fn visibility_with(&self, receiver: Receiver, texels: &mut Vec<LayerTexel>) -> f32 {
         let m = self.model;
-        let eps = m.surface_epsilon();
+        let eps = m.surface_epsilon(receiver);
         let p = m.lifted(receiver, eps);
         if m.behind_light(p) {
             return 0.0;

@@ -465,9 +465,9 @@ impl<'a> FinShadowModel<'a> {
         r.position + r.normal * offset
     }
 
-    /// Epsilon for self-shadowing in the exact (analytic) evaluation.
-    pub fn surface_epsilon(&self) -> f32 {
-        self.light_space.extent * 1e-5
+    /// Epsilon for self-shadowing at a receiver ([`crate::scene::surface_epsilon`]).
+    pub fn surface_epsilon(&self, receiver: Receiver) -> f32 {
+        crate::scene::surface_epsilon(receiver.position, self.light_space.extent)
     }
 
     /// Visibility from the layer texels at a receiver: `falloff(I)`.

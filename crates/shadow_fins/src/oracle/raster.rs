@@ -126,7 +126,8 @@ impl<'m, 'a> RasterMaps<'m, 'a> {
         let mut texels = Vec::with_capacity(self.layers.len());
         let depth_guess = receiver.position.z.max(m.near);
         let texel_world = self.texel_world_size(depth_guess);
-        let p = m.lifted(receiver, m.surface_epsilon() + texel_world);
+        let eps = m.surface_epsilon(receiver);
+        let p = m.lifted(receiver, eps + texel_world);
         if m.behind_light(p) {
             return 0.0;
         }
@@ -138,7 +139,7 @@ impl<'m, 'a> RasterMaps<'m, 'a> {
             None => texels.resize(self.layers.len(), LayerTexel::EMPTY),
         }
         // Without a normal there is no offset: fall back to a slope-blind depth bias.
-        let slack = if receiver.normal == Vec3::ZERO { 2.0 * texel_world + m.surface_epsilon() } else { 0.0 };
+        let slack = if receiver.normal == Vec3::ZERO { 2.0 * texel_world + eps } else { 0.0 };
         m.visibility_from(&texels, p.z, p.z * (1.0 - 1e-6) - slack)
     }
 

@@ -80,3 +80,72 @@ fn a_scene_offset_by_1e5_stays_finite_and_close() {
         }
     }
 }
+
+#[test]
+fn a_light_inside_a_closed_caster_shadows_everything_outside_it() {
+    use shadow_fins::{glam::Vec3, light::DiskLight, light::Light};
+    // box-over-plane: the box spans y 1..2 above the ground; the light's centre
+    // in its middle, facing down. Every ground point is in shadow (truth 0).
+    let s = SceneId::BoxOverPlane.build();
+    let light = Light::Disk(DiskLight::new(Vec3::new(0.0, 1.5, 0.0), Vec3::NEG_Y, 0.1).unwrap());
+    let ls = shadow_fins::scene::LightSpaceScene::new(&s.scene, light);
+    assert!(ls.object_frames.iter().any(|f| f.light_inside), "the box is found to hold the light");
+    let points: Vec<Vec3> =
+        (0..25).map(|i| Vec3::new((i % 5) as f32 * 0.6 - 1.2, 0.0, (i / 5) as f32 * 0.6 - 1.2)).collect();
+    let receivers = super::common::ground_receivers(&ls, &points);
+    let gt = GroundTruth::new(&ls, 256);
+    for method in Method::ALL {
+        let model = FinShadowModel::new(&s.scene, &ls, method, FinSettings::default());
+        let (index, maps) = (model.analytic(), model.raster(256));
+        for r in &receivers {
+            let truth = gt.visibility(*r);
+            assert!(truth < 0.01, "truth {truth}: the disk is inside the box");
+            for v in [index.visibility(*r), maps.visibility(*r)] {
+                assert!(v <= 0.01, "{}: ground point lit ({v}) by a light shut in a box", method.name());
+            }
+        }
+    }
+}
+
+#[test]
+fn receivers_beyond_the_scene_get_fins_as_wide_as_their_penumbra() {
+    use shadow_fins::{glam::Vec3, metrics::ErrorMetrics, oracle::Receiver};
+    // The box of box-over-plane without its ground, and receivers 1.5× and 10×
+    // deeper than its deepest vertex (with the ground they would lie under it,
+    // in its umbra): without covering them the fins end too early.
+    let mut s = SceneId::BoxOverPlane.build();
+    s.scene.objects.retain(|o| o.name != "ground");
+    assert_eq!(s.scene.objects.len(), 1);
+    let ls = shadow_fins::scene::LightSpaceScene::new(&s.scene, s.light);
+    let l0 = ls.reference_depth;
+    let mut receivers = vec![];
+    for depth in [1.5f32, 10.0] {
+        for i in 0..400 {
+            let (x, y) = ((i % 20) as f32 / 19.0 - 0.5, (i / 20) as f32 / 19.0 - 0.5);
+            let d = depth * l0;
+            receivers.push(Receiver { position: Vec3::new(x * d * 0.5, y * d * 0.5, d), normal: Vec3::NEG_Z });
+        }
+    }
+    let error = |ls: &shadow_fins::scene::LightSpaceScene| {
+        let model = FinShadowModel::new(&s.scene, ls, Method::MultiLayer, FinSettings::default());
+        let index = model.analytic();
+        let gt = GroundTruth::new(ls, 1024);
+        let v: Vec<f32> = receivers.iter().map(|r| index.visibility(*r)).collect();
+        let t: Vec<f32> = receivers.iter().map(|r| gt.visibility(*r)).collect();
+        ErrorMetrics::compute(&v, &t)
+    };
+    let clamped = error(&ls);
+    let mut covered = ls.clone();
+    covered.cover_receivers(receivers.iter().map(|r| r.position));
+    assert_eq!(covered.reference_depth, 10.0 * l0);
+    let covered = error(&covered);
+    assert!(covered.count > 100, "the receivers see the box's penumbra ({} scored)", covered.count);
+    assert!(
+        covered.mae < 0.6 * clamped.mae && covered.p99 < clamped.p99,
+        "covering the receivers: MAE {} (p99 {}) vs clamped {} (p99 {})",
+        covered.mae,
+        covered.p99,
+        clamped.mae,
+        clamped.p99
+    );
+}
