@@ -9,6 +9,7 @@ mod render {
     mod gpu_extraction;
     mod lab;
     mod oracle_agreement;
+    mod reliability;
     mod robustness;
     mod runtime_changes;
 }

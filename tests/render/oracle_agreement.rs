@@ -2,8 +2,8 @@
 //! resolution.
 //!
 //! Tolerance: mean absolute difference ≤ 0.01 over the image. What may differ:
-//! fin weights and depths are quantised on the GPU (15 and 16 bits: ≤ 1.5e-5 in
-//! weight), and pixels on geometric edges of the camera view, where the GPU's
+//! fin weights are quantised on the GPU (15 bits: ≤ 1.5e-5; depths are exact
+//! f32), and pixels on geometric edges of the camera view, where the GPU's
 //! rasterised depth and the oracle's ray hit may land on different surfaces; a
 //! 96×72 view has a few dozen such pixels, each off by up to 1, which is why
 //! the share of pixels off by more than 0.1 is bounded separately (≤ 3%).

@@ -15,21 +15,24 @@ use std::{
 
 use bevy::{
     asset::AssetId,
+    camera::primitives::Aabb,
+    math::DVec3,
     mesh::{Indices, Mesh, PrimitiveTopology, VertexAttributeValues},
     prelude::*,
     render::extract_resource::ExtractResource,
 };
 use shadow_fins::{
     fins::{Fin, FinShape, FinSide},
-    light::{DiskLight, Light},
+    light::{DiskLight, Light, LightFrame},
     mesh::{Mesh as CoreMesh, Topology},
     oracle::{FinShadowModel, MapRegion, RasterMaps},
     scene::{LightSpaceScene, Scene, SceneObject},
 };
 
 use crate::{
+    budget::{FinDegradation, FinDeviceLimits, FinShadowBudget, FinShadowsUnsupported, allocate_maps},
     gpu_scene::{GpuCapacity, GpuMeshGeometry, GpuScene, GpuSceneBuilder},
-    light::{FinExtraction, FinLight, FinShadowSettings, NotFinShadowCaster},
+    light::{FinExtraction, FinLight, FinMethod, FinShadowSettings, NotFinShadowCaster},
 };
 
 /// Why a mesh could not be used as a caster (logged once per mesh).
@@ -60,6 +63,11 @@ pub struct FinFrameStats {
     pub extract_ms: f32,
     /// The counts describe the current frame (always true on the CPU path).
     pub up_to_date: bool,
+    /// Why the frame models less than the settings ask for (a GPU limit or the
+    /// [`FinShadowBudget`](crate::FinShadowBudget)); `None` when nothing was cut.
+    pub degraded: Option<FinDegradation>,
+    /// The penumbra maps' resolution and layer count as allocated.
+    pub map_resolution: u32,
 }
 
 /// What the fin light's shadows currently model (see [`FinFrameStats`]).
@@ -97,9 +105,16 @@ pub struct FinFrameData {
     pub(crate) casters: Vec<GpuCaster>,
     pub(crate) fins: Vec<GpuFin>,
     pub(crate) region: MapRegion,
-    /// World → light frame: origin and axes (u, v, n).
-    pub(crate) origin: Vec3,
-    pub(crate) axes: [Vec3; 3],
+    /// Map layers allocated (what fits the budget; the GPU merges the deepest
+    /// layers beyond it).
+    pub(crate) map_layers: u32,
+    /// The largest buffer this frame was built for, bytes.
+    pub(crate) limit_bytes: u64,
+    /// World → light frame: origin and axes (u, v, n), in f64 so that each
+    /// camera's view → light transform is composed without losing precision far
+    /// from the world origin.
+    pub(crate) origin: DVec3,
+    pub(crate) axes: [DVec3; 3],
     pub(crate) radius: f32,
     pub(crate) reference_depth: f32,
     pub(crate) near: f32,
@@ -137,8 +152,11 @@ pub(crate) fn build(app: &mut App) {
 #[allow(clippy::type_complexity)]
 fn update_fin_frame(
     lights: Query<(&FinLight, &FinShadowSettings, &GlobalTransform)>,
-    casters: Query<(Entity, &Mesh3d, &GlobalTransform, Has<NotFinShadowCaster>)>,
+    casters: Query<(Entity, &Mesh3d, &GlobalTransform, Has<NotFinShadowCaster>, Option<&Aabb>)>,
     meshes: Res<Assets<Mesh>>,
+    budget: Res<FinShadowBudget>,
+    device: Res<FinDeviceLimits>,
+    unsupported: Option<Res<FinShadowsUnsupported>>,
     mut mesh_events: MessageReader<AssetEvent<Mesh>>,
     mut cache: ResMut<MeshCache>,
     mut frame: ResMut<FinFrame>,
@@ -157,12 +175,20 @@ fn update_fin_frame(
         }
         return;
     };
+    if let Some(why) = unsupported {
+        let off = FinFrameStats { degraded: Some(FinDegradation::Unsupported(why.0)), up_to_date: true, ..default() };
+        if stats.0 != off {
+            stats.0 = off;
+        }
+        return;
+    }
     // Signature of everything the frame depends on: skip all work when unchanged.
     let mut hasher = std::collections::hash_map::DefaultHasher::new();
     hash_floats(&mut hasher, &light_transform.to_matrix().to_cols_array());
     hash_floats(&mut hasher, &[light.effective_radius(), light.range]);
     settings.clamped().hash(&mut hasher);
-    for (entity, mesh, transform, not_caster) in &casters {
+    budget.hash(&mut hasher);
+    for (entity, mesh, transform, not_caster, _) in &casters {
         entity.hash(&mut hasher);
         not_caster.hash(&mut hasher);
         mesh.id().hash(&mut hasher);
@@ -180,8 +206,14 @@ fn update_fin_frame(
 
     let start = std::time::Instant::now();
     let (mut objects, mut gpu_meshes) = (Vec::new(), Vec::new());
-    for (_, mesh3d, transform, not_caster) in &casters {
-        let Some(mesh) = meshes.get(mesh3d.id()) else { continue };
+    // World bounds of meshes drawn but unreadable here (render-world only,
+    // invalid): receivers all the same, so the reference plane must cover them.
+    let mut unread_bounds = Vec::new();
+    for (_, mesh3d, transform, not_caster, aabb) in &casters {
+        let Some(mesh) = meshes.get(mesh3d.id()) else {
+            unread_bounds.extend(aabb.map(|b| world_corners(b, transform)));
+            continue;
+        };
         let entry = cache.meshes.entry(mesh3d.id()).or_insert_with(|| {
             let converted = core_mesh(mesh);
             if let Err(e) = &converted {
@@ -189,7 +221,10 @@ fn update_fin_frame(
             }
             converted
         });
-        let Ok((core, topology, geometry)) = entry else { continue };
+        let Ok((core, topology, geometry)) = entry else {
+            unread_bounds.extend(aabb.map(|b| world_corners(b, transform)));
+            continue;
+        };
         let affine = transform.affine();
         if let Ok(mut o) = SceneObject::shared("mesh", core.clone(), topology.clone(), affine) {
             // Meshes that do not cast still receive: they count for the reference plane.
@@ -207,27 +242,61 @@ fn update_fin_frame(
         return;
     };
     let settings = settings.clamped();
+    let max_buffer = device.max_buffer(&budget);
+    let limits = FrameLimits { max_buffer, map_bytes: budget.map_bytes.min(max_buffer) };
     cache.generation += 1;
-    let data = match settings.extraction {
-        FinExtraction::Cpu => cpu_frame(Scene::new(objects), disk, settings, cache.generation, start),
-        FinExtraction::Gpu => {
-            let MeshCache { gpu, capacity, generation, .. } = &mut *cache;
-            let scene = gpu.build(&objects, &gpu_meshes, &disk, capacity);
+    let mut extraction = settings.extraction;
+    let mut gpu_scene = None;
+    if extraction == FinExtraction::Gpu {
+        let MeshCache { gpu, capacity, .. } = &mut *cache;
+        let scene = gpu.build(&objects, &gpu_meshes, &disk, capacity, GpuCapacity::max_for(max_buffer));
+        // Buffers sized by the scene itself cannot shrink: past the limit the
+        // core crate extracts on the CPU instead.
+        match scene.input_bytes().into_iter().find(|(_, bytes)| *bytes > max_buffer) {
+            Some((buffer, bytes)) => {
+                warn_once!(
+                    "fin shadows: the GPU extraction's {buffer} ({bytes} bytes) exceeds the buffer limit; extracting on the CPU"
+                );
+                extraction = FinExtraction::Cpu;
+                gpu_scene = Some(Err(FinDegradation::ExtractedOnCpu { buffer, bytes, limit_bytes: max_buffer }));
+            }
+            None => gpu_scene = Some(Ok(scene)),
+        }
+    }
+    let receiver_bound = unread_bounds.into_iter().flatten();
+    let mut data = match (extraction, gpu_scene) {
+        (FinExtraction::Gpu, Some(Ok(scene))) => {
+            // Layers are known to the GPU only (a read-back grows them): the
+            // maps hold what the GPU last wanted, at the best resolution that
+            // fits, and may grow to the most layers that fit at all.
+            let asked = if settings.method == FinMethod::MultiLayer { settings.layers } else { 1 };
+            let most = allocate_maps(settings.map_resolution, asked, MAP_TEXEL_BYTES, limits.map_bytes).layers;
+            let mut scene = scene;
+            let wanted = scene.capacity.layers.min(most);
+            let alloc = allocate_maps(settings.map_resolution, wanted, MAP_TEXEL_BYTES, limits.map_bytes);
+            scene.capacity.layers = alloc.layers;
+            scene.max_capacity.layers = most;
+            let frame = LightFrame::disk(&disk);
+            scene.receiver_depth = receiver_bound.map(|p| frame.to_frame(p).z).fold(0.0, f32::max);
             let stats = FinFrameStats {
                 casters: objects.iter().filter(|o| o.casts_shadows).count(),
                 triangles: objects.iter().map(|o| o.mesh.triangle_count()).sum(),
                 extract_ms: start.elapsed().as_secs_f32() * 1e3,
                 // No caster face: the GPU runs no pass and there is nothing to read back.
                 up_to_date: scene.totals[1] == 0,
+                degraded: alloc.degradation,
+                map_resolution: alloc.resolution,
                 ..default()
             };
             FinFrameData {
-                generation: *generation,
+                generation: cache.generation,
                 stats,
                 casters: Vec::new(),
                 fins: Vec::new(),
-                region: MapRegion { min: Vec2::ZERO, texel: 1.0, resolution: settings.map_resolution },
-                origin: disk.center,
+                region: MapRegion { min: Vec2::ZERO, texel: 1.0, resolution: alloc.resolution },
+                map_layers: alloc.layers,
+                limit_bytes: limits.max_buffer,
+                origin: disk.center.as_dvec3(),
                 axes: scene.axes,
                 radius,
                 reference_depth: 0.0,
@@ -237,9 +306,48 @@ fn update_fin_frame(
                 gpu: Some(scene),
             }
         }
+        (_, fallback) => {
+            let mut data =
+                cpu_frame(Scene::new(objects), disk, settings, cache.generation, start, receiver_bound, limits);
+            if let Some(Err(why)) = fallback {
+                // What the CPU path had to cut (maps, dropped casters) shows first.
+                warn!("fin shadows: {why}");
+                data.stats.degraded = data.stats.degraded.or(Some(why));
+            }
+            data
+        }
     };
+    data.stats.map_resolution = data.region.resolution;
+    if let Some(why) = data.stats.degraded.filter(|_| data.stats.degraded != stats.0.degraded) {
+        warn!("fin shadows: {why}");
+    }
     stats.0 = data.stats;
     frame.0 = Some(Arc::new(data));
+}
+
+/// Bytes per penumbra-map texel (nine 32-bit channels, `fin_types.wgsl`).
+pub(crate) const MAP_TEXEL_BYTES: u64 = 9 * 4;
+
+/// The buffer limits one frame is built under.
+#[derive(Debug, Clone, Copy)]
+struct FrameLimits {
+    /// The largest buffer, bytes.
+    max_buffer: u64,
+    /// All map layers together, bytes.
+    map_bytes: u64,
+}
+
+/// The eight world-space corners of an entity's bounding box.
+fn world_corners(aabb: &Aabb, transform: &GlobalTransform) -> [Vec3; 8] {
+    let (c, h) = (Vec3::from(aabb.center), Vec3::from(aabb.half_extents));
+    std::array::from_fn(|k| {
+        let s = Vec3::new(
+            if k & 1 == 0 { -1.0 } else { 1.0 },
+            if k & 2 == 0 { -1.0 } else { 1.0 },
+            if k & 4 == 0 { -1.0 } else { 1.0 },
+        );
+        transform.transform_point(c + h * s)
+    })
 }
 
 /// The whole extraction on the CPU with the core crate.
@@ -249,14 +357,43 @@ fn cpu_frame(
     settings: FinShadowSettings,
     generation: u64,
     start: std::time::Instant,
+    receiver_bound: impl Iterator<Item = Vec3>,
+    limits: FrameLimits,
 ) -> FinFrameData {
     let radius = disk.radius;
-    let ls = LightSpaceScene::new(&scene, Light::Disk(disk));
-    let model = FinShadowModel::new(&scene, &ls, settings.method.into(), settings.core());
-    let region = RasterMaps::covering_region(&model, settings.map_resolution);
+    let mut ls = LightSpaceScene::new(&scene, Light::Disk(disk));
+    let frame = ls.frame;
+    ls.cover_receivers(receiver_bound.map(|p| frame.to_frame(p)));
+    let mut core = settings.core();
+    let mut model = FinShadowModel::new(&scene, &ls, settings.method.into(), core);
+    let mut alloc = allocate_maps(settings.map_resolution, model.plan.len() as u32, MAP_TEXEL_BYTES, limits.map_bytes);
+    if (alloc.layers as usize) < model.plan.len() {
+        // Fewer layers fit than the plan made: plan again with that many.
+        core.layers = alloc.layers;
+        model = FinShadowModel::new(&scene, &ls, settings.method.into(), core);
+        alloc.layers = alloc.layers.max(model.plan.len() as u32);
+    }
+    let region = RasterMaps::covering_region(&model, alloc.resolution);
+    let mut degraded = alloc.degradation;
+    // What does not fit one buffer is dropped (and said so).
+    let mut capped = |buffer: &'static str, n: usize, bytes: u64| {
+        let keep = (limits.max_buffer / bytes) as usize;
+        if n > keep {
+            degraded = Some(FinDegradation::Capacity {
+                buffer,
+                kept: keep as u32,
+                wanted: n as u32,
+                limit_bytes: limits.max_buffer,
+            });
+        }
+        n.min(keep)
+    };
+    let n_casters = capped("map casters", model.casters.len(), size_of::<GpuCaster>() as u64);
+    let n_fins = capped("fins", model.fins.len(), size_of::<GpuFin>() as u64);
     let casters_gpu: Vec<GpuCaster> = model
         .casters
         .iter()
+        .take(n_casters)
         .zip(&model.caster_layers)
         .map(|(t, &layer)| GpuCaster {
             corners: [t.corners[0].x, t.corners[0].y, t.corners[1].x, t.corners[1].y, t.corners[2].x, t.corners[2].y],
@@ -268,7 +405,8 @@ fn cpu_frame(
             _pad: 0,
         })
         .collect();
-    let fins_gpu: Vec<GpuFin> = model.fins.iter().zip(&model.fin_layers).map(|(f, &l)| gpu_fin(f, l)).collect();
+    let fins_gpu: Vec<GpuFin> =
+        model.fins.iter().take(n_fins).zip(&model.fin_layers).map(|(f, &l)| gpu_fin(f, l)).collect();
     let stats = FinFrameStats {
         casters: scene.objects.iter().filter(|o| o.casts_shadows).count(),
         triangles: scene.triangle_count(),
@@ -278,6 +416,8 @@ fn cpu_frame(
         layers: if model.casters.is_empty() && model.fins.is_empty() { 0 } else { model.plan.len() },
         extract_ms: start.elapsed().as_secs_f32() * 1e3,
         up_to_date: true,
+        degraded,
+        map_resolution: region.resolution,
     };
     FinFrameData {
         generation,
@@ -285,8 +425,10 @@ fn cpu_frame(
         casters: casters_gpu,
         fins: fins_gpu,
         region,
-        origin: ls.frame.origin().as_vec3(),
-        axes: ls.frame.axes(),
+        map_layers: alloc.layers,
+        limit_bytes: limits.max_buffer,
+        origin: ls.frame.origin(),
+        axes: ls.frame.axes_f64(),
         radius,
         reference_depth: ls.reference_depth,
         near: model.near,

@@ -162,17 +162,51 @@ impl GpuCapacity {
         }
     }
 
-    /// Grown to hold what a read-back says a frame wanted; `None` if it fits.
-    pub fn grown_for(self, wanted: Self) -> Option<Self> {
-        let grow = |have: u32, want: u32| if want > have { want + want / 2 } else { have };
+    /// Grown to hold what a read-back says a frame wanted, but never past
+    /// `max`; `None` if it already holds all it may.
+    pub fn grown_for(self, wanted: Self, max: Self) -> Option<Self> {
+        let grow =
+            |have: u32, want: u32, max: u32| if want > have { (want + want / 2).min(max).max(have) } else { have };
         let next = Self {
-            silhouettes: grow(self.silhouettes, wanted.silhouettes),
-            fins: grow(self.fins, wanted.fins),
-            casters: grow(self.casters, wanted.casters),
+            silhouettes: grow(self.silhouettes, wanted.silhouettes, max.silhouettes),
+            fins: grow(self.fins, wanted.fins, max.fins),
+            casters: grow(self.casters, wanted.casters, max.casters),
             // Layers exactly: each one is a full set of maps.
-            layers: self.layers.max(wanted.layers),
+            layers: self.layers.max(wanted.layers.min(max.layers)),
         };
         (next != self).then_some(next)
+    }
+
+    /// The most each output buffer may hold under a `limit`-byte buffer.
+    pub fn max_for(limit: u64) -> Self {
+        let records = |bytes: u64| (limit / bytes).min(u32::MAX as u64) as u32;
+        Self {
+            silhouettes: records(SILHOUETTE_BYTES),
+            fins: records(FIN_BYTES),
+            casters: records(CASTER_BYTES),
+            layers: crate::light::MAX_LAYERS,
+        }
+    }
+
+    /// Each output buffer that could not hold what a frame wanted: `(buffer,
+    /// kept, wanted)`.
+    pub fn shortfalls(self, wanted: Self) -> impl Iterator<Item = (&'static str, u32, u32)> {
+        [
+            ("silhouettes", self.silhouettes, wanted.silhouettes),
+            ("fins", self.fins, wanted.fins),
+            ("map casters", self.casters, wanted.casters),
+        ]
+        .into_iter()
+        .filter(|(_, kept, wanted)| wanted > kept)
+    }
+
+    fn min(self, o: Self) -> Self {
+        Self {
+            silhouettes: self.silhouettes.min(o.silhouettes),
+            fins: self.fins.min(o.fins),
+            casters: self.casters.min(o.casters),
+            layers: self.layers.min(o.layers),
+        }
     }
 }
 
@@ -187,7 +221,12 @@ pub(crate) struct GpuScene {
     /// (instance vertices, caster faces, caster edges)
     pub totals: [u32; 3],
     pub capacity: GpuCapacity,
-    pub axes: [Vec3; 3],
+    /// The most the buffers may hold under the device limit and the budget.
+    pub max_capacity: GpuCapacity,
+    pub axes: [bevy::math::DVec3; 3],
+    /// Deepest light-frame depth of receivers drawn but not read here (their
+    /// bounds): the reference plane reaches at least this far.
+    pub receiver_depth: f32,
     /// World-space diagonal of the scene's bounds (epsilons; L0 when nothing is in front).
     pub extent: f32,
 }
@@ -206,7 +245,8 @@ impl GpuSceneBuilder {
         objects: &[SceneObject],
         meshes: &[Arc<GpuMeshGeometry>],
         disk: &DiskLight,
-        capacity: &mut Option<GpuCapacity>,
+        capacity_slot: &mut Option<GpuCapacity>,
+        max_capacity: GpuCapacity,
     ) -> GpuScene {
         // The distinct meshes in first-use order; re-pack only when that list changes.
         let mut distinct: Vec<&Arc<GpuMeshGeometry>> = Vec::new();
@@ -245,7 +285,9 @@ impl GpuSceneBuilder {
             let v4 = |v: Vec3| [v.x, v.y, v.z, 0.0];
             let casts = object.casts_shadows;
             let (f, e) = if casts { (mesh.faces, mesh.edges) } else { (0, 0) };
-            let flags = casts as u32 | (mesh.closed as u32) << 1 | (to_frame.mirrors as u32) << 2;
+            // A closed mesh with the light inside is drawn both sides, like an open one.
+            let closed = mesh.closed && !to_frame.light_inside;
+            let flags = casts as u32 | (closed as u32) << 1 | (to_frame.mirrors as u32) << 2;
             instances.push(GpuInstance {
                 linear: [v4(c.x_axis), v4(c.y_axis), v4(c.z_axis)],
                 translation: v4(to_frame.translation),
@@ -271,18 +313,41 @@ impl GpuSceneBuilder {
         }
         let extent = if lo.x <= hi.x { (hi - lo).length().max(1e-30) } else { 1.0 };
         let needed = GpuCapacity::initial(faces, edges);
-        let capacity = *capacity.insert(capacity.map_or(needed, |c| c.max(GpuCapacity { layers: 1, ..needed })));
+        let capacity = capacity_slot.map_or(needed, |c| c.max(GpuCapacity { layers: 1, ..needed })).min(max_capacity);
+        let capacity = *capacity_slot.insert(capacity);
         GpuScene {
             geometry: self.geometry.clone(),
             geometry_key: self.geometry_key,
             instances,
             totals: [vertices, faces, edges],
             capacity,
-            axes: frame.axes(),
+            max_capacity,
+            axes: frame.axes_f64(),
+            receiver_depth: 0.0,
             extent,
         }
     }
 }
+
+impl GpuScene {
+    /// Bytes of the extraction's buffers that the scene sizes by itself.
+    pub fn input_bytes(&self) -> [(&'static str, u64); 4] {
+        let [vertices, faces, edges] = self.totals.map(|x| x as u64);
+        [
+            ("packed geometry", self.geometry.len() as u64 * 4),
+            ("instances", self.instances.len() as u64 * size_of::<GpuInstance>() as u64),
+            ("face and edge state", (faces * FACE_STATE_WORDS + edges) * 4),
+            ("light-frame vertices", vertices * 16),
+        ]
+    }
+}
+
+/// Bytes per record of the extraction's outputs (`extract.wgsl`).
+pub(crate) const SILHOUETTE_BYTES: u64 = 7 * 16;
+pub(crate) const FIN_BYTES: u64 = 64;
+pub(crate) const CASTER_BYTES: u64 = 56;
+/// `state` words per caster face (`FACE_WORDS` in `extract.wgsl`).
+pub(crate) const FACE_STATE_WORDS: u64 = 5;
 
 #[cfg(test)]
 mod tests {
@@ -292,9 +357,24 @@ mod tests {
     #[test]
     fn capacity_grows_past_what_a_frame_wanted_and_never_shrinks() {
         let have = GpuCapacity { silhouettes: 100, fins: 400, casters: 1000, layers: 2 };
-        assert_eq!(have.grown_for(GpuCapacity { silhouettes: 100, fins: 10, casters: 0, layers: 2 }), None);
-        let grown = have.grown_for(GpuCapacity { silhouettes: 300, fins: 10, casters: 0, layers: 5 }).unwrap();
+        let max = GpuCapacity::max_for(1 << 30);
+        assert_eq!(have.grown_for(GpuCapacity { silhouettes: 100, fins: 10, casters: 0, layers: 2 }, max), None);
+        let grown = have.grown_for(GpuCapacity { silhouettes: 300, fins: 10, casters: 0, layers: 5 }, max).unwrap();
         assert_eq!(grown, GpuCapacity { silhouettes: 450, fins: 400, casters: 1000, layers: 5 });
+    }
+
+    #[test]
+    fn capacity_stops_growing_at_the_buffer_limit() {
+        // A 64 KiB limit holds 585 silhouettes of 112 bytes.
+        let max = GpuCapacity::max_for(64 << 10);
+        assert_eq!(max.silhouettes, 585);
+        let have = GpuCapacity { silhouettes: 100, fins: 400, casters: 1000, layers: 1 };
+        let wanted = GpuCapacity { silhouettes: 5000, fins: 10, casters: 0, layers: 1 };
+        let grown = have.grown_for(wanted, max).unwrap();
+        assert_eq!(grown.silhouettes, 585);
+        // At the limit a frame that still wants more grows no further: no endless redo.
+        assert_eq!(grown.grown_for(wanted, max), None);
+        assert_eq!(grown.shortfalls(wanted).collect::<Vec<_>>(), vec![("silhouettes", 585, 5000)]);
     }
 
     #[test]

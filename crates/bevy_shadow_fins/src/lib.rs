@@ -59,11 +59,13 @@
 //! Bevy's `RenderDiagnosticsPlugin`); extraction and maps only on frames where
 //! something changed.
 
+mod budget;
 mod extract;
 mod gpu_scene;
 mod light;
 mod render;
 
+pub use budget::{FinDegradation, FinShadowBudget};
 pub use extract::{FinFrame, FinFrameStats, FinSceneError, FinShadowStats};
 pub use light::{
     FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, NotFinShadowCaster, NotFinShadowReceiver,
@@ -101,6 +103,9 @@ impl Plugin for ShadowFinsPlugin {
             .register_type::<FinShadowView>()
             .register_type::<NotFinShadowCaster>()
             .register_type::<NotFinShadowReceiver>()
+            .register_type::<FinShadowBudget>()
+            .init_resource::<FinShadowBudget>()
+            .init_resource::<budget::FinDeviceLimits>()
             .insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred())
             .add_systems(PostUpdate, turn_off_msaa_on_fin_views)
             .add_observer(add_not_shadow_receiver)

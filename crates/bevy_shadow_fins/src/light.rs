@@ -78,6 +78,9 @@ pub enum FinExtraction {
     Cpu,
 }
 
+/// The most layers a light's maps may have.
+pub const MAX_LAYERS: u32 = 32;
+
 /// Settings of the fin light's shadows, on the [`FinLight`] entity. Every field
 /// can change at runtime and takes effect the next frame.
 ///
@@ -122,7 +125,7 @@ impl FinShadowSettings {
     /// Every field clamped into its documented range.
     pub fn clamped(self) -> Self {
         Self {
-            layers: self.layers.clamp(1, 32),
+            layers: self.layers.clamp(1, MAX_LAYERS),
             sub_layers: self.sub_layers.clamp(1, 65536),
             map_resolution: self.map_resolution.clamp(16, 4096),
             ..self

@@ -30,7 +30,8 @@ struct ExtractParams {
     layering: vec4<u32>,
     // (silhouette capacity, fin capacity, caster capacity, method 0 hard 1 outer-fins 2 single 3 multi)
     capacity: vec4<u32>,
-    // (light radius R, scene extent, unused, unused)
+    // (light radius R, scene extent, deepest receiver the CPU knows of besides
+    // the casters' vertices, unused)
     light: vec4<f32>,
     // (refinement, falloff, overlap, generation)
     flags: vec4<u32>,
@@ -67,8 +68,12 @@ struct Silhouette {
     ids: vec4<u32>,
     // (crease, unused, unused, unused)
     info: vec4<u32>,
-    // Fin directions at a (xy) and b (zw); zero when degenerate.
-    dirs: vec4<f32>,
+    // Fin directions at a and at b; zero when degenerate. Two fields, not one
+    // vec4: the two ends are written by the owner threads of two different
+    // vertices, and a read-modify-write of a shared vec4 let one thread's store
+    // undo the other's (the whole edge then lost both fins).
+    dir_a: vec2<f32>,
+    dir_b: vec2<f32>,
 }
 
 @group(0) @binding(0) var<uniform> params: ExtractParams;
@@ -185,8 +190,11 @@ fn frame_position(inst: Instance, v: u32) -> vec3<f32> {
     return positions[inst.ids.y + v].xyz;
 }
 
+// L0: the deepest receiver, so that no receiver lies beyond the plane the fins
+// are built for (every mesh's vertices, and the bounds of meshes drawn but not
+// readable on the CPU).
 fn reference_depth() -> f32 {
-    let deepest = order_value(atomicLoad(&control[C_DEEPEST]));
+    let deepest = max(order_value(atomicLoad(&control[C_DEEPEST])), params.light.z);
     return select(params.light.y, deepest, deepest > 0.0);
 }
 
@@ -203,9 +211,11 @@ fn map_direction(p: vec3<f32>, d: vec3<f32>) -> vec2<f32> {
     return (d.xy - p.xy / p.z * d.z) / p.z;
 }
 
-// Penumbra half-width on the reference plane, map units (eq. 3).
+// Penumbra half-width on the reference plane, map units (eq. 3): R(1/z − 1/L0)
+// without the cancellation of two nearby reciprocals.
 fn fin_width(z: f32) -> f32 {
-    let w = params.light.x * (1.0 / z - 1.0 / reference_depth());
+    let l0 = reference_depth();
+    let w = params.light.x * ((l0 - z) / z) / l0;
     return select(0.0, w, w > 0.0);
 }
 
@@ -383,7 +393,8 @@ fn emit_silhouette(k: u32, inst: Instance, edge: u32, v0: u32, v1: u32, forward:
         vec4<f32>(vertex_normal_in_frame(inst, vb), 0.0),
         vec4<u32>(k, va, vb, patch_id),
         vec4<u32>(select(0u, 1u, crease), 0u, 0u, 0u),
-        vec4<f32>(0.0),
+        vec2<f32>(0.0),
+        vec2<f32>(0.0),
     );
     atomicStore(&state[edge_silhouette_slot(edge)], index);
     let mid = 0.5 * (a.z + b.z);
@@ -512,11 +523,13 @@ fn edge_direction(s: Silhouette) -> vec2<f32> {
     return direction(vec2<f32>(m0.y - m1.y, m1.x - m0.x));
 }
 
+// Only the owner thread of the end's vertex writes that end (`owns_vertex`),
+// and only that end's own field.
 fn set_end_direction(s: u32, end: u32, d: vec2<f32>) {
     if (end == 0u) {
-        silhouettes[s].dirs = vec4<f32>(d, silhouettes[s].dirs.zw);
+        silhouettes[s].dir_a = d;
     } else {
-        silhouettes[s].dirs = vec4<f32>(silhouettes[s].dirs.xy, d);
+        silhouettes[s].dir_b = d;
     }
 }
 
@@ -690,8 +703,8 @@ fn silhouette_quads(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocat
     }
     let m0 = map_point(sil.a.xyz);
     let m1 = map_point(sil.b.xyz);
-    let d0 = sil.dirs.xy;
-    let d1 = sil.dirs.zw;
+    let d0 = sil.dir_a;
+    let d1 = sil.dir_b;
     // A staircase step almost along the fin direction spans no area.
     let along = direction(m1 - m0);
     if (abs(cross2(along, d0)) < 0.05 || abs(cross2(along, d1)) < 0.05) {
@@ -853,7 +866,7 @@ fn plan_layers() {
     let p = array<u32, 32>(
         bitcast<u32>(region_min.x), bitcast<u32>(region_min.y), bitcast<u32>(size / f32(resolution)), bitcast<u32>(l0),
         resolution, used, n_casters, n_fins,
-        bitcast<u32>(params.light.x), bitcast<u32>(l0 * 1e-5), bitcast<u32>(params.light.y * 1e-5), 0u,
+        bitcast<u32>(params.light.x), bitcast<u32>(l0 * 1e-5), bitcast<u32>(params.light.y * 1e-7), bitcast<u32>(1e-5),
         params.flags.x, params.flags.y, params.flags.z, 0u,
         bitcast<u32>(params.origin.x), bitcast<u32>(params.origin.y), bitcast<u32>(params.origin.z), 0u,
         bitcast<u32>(params.axis_u.x), bitcast<u32>(params.axis_u.y), bitcast<u32>(params.axis_u.z), 0u,

@@ -21,6 +21,7 @@ use bevy::{
 };
 
 use crate::{
+    budget::FinDegradation,
     extract::{FinFrame, FinFrameData, FinFrameStats, FinShadowStats, MeshCache},
     gpu_scene::{GpuCapacity, GpuScene},
     light::FinMethod,
@@ -37,13 +38,11 @@ const C_ARGS_CASTER_THREADS: u64 = 63;
 const C_HISTOGRAM: u64 = 128;
 /// Words 0..16 of `control` go back to the main world: counts, generation, layers.
 const STATS_WORDS: u64 = 16;
-const FACE_WORDS: u64 = 5;
+const FACE_WORDS: u64 = crate::gpu_scene::FACE_STATE_WORDS;
 const WORKGROUP: u32 = 64;
 
-/// Bytes per silhouette record (`Silhouette` in `extract.wgsl`).
-const SILHOUETTE_BYTES: u64 = 7 * 16;
-pub(super) const FIN_BYTES: u64 = 64;
-pub(super) const CASTER_BYTES: u64 = 56;
+use crate::gpu_scene::SILHOUETTE_BYTES;
+pub(super) use crate::gpu_scene::{CASTER_BYTES, FIN_BYTES};
 
 /// The entry points, in the order they run.
 const ENTRY_POINTS: [&str; 13] = [
@@ -95,18 +94,38 @@ fn on_stats_readback(
         return;
     }
     let wanted = GpuCapacity { silhouettes: w[0], fins: w[1], casters: w[2], layers: w[10] };
-    let grown = gpu.capacity.grown_for(wanted);
+    let grown = gpu.capacity.grown_for(wanted, gpu.max_capacity);
     if let Some(next) = grown {
         cache.capacity = Some(next);
         cache.capacity_epoch += 1;
     }
+    // Past the limit the GPU kept what fit and dropped the rest: say so.
+    let layers_cut = (wanted.layers > gpu.max_capacity.layers).then_some(FinDegradation::Maps {
+        resolution: f.region.resolution,
+        wanted_resolution: f.settings.map_resolution,
+        layers: gpu.max_capacity.layers,
+        wanted_layers: wanted.layers,
+        limit_bytes: f.limit_bytes,
+    });
+    let shortfall = gpu
+        .capacity
+        .shortfalls(wanted)
+        .next()
+        .map(|(buffer, kept, wanted)| FinDegradation::Capacity { buffer, kept, wanted, limit_bytes: f.limit_bytes })
+        .or(layers_cut);
     let stats_now = FinFrameStats {
-        silhouettes: w[0] as usize,
-        fins: w[1] as usize,
+        silhouettes: w[0].min(gpu.capacity.silhouettes) as usize,
+        fins: w[1].min(gpu.capacity.fins) as usize,
         layers: w[12] as usize,
         up_to_date: grown.is_none(),
+        degraded: if grown.is_none() { shortfall.or(f.stats.degraded) } else { f.stats.degraded },
         ..f.stats
     };
+    if stats_now.degraded != stats.0.degraded
+        && let Some(why) = stats_now.degraded
+    {
+        warn!("fin shadows: {why}");
+    }
     if stats.0 != stats_now {
         stats.0 = stats_now;
     }
@@ -191,13 +210,22 @@ pub(super) struct ExtractBuffers {
 }
 
 /// Allocates `buf` (half again as large, so a growing scene does not reallocate
-/// every frame) when it is missing or smaller than `size`.
-pub(super) fn ensure(buf: &mut Option<Buffer>, device: &RenderDevice, label: &str, size: u64, usage: BufferUsages) {
+/// every frame, but never past `cap` nor the device's binding limit) when it
+/// is missing or smaller than `size`. The main world keeps `size` within both
+/// (`budget.rs`).
+pub(super) fn ensure(
+    buf: &mut Option<Buffer>,
+    device: &RenderDevice,
+    label: &str,
+    size: u64,
+    usage: BufferUsages,
+    cap: u64,
+) {
     if buf.as_ref().is_none_or(|b| b.size() < size) {
-        let cap = device.limits().max_storage_buffer_binding_size;
+        let cap = device.limits().max_storage_buffer_binding_size.min(cap).max(size);
         *buf = Some(device.create_buffer(&BufferDescriptor {
             label: Some(label),
-            size: (size + size / 2).min(cap.max(size)).max(64).next_multiple_of(16),
+            size: (size + size / 2).min(cap).max(64).next_multiple_of(16).min(cap.max(64)),
             usage,
             mapped_at_creation: false,
         }));
@@ -229,27 +257,29 @@ pub(super) fn prepare(
         FinMethod::MultiLayer => 3,
     };
     let layers = if s.method == FinMethod::MultiLayer { s.layers } else { 1 };
-    let v4 = |v: Vec3| [v.x, v.y, v.z, 0.0];
+    let v4 = |v: bevy::math::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
     let super_params = super::params_of(frame);
     let params = ExtractParams {
         totals: [scene.instances.len() as u32, vertices, faces, edges],
         layering: [s.sub_layers, layers, scene.capacity.layers, resolution],
         capacity: [scene.capacity.silhouettes, scene.capacity.fins, scene.capacity.casters, method],
-        light: [frame.radius, scene.extent, 0.0, 0.0],
+        light: [frame.radius, scene.extent, scene.receiver_depth, 0.0],
         flags: [super_params.flags[0], super_params.flags[1], super_params.flags[2], frame.generation as u32],
         origin: v4(frame.origin),
         axis_u: v4(scene.axes[0]),
         axis_v: v4(scene.axes[1]),
         axis_n: v4(scene.axes[2]),
     };
-    ensure(&mut buffers.params, device, "fin_extract_params", 144, BufferUsages::UNIFORM | BufferUsages::COPY_DST);
+    let cap = frame.limit_bytes;
+    let uniform = BufferUsages::UNIFORM | BufferUsages::COPY_DST;
+    ensure(&mut buffers.params, device, "fin_extract_params", 144, uniform, cap);
     queue.write_buffer(buffers.params.as_ref().unwrap(), 0, bytemuck::bytes_of(&params));
     let instance_bytes: &[u8] = bytemuck::cast_slice(&scene.instances);
-    ensure(&mut buffers.instances, device, "fin_extract_instances", instance_bytes.len() as u64, storage);
+    ensure(&mut buffers.instances, device, "fin_extract_instances", instance_bytes.len() as u64, storage, cap);
     queue.write_buffer(buffers.instances.as_ref().unwrap(), 0, instance_bytes);
     let geometry_bytes: &[u8] = bytemuck::cast_slice(scene.geometry.as_slice());
     let old_geometry = buffers.geometry.as_ref().map(|b| b.id());
-    ensure(&mut buffers.geometry, device, "fin_extract_geometry", geometry_bytes.len() as u64, storage);
+    ensure(&mut buffers.geometry, device, "fin_extract_geometry", geometry_bytes.len() as u64, storage, cap);
     // Caster geometry goes up once per set of meshes; moving casters only change instances.
     if buffers.geometry_key != scene.geometry_key || old_geometry != buffers.geometry.as_ref().map(|b| b.id()) {
         queue.write_buffer(buffers.geometry.as_ref().unwrap(), 0, geometry_bytes);
@@ -262,6 +292,7 @@ pub(super) fn prepare(
         "fin_extract_control",
         control_words * 4,
         BufferUsages::STORAGE | BufferUsages::COPY_SRC,
+        cap,
     );
     ensure(
         &mut buffers.indirect,
@@ -269,15 +300,18 @@ pub(super) fn prepare(
         "fin_extract_indirect",
         C_HISTOGRAM * 4,
         BufferUsages::INDIRECT | BufferUsages::COPY_DST,
+        cap,
     );
-    ensure(&mut buffers.state, device, "fin_extract_state", (faces as u64 * FACE_WORDS + edges as u64) * 4, storage);
-    ensure(&mut buffers.positions, device, "fin_extract_positions", vertices as u64 * 16, storage);
+    let state_bytes = (faces as u64 * FACE_WORDS + edges as u64) * 4;
+    ensure(&mut buffers.state, device, "fin_extract_state", state_bytes, storage, cap);
+    ensure(&mut buffers.positions, device, "fin_extract_positions", vertices as u64 * 16, storage, cap);
     ensure(
         &mut buffers.silhouettes,
         device,
         "fin_extract_silhouettes",
         scene.capacity.silhouettes as u64 * SILHOUETTE_BYTES,
         storage,
+        cap,
     );
     buffers.bind_group = Some(device.create_bind_group(
         "fin_extract_bind_group",

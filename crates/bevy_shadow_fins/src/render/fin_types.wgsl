@@ -7,7 +7,8 @@ struct FinParams {
     map: vec4<f32>,
     // (resolution, layers, caster count, fin count)
     counts: vec4<u32>,
-    // (light radius R, near depth, surface epsilon, unused)
+    // (light radius R, near depth, surface epsilon floor, surface epsilon relative
+    // to the receiver's distance from the light: `shadow_fins::scene::surface_epsilon`)
     light: vec4<f32>,
     // (refinement 0/1, falloff 0 linear 1 bernstein 2 disk-segment, overlap 0 min-max 1 union, unused)
     flags: vec4<u32>,
@@ -37,11 +38,18 @@ struct Fin {
     data: array<f32, 12>,
 }
 
-// Five channels per layer texel: slab depth (f32 bits, atomicMin), inner min
-// key, inner max key, outer min key, outer max key. Keys pack a fin's weight
-// (15 bits, high) and depth (16 bits) so that one atomicMin/Max keeps the weight
-// and the depth of the same winning fin (the plateau trick); 0 / 0xffffffff = none.
-const CHANNELS: u32 = 5u;
+// Nine channels per layer texel: slab depth (f32 bits, atomicMin), inner min
+// key, inner max key, outer min key, outer max key, then the exact f32 depth
+// of each of those four winners. Keys pack a fin's weight (15 bits, high) and
+// a 16-bit depth code so that one atomicMin/Max picks the winner by weight,
+// ties to the nearer fin (the plateau trick); 0 / 0xffffffff = none. The key's
+// depth code only orders ties: a second pass (`raster_fin_depths`) writes the
+// exact depth of the fins whose key won, the nearest when several tie, so the
+// depth test and refinement (eq. 5) see the fin's f32 depth, not an
+// L0/65535 quantum (0.015 at L0 = 1000, larger than small contact gaps).
+const CHANNELS: u32 = 9u;
+// Offset of a key channel's exact depth channel.
+const DEPTH_OF_KEY: u32 = 4u;
 const NO_MIN: u32 = 0xffffffffu;
 const NO_MAX: u32 = 0u;
 const INF_BITS: u32 = 0x7f800000u;

@@ -2,7 +2,8 @@
 // evaluated at texel centres exactly as `shadow_fins::oracle::RasterMaps` does.
 // One workgroup per primitive; its threads stride over the primitive's texels.
 #import bevy_shadow_fins::fin_types::{
-    FinParams, Caster, Fin, CHANNELS, NO_MIN, NO_MAX, INF_BITS, texel_index, min_key, max_key, texel_center, cross2,
+    FinParams, Caster, Fin, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, INF_BITS, texel_index, min_key, max_key,
+    texel_center, cross2,
 }
 
 @group(0) @binding(0) var<uniform> params: FinParams;
@@ -26,6 +27,9 @@ fn clear_maps(@builtin(global_invocation_id) id: vec3<u32>) {
     atomicStore(&maps[base + 2u], NO_MAX);
     atomicStore(&maps[base + 3u], NO_MIN);
     atomicStore(&maps[base + 4u], NO_MAX);
+    for (var c = 5u; c < CHANNELS; c++) {
+        atomicStore(&maps[base + c], INF_BITS);
+    }
 }
 
 // Inclusive texel range whose centres may lie in [lo, hi]; empty when x0 > x1.
@@ -158,7 +162,9 @@ fn fin_sample(f: Fin, q: vec2<f32>) -> vec2<f32> {
     if (!(r2 <= radius * radius) || (r2 == 0.0 && outer)) {
         return vec2<f32>(-1.0);
     }
-    let s = sign(cross2(from_dir, to_dir));
+    // `shadow_fins::fins::sector_orientation`: opposite bounds (cross ±0) turn
+    // counter-clockwise. WGSL's sign(0) is 0, which made such a sector the whole disk.
+    let s = select(-1.0, 1.0, cross2(from_dir, to_dir) >= 0.0);
     if (cross2(from_dir, rel) * s < 0.0 || cross2(rel, to_dir) * s < 0.0) {
         return vec2<f32>(-1.0);
     }
@@ -178,9 +184,21 @@ fn fin_bounds(f: Fin) -> vec4<f32> {
     return vec4<f32>(c - r, c + r);
 }
 
+// Pass 1 of the fins: every fin's key into its side's min and max channels.
 @compute @workgroup_size(64, 1, 1)
 fn raster_fins(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let i = primitive_index(wg);
+    raster_fin(primitive_index(wg), lane, false);
+}
+
+// Pass 2: the exact depth of the fins whose key won in pass 1 (the nearest,
+// when several fins share the winning key). Runs after pass 1 has finished,
+// so the comparison sees the final keys: deterministic whatever the order.
+@compute @workgroup_size(64, 1, 1)
+fn raster_fin_depths(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    raster_fin(primitive_index(wg), lane, true);
+}
+
+fn raster_fin(i: u32, lane: u32, depths: bool) {
     if (i >= params.counts.w) {
         return;
     }
@@ -201,7 +219,19 @@ fn raster_fins(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
             continue;
         }
         let base = texel_index(params, f.header.z, x, y) + channel;
-        atomicMin(&maps[base], min_key(params, s.x, s.y));
-        atomicMax(&maps[base + 1u], max_key(params, s.x, s.y));
+        let lo = min_key(params, s.x, s.y);
+        let hi = max_key(params, s.x, s.y);
+        if (!depths) {
+            atomicMin(&maps[base], lo);
+            atomicMax(&maps[base + 1u], hi);
+            continue;
+        }
+        // Depths are positive: their f32 bits order as the values do.
+        if (atomicLoad(&maps[base]) == lo) {
+            atomicMin(&maps[base + DEPTH_OF_KEY], bitcast<u32>(s.y));
+        }
+        if (atomicLoad(&maps[base + 1u]) == hi) {
+            atomicMin(&maps[base + 1u + DEPTH_OF_KEY], bitcast<u32>(s.y));
+        }
     }
 }

@@ -26,7 +26,7 @@ use bevy::{
         },
         renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue, ViewQuery},
         texture::{CachedTexture, GpuImage, TextureCache},
-        view::{ViewUniform, ViewUniformOffset, ViewUniforms},
+        view::{ExtractedView, ViewUniform, ViewUniformOffset, ViewUniforms},
     },
     shader::load_shader_library,
 };
@@ -49,6 +49,25 @@ pub(crate) fn build(app: &mut App) {
 }
 
 pub(crate) fn finish(app: &mut App) {
+    let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
+    // Like Bevy's SSAO: check what the device can do before adding any pass.
+    let world = render_app.world();
+    let (Some(device), Some(adapter)) =
+        (world.get_resource::<RenderDevice>(), world.get_resource::<bevy::render::renderer::RenderAdapter>())
+    else {
+        return;
+    };
+    let compute = adapter.get_downlevel_capabilities().flags.contains(DownlevelFlags::COMPUTE_SHADERS);
+    match crate::budget::check_device(&device.limits(), compute) {
+        Ok(limits) => {
+            app.insert_resource(limits);
+        }
+        Err(why) => {
+            error!("fin shadows: {why}. The plugin adds no pass; fin lights cast no light.");
+            app.insert_resource(crate::budget::FinShadowsUnsupported(why));
+            return;
+        }
+    }
     let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
     render_app
         .init_resource::<FinMapsGpu>()
@@ -82,6 +101,7 @@ impl bevy::render::sync_component::SyncComponent for FinShadowView {
         FinShadowView,
         FinViewTexture,
         FinViewBindGroup,
+        FinViewBuffer,
         composite::FinCompositePipeline,
         composite::FinCompositeBindGroup,
         bevy::pbr::deferred::SkipDeferredLighting,
@@ -102,7 +122,8 @@ struct FinParams {
     axis_n: [f32; 4],
 }
 
-const CHANNELS: u64 = 5;
+/// Words per layer texel (`CHANNELS` in `fin_types.wgsl`).
+const CHANNELS: u64 = 9;
 const WORKGROUP: u32 = 64;
 
 #[derive(Resource)]
@@ -112,6 +133,7 @@ struct FinPipelines {
     clear: CachedComputePipelineId,
     casters: CachedComputePipelineId,
     fins: CachedComputePipelineId,
+    fin_depths: CachedComputePipelineId,
     visibility: CachedComputePipelineId,
     extract: extract_gpu::ExtractPipelines,
 }
@@ -140,6 +162,7 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
                 texture_2d(TextureSampleType::Float { filterable: false }),
                 texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
                 uniform_buffer::<ViewUniform>(true),
+                uniform_buffer_sized(false, None),
             ),
         ),
     );
@@ -159,6 +182,7 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
         clear: compute("fin_clear_maps", &maps_layout, &maps_shader, "clear_maps"),
         casters: compute("fin_raster_casters", &maps_layout, &maps_shader, "raster_casters"),
         fins: compute("fin_raster_fins", &maps_layout, &maps_shader, "raster_fins"),
+        fin_depths: compute("fin_raster_fin_depths", &maps_layout, &maps_shader, "raster_fin_depths"),
         visibility: compute("fin_visibility", &view_layout, &visibility_shader, "visibility_pass"),
         extract: extract_gpu::ExtractPipelines::queue(&pipeline_cache, &asset_server),
         maps_layout,
@@ -205,11 +229,11 @@ fn params_of(f: &FinFrameData) -> FinParams {
         shadow_fins::oracle::Overlap::MinMax => 0,
         shadow_fins::oracle::Overlap::Union => 1,
     };
-    let v4 = |v: Vec3| [v.x, v.y, v.z, 0.0];
+    let v4 = |v: bevy::math::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
     FinParams {
         map: [f.region.min.x, f.region.min.y, f.region.texel, f.reference_depth],
         counts: [f.region.resolution, f.stats.layers as u32, f.casters.len() as u32, f.fins.len() as u32],
-        light: [f.radius, f.near, f.scene_extent * 1e-5, 0.0],
+        light: [f.radius, f.near, f.scene_extent * 1e-7, shadow_fins::scene::SURFACE_EPSILON],
         flags: [s.refinement as u32, falloff, overlap, 0],
         origin: v4(f.origin),
         axis_u: v4(f.axes[0]),
@@ -236,32 +260,21 @@ fn prepare_maps(
         return;
     }
     let mut params = params_of(f);
-    // GPU extraction decides the layer count itself, up to the allocated capacity.
-    let layers = match &f.gpu {
-        Some(scene) => scene.capacity.layers,
-        None => f.stats.layers as u32,
-    } as u64;
-    // The maps must fit the device's largest storage binding: halve the
-    // resolution (over the same region) until they do.
-    let limit = device.limits().max_storage_buffer_binding_size;
-    let mut resolution = f.settings.map_resolution;
-    while layers * (resolution as u64).pow(2) * CHANNELS * 4 > limit && resolution > 16 {
-        resolution /= 2;
-    }
-    if resolution != f.settings.map_resolution {
-        warn_once!(
-            "fin shadows: {layers} layers at {}² exceed this GPU's storage binding limit; using {resolution}²",
-            f.settings.map_resolution,
-        );
-        params.counts[0] = resolution;
-        params.map[2] = f.region.texel * f.region.resolution as f32 / resolution as f32;
-    }
+    // The main world sized the maps to fit the budget and the device
+    // (`budget::allocate_maps`); GPU extraction uses up to `map_layers`.
+    let (layers, resolution) = (f.map_layers.max(1) as u64, f.region.resolution);
     let texels = layers * resolution as u64 * resolution as u64;
     let maps_size = (texels * CHANNELS * 4).max(16);
+    if maps_size > device.limits().max_storage_buffer_binding_size {
+        warn_once!("fin shadows: {maps_size}-byte maps exceed this GPU's storage binding limit; no fin shadows");
+        gpu.bind_group = None;
+        return;
+    }
     let storage = BufferUsages::STORAGE | BufferUsages::COPY_DST;
     use extract_gpu::ensure;
-    ensure(&mut gpu.params, &device, "fin_params", 128, BufferUsages::UNIFORM | BufferUsages::COPY_DST);
-    ensure(&mut gpu.maps, &device, "fin_maps", maps_size, storage | BufferUsages::COPY_SRC);
+    let cap = f.limit_bytes;
+    ensure(&mut gpu.params, &device, "fin_params", 128, BufferUsages::UNIFORM | BufferUsages::COPY_DST, cap);
+    ensure(&mut gpu.maps, &device, "fin_maps", maps_size, storage | BufferUsages::COPY_SRC, cap);
     let (caster_bytes, fin_bytes) = match &f.gpu {
         Some(scene) => (
             scene.capacity.casters as u64 * extract_gpu::CASTER_BYTES,
@@ -269,8 +282,8 @@ fn prepare_maps(
         ),
         None => (size_of_val(f.casters.as_slice()) as u64, size_of_val(f.fins.as_slice()) as u64),
     };
-    ensure(&mut gpu.casters, &device, "fin_casters", caster_bytes.max(64), storage);
-    ensure(&mut gpu.fins, &device, "fin_fins", fin_bytes.max(64), storage);
+    ensure(&mut gpu.casters, &device, "fin_casters", caster_bytes.max(64), storage, cap);
+    ensure(&mut gpu.fins, &device, "fin_fins", fin_bytes.max(64), storage, cap);
     gpu.mode = match &f.gpu {
         None => MapsSource::Cpu,
         Some(scene) if scene.totals[1] == 0 => MapsSource::Nothing,
@@ -340,10 +353,11 @@ fn render_maps(
         return;
     }
     let (Some(pipelines), Some(bind_group)) = (pipelines, gpu.bind_group.clone()) else { return };
-    let (Some(clear), Some(casters), Some(fins)) = (
+    let (Some(clear), Some(casters), Some(fins), Some(fin_depths)) = (
         pipeline_cache.get_compute_pipeline(pipelines.clear),
         pipeline_cache.get_compute_pipeline(pipelines.casters),
         pipeline_cache.get_compute_pipeline(pipelines.fins),
+        pipeline_cache.get_compute_pipeline(pipelines.fin_depths),
     ) else {
         return;
     };
@@ -382,6 +396,7 @@ fn render_maps(
                     (clear, extract_gpu::C_ARGS_CLEAR),
                     (casters, extract_gpu::C_ARGS_CASTERS),
                     (fins, extract_gpu::C_ARGS_FINS),
+                    (fin_depths, extract_gpu::C_ARGS_FINS),
                 ] {
                     pass.set_pipeline(pipeline);
                     pass.dispatch_workgroups_indirect(control, args * 4);
@@ -410,9 +425,13 @@ fn render_maps(
             pass.dispatch_workgroups(x, y, 1);
         }
         if n_fins > 0 {
-            pass.set_pipeline(fins);
             let (x, y) = workgroups(n_fins);
-            pass.dispatch_workgroups(x, y, 1);
+            // Keys first, then the exact depths of the winners (a second
+            // dispatch, so that it compares against final keys).
+            for pipeline in [fins, fin_depths] {
+                pass.set_pipeline(pipeline);
+                pass.dispatch_workgroups(x, y, 1);
+            }
         }
     }
     span.end(ctx.command_encoder());
@@ -425,6 +444,34 @@ pub struct FinViewTexture(CachedTexture);
 
 #[derive(Component)]
 pub struct FinViewBindGroup(BindGroup);
+
+/// Per camera: its view → light-frame transform (`FinView` in `visibility.wgsl`).
+#[derive(Component)]
+pub struct FinViewBuffer(Buffer);
+
+/// `FinView` in `visibility.wgsl`: the columns of the linear part and the translation.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct FinViewUniform {
+    linear: [[f32; 4]; 3],
+    translation: [f32; 4],
+}
+
+impl FinViewUniform {
+    /// The camera's view space → the light frame, composed in f64:
+    /// `A (R_v p + t_v − o) = (A R_v) p + A (t_v − o)` with `A` the frame's axes
+    /// as rows and `o` its origin. `t_v − o` is taken in f64, so a camera and
+    /// light 1e5 from the world origin keep their small offset exact.
+    fn new(frame: &FinFrameData, world_from_view: &GlobalTransform) -> Self {
+        use bevy::math::{DMat3, DVec3};
+        let a = world_from_view.affine();
+        let rows = DMat3::from_cols(frame.axes[0], frame.axes[1], frame.axes[2]).transpose();
+        let linear = rows * Mat3::from(a.matrix3).as_dmat3();
+        let translation = rows * (Vec3::from(a.translation).as_dvec3() - frame.origin);
+        let v4 = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
+        Self { linear: [v4(linear.x_axis), v4(linear.y_axis), v4(linear.z_axis)], translation: v4(translation) }
+    }
+}
 
 /// Views whose visibility buffer was written this frame (the compositing pass
 /// uses the buffer only then).
@@ -462,26 +509,29 @@ fn prepare_view_textures(
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 fn prepare_view_bind_groups(
     mut commands: Commands,
     device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
     gpu: Res<FinMapsGpu>,
+    frame: Res<FinFrame>,
     pipelines: Option<Res<FinPipelines>>,
     pipeline_cache: Res<PipelineCache>,
     view_uniforms: Res<ViewUniforms>,
-    views: Query<(Entity, &FinViewTexture, &ViewPrepassTextures)>,
+    views: Query<(Entity, &FinViewTexture, &ViewPrepassTextures, &ExtractedView, Option<&FinViewBuffer>)>,
 ) {
-    let inputs = match (pipelines, gpu.params.as_ref(), gpu.maps.as_ref(), view_uniforms.uniforms.binding()) {
-        (Some(pipelines), Some(params), Some(maps), Some(view_binding)) if gpu.bind_group.is_some() => {
-            Some((pipelines, params, maps, view_binding))
+    let inputs = match (pipelines, gpu.params.as_ref(), gpu.maps.as_ref(), view_uniforms.uniforms.binding(), &frame.0) {
+        (Some(pipelines), Some(params), Some(maps), Some(view_binding), Some(f)) if gpu.bind_group.is_some() => {
+            Some((pipelines, params, maps, view_binding, f))
         }
         _ => None,
     };
-    for (entity, texture, prepass) in &views {
+    for (entity, texture, prepass, view, view_buffer) in &views {
         // A view that cannot run the pass this frame loses its bind group, so
         // the pass does not run on last frame's maps and nothing composites
         // stale shadows.
-        let Some((pipelines, params, maps, view_binding)) = inputs.as_ref() else {
+        let Some((pipelines, params, maps, view_binding, f)) = inputs.as_ref() else {
             commands.entity(entity).remove::<FinViewBindGroup>();
             continue;
         };
@@ -497,6 +547,16 @@ fn prepare_view_bind_groups(
             commands.entity(entity).remove::<FinViewBindGroup>();
             continue;
         };
+        let buffer = match view_buffer {
+            Some(b) => b.0.clone(),
+            None => device.create_buffer(&BufferDescriptor {
+                label: Some("fin_view_uniform"),
+                size: size_of::<FinViewUniform>() as u64,
+                usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+        };
+        queue.write_buffer(&buffer, 0, bytemuck::bytes_of(&FinViewUniform::new(f, &view.world_from_view)));
         let bind_group = device.create_bind_group(
             "fin_visibility_bind_group",
             &pipeline_cache.get_bind_group_layout(&pipelines.view_layout),
@@ -507,9 +567,10 @@ fn prepare_view_bind_groups(
                 normal,
                 &texture.0.default_view,
                 (*view_binding).clone(),
+                buffer.as_entire_binding(),
             )),
         );
-        commands.entity(entity).insert(FinViewBindGroup(bind_group));
+        commands.entity(entity).insert((FinViewBindGroup(bind_group), FinViewBuffer(buffer)));
     }
 }
 

@@ -4,7 +4,19 @@
 // refinement of eq. 5, the overlap rule and the falloff).
 #import bevy_render::view::View
 #import bevy_shadow_fins::fin_types::{
-    FinParams, FinSample, CHANNELS, NO_MIN, NO_MAX, texel_index, decode_min_key, decode_max_key,
+    FinParams, FinSample, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, texel_index, decode_min_key, decode_max_key,
+}
+
+// The camera's view space → the light frame, composed on the CPU in f64
+// (columns of the linear part, and the translation). Positions are rebuilt in
+// view space, where they are small near the camera, and never pass through
+// world coordinates: at 1e5 from the origin an f32 world position is off by
+// 0.008, the size of the one-texel lift.
+struct FinView {
+    linear0: vec4<f32>,
+    linear1: vec4<f32>,
+    linear2: vec4<f32>,
+    translation: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> params: FinParams;
@@ -13,10 +25,13 @@
 @group(0) @binding(3) var normal_prepass: texture_2d<f32>;
 @group(0) @binding(4) var visibility: texture_storage_2d<r32float, write>;
 @group(0) @binding(5) var<uniform> view: View;
+@group(0) @binding(6) var<uniform> fin_view: FinView;
 
-// Penumbra half-width in map units that an edge at depth lb casts at depth lr.
+// Penumbra half-width in map units that an edge at depth lb casts at depth lr:
+// R(1/lb − 1/lr) without the cancellation of two nearby reciprocals
+// (`LightFrame::penumbra_half_width`).
 fn half_width(lb: f32, lr: f32) -> f32 {
-    return max(params.light.x * (1.0 / lb - 1.0 / lr), 0.0);
+    return max(params.light.x * ((lr - lb) / lb) / lr, 0.0);
 }
 
 // Eq. 5, clamped; a negative result means the fin is not in front of the receiver.
@@ -36,13 +51,27 @@ fn refine(s: FinSample, lr: f32) -> f32 {
     return clamp(0.5 + ratio * (s.weight - 0.5), 0.0, 0.5);
 }
 
-// One side's refined weight at a texel (min/max keys), or -1 when no fin applies.
-fn side_weight(min_k: u32, max_k: u32, lr: f32, paper_pick_min: bool) -> f32 {
+// A key channel's winner: its weight from the key, its exact depth from the
+// depth channel beside it.
+fn winner(base: u32, channel: u32, min_side: bool) -> FinSample {
+    let k = maps[base + channel];
+    let depth = bitcast<f32>(maps[base + channel + DEPTH_OF_KEY]);
+    if (min_side) {
+        return FinSample(decode_min_key(params, k).weight, depth);
+    }
+    return FinSample(decode_max_key(params, k).weight, depth);
+}
+
+// One side's refined weight at a texel (min/max keys at `channel`), or -1 when
+// no fin applies.
+fn side_weight(base: u32, channel: u32, lr: f32, paper_pick_min: bool) -> f32 {
+    let min_k = maps[base + channel];
+    let max_k = maps[base + channel + 1u];
     if (min_k == NO_MIN) {
         return -1.0;
     }
-    let lo = refine(decode_min_key(params, min_k), lr);
-    let hi = refine(decode_max_key(params, max_k), lr);
+    let lo = refine(winner(base, channel, true), lr);
+    let hi = refine(winner(base, channel + 1u, false), lr);
     if (params.flags.z == 0u) {
         return select(hi, lo, paper_pick_min);
     }
@@ -70,9 +99,9 @@ fn falloff(i: f32) -> f32 {
     return clamp(0.5 + (s * sqrt(max(1.0 - s * s, 0.0)) + asin(s)) / 3.14159265358979, 0.0, 1.0);
 }
 
-fn to_frame(p: vec3<f32>) -> vec3<f32> {
-    let d = p - params.origin.xyz;
-    return vec3<f32>(dot(d, params.axis_u.xyz), dot(d, params.axis_v.xyz), dot(d, params.axis_n.xyz));
+fn view_to_frame(p: vec3<f32>) -> vec3<f32> {
+    return fin_view.linear0.xyz * p.x + fin_view.linear1.xyz * p.y + fin_view.linear2.xyz * p.z
+        + fin_view.translation.xyz;
 }
 
 fn dir_to_frame(d: vec3<f32>) -> vec3<f32> {
@@ -97,15 +126,16 @@ fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
     // Target pixel → the camera's clip space, through its viewport (split screen).
     let uv = (vec2<f32>(id.xy) + 0.5 - view.viewport.xy) / view.viewport.zw;
     let ndc = vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
-    let world = view.world_from_clip * ndc;
-    let position = to_frame(world.xyz / world.w);
+    let in_view = view.view_from_clip * ndc;
+    let position = view_to_frame(in_view.xyz / in_view.w);
     let normal_world = normalize(textureLoad(normal_prepass, pixel, 0).xyz * 2.0 - 1.0);
     let normal = dir_to_frame(normal_world);
 
     // Lift by one texel's world size along the normal (as the raster oracle).
     let near = params.light.y;
     let texel_world = params.map.z * max(position.z, near);
-    let p = position + normal * (params.light.z + texel_world);
+    let eps = max(params.light.w * length(position), params.light.z);
+    let p = position + normal * (eps + texel_world);
     var v = 0.0;
     if (p.z > near) {
         let q = p.xy / p.z;
@@ -121,8 +151,8 @@ fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
             let base = texel_index(params, layer, u32(t.x), u32(t.y));
             let slab = bitcast<f32>(maps[base]);
             let blocked = slab < limit;
-            let inner = side_weight(maps[base + 1u], maps[base + 2u], p.z, true);
-            let outer = side_weight(maps[base + 3u], maps[base + 4u], p.z, false);
+            let inner = side_weight(base, 1u, p.z, true);
+            let outer = side_weight(base, 3u, p.z, false);
             if (inner >= 0.0 || outer >= 0.0) {
                 let u = clamp(select(1.0, 0.0, blocked) + max(inner, 0.0) - max(outer, 0.0), 0.0, 1.0);
                 if (params.flags.z == 0u) {

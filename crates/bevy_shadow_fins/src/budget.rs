@@ -1,0 +1,205 @@
+//! What the GPU can hold: the device's limits, the user's memory budget, and
+//! how fin shadows degrade when a scene asks for more — never a validation
+//! error, always a reason in [`FinShadowStats`](crate::FinShadowStats).
+//!
+//! Every buffer the plugin binds must fit the device's
+//! `max_storage_buffer_binding_size` (and `max_buffer_size`). The penumbra maps
+//! are the big one (layers × resolution² × 9 words); past the budget they lose
+//! resolution first, down to [`MIN_DEGRADED_RESOLUTION`], then layers (the
+//! deepest layers merge), then resolution again. The extraction's per-scene
+//! buffers that cannot shrink (vertices, faces, the packed geometry) move the
+//! extraction to the CPU when they do not fit; the output buffers (silhouettes,
+//! fins, casters) are capped, and what does not fit is dropped.
+
+use bevy::prelude::*;
+
+/// The GPU memory fin shadows may use. A resource: change it at any time.
+///
+/// Defaults: 768 MiB of penumbra maps, and the device's own largest binding.
+/// Set `max_buffer_bytes` lower to see degradation on a big GPU (the tests do).
+#[derive(Resource, Debug, Clone, Copy, PartialEq, Eq, Hash, Reflect)]
+#[reflect(Resource, Default, Debug, Clone)]
+pub struct FinShadowBudget {
+    /// Bytes all penumbra-map layers may take together.
+    pub map_bytes: u64,
+    /// The largest single GPU buffer, bytes: `None` is the device's
+    /// `max_storage_buffer_binding_size`; a value above it is lowered to it.
+    pub max_buffer_bytes: Option<u64>,
+}
+
+impl Default for FinShadowBudget {
+    fn default() -> Self {
+        Self { map_bytes: 768 << 20, max_buffer_bytes: None }
+    }
+}
+
+/// The device's limits, as the render world found them at start (main world).
+#[derive(Resource, Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct FinDeviceLimits {
+    /// `min(max_storage_buffer_binding_size, max_buffer_size)`.
+    pub max_binding_bytes: u64,
+}
+
+impl Default for FinDeviceLimits {
+    /// WebGPU's guaranteed minimum, until the device says more.
+    fn default() -> Self {
+        Self { max_binding_bytes: 128 << 20 }
+    }
+}
+
+impl FinDeviceLimits {
+    /// The largest buffer allowed under this budget.
+    pub fn max_buffer(&self, budget: &FinShadowBudget) -> u64 {
+        budget.max_buffer_bytes.map_or(self.max_binding_bytes, |b| b.min(self.max_binding_bytes)).max(256)
+    }
+}
+
+/// Present (main world) when the device cannot run fin shadows, with why.
+#[derive(Resource, Debug, Clone, Copy)]
+pub(crate) struct FinShadowsUnsupported(pub &'static str);
+
+/// Why fin shadows are modelled with less than the settings ask for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FinDegradation {
+    /// The maps use a lower resolution and/or fewer layers than asked.
+    Maps { resolution: u32, wanted_resolution: u32, layers: u32, wanted_layers: u32, limit_bytes: u64 },
+    /// An extraction output buffer is capped: what did not fit was dropped.
+    Capacity { buffer: &'static str, kept: u32, wanted: u32, limit_bytes: u64 },
+    /// The scene's geometry does not fit one GPU buffer: extracted on the CPU.
+    ExtractedOnCpu { buffer: &'static str, bytes: u64, limit_bytes: u64 },
+    /// The device cannot run fin shadows at all (no compute shaders, WebGL2,
+    /// too few storage bindings); the fin lights stay dark.
+    Unsupported(&'static str),
+}
+
+impl std::fmt::Display for FinDegradation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mib = |b: u64| b as f64 / (1u64 << 20) as f64;
+        match *self {
+            FinDegradation::Maps { resolution, wanted_resolution, layers, wanted_layers, limit_bytes } => write!(
+                f,
+                "penumbra maps {layers} layers at {resolution}² instead of {wanted_layers} at {wanted_resolution}²: \
+                 over the {:.1} MiB allowed (FinShadowBudget or the GPU's buffer limit)",
+                mib(limit_bytes)
+            ),
+            FinDegradation::Capacity { buffer, kept, wanted, limit_bytes } => write!(
+                f,
+                "{buffer}: {kept} of {wanted} kept, the rest dropped (a {:.1} MiB buffer limit)",
+                mib(limit_bytes)
+            ),
+            FinDegradation::ExtractedOnCpu { buffer, bytes, limit_bytes } => write!(
+                f,
+                "fins extracted on the CPU: the GPU extraction's {buffer} needs {:.1} MiB, over the {:.1} MiB buffer limit",
+                mib(bytes),
+                mib(limit_bytes)
+            ),
+            FinDegradation::Unsupported(why) => write!(f, "fin shadows are off: {why}"),
+        }
+    }
+}
+
+/// Resolution the maps degrade to before they lose layers.
+pub const MIN_DEGRADED_RESOLUTION: u32 = 256;
+/// Resolution below which the maps never go.
+pub const MIN_RESOLUTION: u32 = 16;
+
+/// How the penumbra maps are allocated: the resolution and layers that fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct MapAllocation {
+    pub resolution: u32,
+    pub layers: u32,
+    pub degradation: Option<FinDegradation>,
+}
+
+/// The maps for `layers` layers at `resolution²`, each texel `texel_bytes`,
+/// within `limit` bytes: resolution halves first (not below
+/// [`MIN_DEGRADED_RESOLUTION`]), then layers go, then resolution again.
+pub(crate) fn allocate_maps(resolution: u32, layers: u32, texel_bytes: u64, limit: u64) -> MapAllocation {
+    let bytes = |r: u32, l: u32| l.max(1) as u64 * (r as u64).pow(2) * texel_bytes;
+    let (mut r, mut l) = (resolution.max(MIN_RESOLUTION), layers.max(1));
+    while bytes(r, l) > limit && r / 2 >= MIN_DEGRADED_RESOLUTION.min(resolution) {
+        r /= 2;
+    }
+    while bytes(r, l) > limit && l > 1 {
+        l = (limit / bytes(r, 1)).clamp(1, l as u64 - 1) as u32;
+    }
+    while bytes(r, l) > limit && r / 2 >= MIN_RESOLUTION {
+        r /= 2;
+    }
+    let degraded = (r, l) != (resolution.max(MIN_RESOLUTION), layers.max(1));
+    MapAllocation {
+        resolution: r,
+        layers: l,
+        degradation: degraded.then_some(FinDegradation::Maps {
+            resolution: r,
+            wanted_resolution: resolution,
+            layers: l,
+            wanted_layers: layers,
+            limit_bytes: limit,
+        }),
+    }
+}
+
+/// What the device can do, checked once at start. `Err` says why fin shadows
+/// cannot run on it.
+pub(crate) fn check_device(
+    limits: &bevy::render::settings::WgpuLimits,
+    compute: bool,
+) -> Result<FinDeviceLimits, &'static str> {
+    if !compute {
+        return Err("this GPU or backend has no compute shaders (WebGL2?): fin shadows need them");
+    }
+    if limits.max_storage_buffers_per_shader_stage < 8 {
+        return Err("this GPU allows fewer than 8 storage buffers per shader stage; fin shadows need 8");
+    }
+    if limits.max_storage_textures_per_shader_stage < 1 {
+        return Err("this GPU has no storage textures in compute shaders; the visibility pass needs one");
+    }
+    if limits.max_compute_workgroup_size_x < 64 || limits.max_compute_invocations_per_workgroup < 64 {
+        return Err("this GPU's compute workgroups hold fewer than 64 invocations");
+    }
+    Ok(FinDeviceLimits { max_binding_bytes: limits.max_storage_buffer_binding_size.min(limits.max_buffer_size) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn maps_that_fit_are_not_degraded() {
+        let a = allocate_maps(1024, 4, 36, 1 << 30);
+        assert_eq!((a.resolution, a.layers, a.degradation), (1024, 4, None));
+    }
+
+    #[test]
+    fn maps_lose_resolution_first_then_layers() {
+        // 16 layers at 1024² of 36-byte texels = 576 MiB; at 256², 36 MiB.
+        let limit = 16 << 20;
+        let a = allocate_maps(1024, 16, 36, limit);
+        assert_eq!(a.resolution, 256, "resolution goes down to 256 first");
+        assert!(a.layers < 16 && a.layers >= 1);
+        assert!(a.layers as u64 * 256 * 256 * 36 <= limit);
+        assert!(matches!(a.degradation, Some(FinDegradation::Maps { wanted_layers: 16, .. })));
+        // A tiny limit: one layer, and resolution keeps going down, never below 16.
+        let b = allocate_maps(1024, 16, 36, 4096);
+        assert_eq!(b.layers, 1);
+        assert_eq!(b.resolution, 16);
+    }
+
+    #[test]
+    fn a_low_resolution_ask_is_not_raised() {
+        let a = allocate_maps(128, 2, 36, 1 << 30);
+        assert_eq!((a.resolution, a.layers), (128, 2));
+    }
+
+    #[test]
+    fn devices_without_compute_or_bindings_are_refused_with_a_reason() {
+        let mut limits = bevy::render::settings::WgpuLimits::default();
+        assert!(check_device(&limits, true).is_ok());
+        assert!(check_device(&limits, false).unwrap_err().contains("compute"));
+        limits.max_storage_buffers_per_shader_stage = 4;
+        assert!(check_device(&limits, true).unwrap_err().contains("storage buffers"));
+        let downlevel = bevy::render::settings::WgpuLimits::downlevel_webgl2_defaults();
+        assert!(check_device(&downlevel, false).is_err());
+    }
+}
