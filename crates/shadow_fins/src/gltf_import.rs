@@ -48,7 +48,7 @@ pub const MAX_ELEMENTS: u64 = 1 << 27;
 
 /// Parses glTF/GLB bytes; `base_dir` resolves external buffer files.
 pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, GltfError> {
-    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| GltfError::Parse(e.to_string()))?;
+    let gltf = parse_document(bytes)?;
     let mut buffers = Vec::new();
     for buffer in gltf.buffers() {
         let index = buffer.index();
@@ -143,6 +143,42 @@ pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, G
         return Err(skipped.into_iter().next().unwrap_or(GltfError::NoMeshes));
     }
     Ok(GltfImport { scene: Scene::new(objects), skipped })
+}
+
+/// The document, validated, without the `gltf` crate's own validation
+/// panicking: it indexes a primitive's `POSITION` accessor before checking the
+/// index (found by fuzzing: "index out of bounds" in gltf-json's mesh.rs), so
+/// every index that check reads is checked first; any other panic in the crate
+/// becomes a parse error (the fuzz target still reports it, to fix upstream).
+fn parse_document(bytes: &[u8]) -> Result<gltf::Gltf, GltfError> {
+    let parse = |e: gltf::Error| GltfError::Parse(e.to_string());
+    // The GLB reader subtracts its 12-byte header from the declared length
+    // unchecked (found by fuzzing: overflow on a length below 12).
+    if bytes.starts_with(b"glTF") {
+        let declared = bytes.get(8..12).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
+        if declared.is_none_or(|n| n < 12) {
+            return Err(GltfError::Parse(format!("invalid GLB: its header declares {declared:?} bytes")));
+        }
+    }
+    let unchecked = gltf::Gltf::from_slice_without_validation(bytes).map_err(parse)?;
+    let json = unchecked.document.as_json();
+    let accessors = json.accessors.len();
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if let Some((_, a)) = primitive.attributes.iter().find(|(_, a)| a.value() >= accessors) {
+                return Err(GltfError::Parse(format!(
+                    "invalid glTF: meshes[{m}].primitives[{p}] names accessor {} of {accessors}",
+                    a.value()
+                )));
+            }
+        }
+    }
+    let blob = unchecked.blob;
+    let json = unchecked.document.into_json();
+    match std::panic::catch_unwind(move || gltf::Document::from_json(json)) {
+        Ok(document) => Ok(gltf::Gltf { document: document.map_err(parse)?, blob }),
+        Err(_) => Err(GltfError::Parse("invalid glTF: the glTF reader failed on it (a damaged file?)".into())),
+    }
 }
 
 /// What an accessor is read as.

@@ -6,6 +6,7 @@ mod core {
     mod convergence;
     mod gltf_files;
     mod ground_truth_closed_form;
+    mod hostile_gltf;
     mod multi_layer;
     mod silhouette_properties;
     mod stability;

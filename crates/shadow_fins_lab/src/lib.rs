@@ -8,6 +8,7 @@ pub mod eval;
 pub mod grid;
 pub mod picture;
 pub mod plot;
+pub mod points;
 pub mod results;
 pub mod setup;
 

@@ -112,7 +112,7 @@ fn run(command: Command) -> Result<(), LabError> {
             let settings = fins.settings()?;
             let measured = parse_measured(&method)?;
             let pts = read_points(&points)?;
-            let ls = LightSpaceScene::new(&loaded.scene, loaded.light);
+            let mut ls = LightSpaceScene::new(&loaded.scene, loaded.light);
             let receivers: Vec<Receiver> = pts
                 .iter()
                 .map(|(p, n)| Receiver {
@@ -120,6 +120,8 @@ fn run(command: Command) -> Result<(), LabError> {
                     normal: ls.frame.dir_to_frame(n.normalize_or_zero()),
                 })
                 .collect();
+            // Points beyond the scene's deepest surface get fins wide enough for them.
+            ls.cover_receivers(receivers.iter().map(|r| r.position));
             let ev = evaluate(&loaded.scene, &ls, measured, settings, fins.map_resolution, fins.samples, &receivers);
             let mut text = String::from("x,y,z,visibility\n");
             for ((p, _), v) in pts.iter().zip(&ev.values) {
@@ -250,31 +252,7 @@ fn strip(c: &Comparison) -> Picture {
 
 fn read_points(path: &std::path::Path) -> Result<Vec<(Vec3, Vec3)>, LabError> {
     let text = std::fs::read_to_string(path).map_err(|e| LabError::Io(path.display().to_string(), e))?;
-    let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        let nums: Result<Vec<f32>, _> = fields.iter().map(|f| f.parse::<f32>()).collect();
-        let nums = match nums {
-            Ok(n) => n,
-            Err(_) if i == 0 => continue, // header
-            Err(_) => {
-                return Err(LabError::Points { line: i + 1, reason: format!("'{line}' is not numbers") });
-            }
-        };
-        if !(nums.len() == 3 || nums.len() == 6) || nums.iter().any(|v| !v.is_finite()) {
-            return Err(LabError::Points {
-                line: i + 1,
-                reason: "need 3 or 6 finite numbers: x,y,z[,nx,ny,nz]".into(),
-            });
-        }
-        let n = if nums.len() == 6 { Vec3::new(nums[3], nums[4], nums[5]) } else { Vec3::ZERO };
-        out.push((Vec3::new(nums[0], nums[1], nums[2]), n));
-    }
-    Ok(out)
+    shadow_fins_lab::points::parse_points(&text)
 }
 
 fn write_text(path: Option<&std::path::Path>, text: &str) -> Result<(), LabError> {
