@@ -23,6 +23,8 @@ pub struct EditorOptions {
     pub screenshot: Option<PathBuf>,
     /// Frames before the screenshot (default 30).
     pub frames: u32,
+    /// Where settings are autosaved (see `autosave.rs`).
+    pub autosave: crate::autosave::AutosaveOption,
 }
 
 /// A command line that could not be understood.
@@ -32,13 +34,15 @@ pub enum CliError {
     MissingValue(&'static str),
     #[error("--frames must be a whole number ≥ 1, got {0:?}")]
     BadFrames(String),
-    #[error("unknown option {0:?} (options: [scene.gltf] --settings FILE --screenshot PATH --frames N)")]
+    #[error(
+        "unknown option {0:?} (options: [scene.gltf] --settings FILE --screenshot PATH --frames N --autosave FILE --no-autosave)"
+    )]
     Unknown(String),
 }
 
 impl Default for EditorOptions {
     fn default() -> Self {
-        Self { scene: None, settings: None, screenshot: None, frames: 30 }
+        Self { scene: None, settings: None, screenshot: None, frames: 30, autosave: Default::default() }
     }
 }
 
@@ -55,6 +59,10 @@ impl EditorOptions {
             match arg.as_str() {
                 "--screenshot" => options.screenshot = Some(value("--screenshot")?.into()),
                 "--settings" => options.settings = Some(value("--settings")?.into()),
+                "--autosave" => {
+                    options.autosave = crate::autosave::AutosaveOption::Path(value("--autosave")?.into());
+                }
+                "--no-autosave" => options.autosave = crate::autosave::AutosaveOption::Off,
                 "--frames" => {
                     let v = value("--frames")?;
                     options.frames = v.parse().ok().filter(|n| *n >= 1).ok_or(CliError::BadFrames(v))?;

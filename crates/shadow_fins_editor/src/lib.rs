@@ -11,8 +11,9 @@
 //! into components, the plugin renders. Nothing else is shared.
 //!
 //! `cargo run --example editor -- [scene.gltf] [--settings FILE.ron]
-//! [--screenshot PATH --frames N]`
+//! [--screenshot PATH --frames N] [--autosave FILE.ron | --no-autosave]`
 
+mod autosave;
 mod cli;
 mod orbit;
 mod scene;
@@ -21,9 +22,10 @@ mod truth;
 mod ui;
 mod views;
 
+pub use autosave::AutosaveOption;
 pub use cli::{CliError, EditorOptions};
 pub use scene::{EditorMethod, LightParams, SceneSource};
-pub use settings_file::{EditorSettings, SettingsFileError};
+pub use settings_file::{EditorSettings, SettingsFileError, check_settings_text};
 pub use truth::GroundTruthStatus;
 pub use views::ViewKind;
 
@@ -64,6 +66,7 @@ impl Plugin for EditorPlugin {
         truth::build(app);
         ui::build(app);
         cli::build(app);
+        autosave::build(app);
     }
 }
 

@@ -161,7 +161,9 @@ pub fn read_scene(source: &SceneSource) -> Result<(String, Scene, Light, CoreCam
 
 fn request_initial_scene(options: Res<EditorOptions>, mut load: MessageWriter<LoadScene>) {
     let source = options.scene.clone().map_or(SceneSource::Demo, SceneSource::Gltf);
-    load.write(LoadScene { source, keep_light: options.settings.is_some() });
+    // A settings file's light stays; so does an autosaved one, unless a new scene was asked for.
+    let keep_light = options.settings.is_some() || (options.scene.is_none() && options.start_settings().is_some());
+    load.write(LoadScene { source, keep_light });
 }
 
 fn spawn_rig(
@@ -182,9 +184,13 @@ fn spawn_rig(
         method: EditorMethod::default(),
     };
     let mut settings = FinShadowSettings::default();
-    if let Some(path) = &options.settings {
-        match EditorSettings::load(path) {
-            Ok(file) => file.apply(&mut params, &mut settings),
+    // `--settings`, or the autosave an earlier run left.
+    if let Some(path) = options.start_settings() {
+        match EditorSettings::load_into(&path, &mut params, &mut settings) {
+            Ok(()) if options.settings.is_none() => {
+                state.status = Some(format!("restored the autosaved settings from {}", path.display()))
+            }
+            Ok(()) => {}
             Err(e) => state.error = Some(e.to_string()),
         }
     }
@@ -360,4 +366,54 @@ fn sync_marker(params: Res<LightParams>, mut marker: Query<&mut Transform, With<
 /// The primary window's physical size, if any.
 pub(crate) fn window_size(window: &Query<&Window, With<PrimaryWindow>>) -> Option<UVec2> {
     window.single().ok().map(|w| w.physical_size()).filter(|s| s.x > 0 && s.y > 0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The scene loading alone, on a headless app.
+    fn app() -> App {
+        let mut app = App::new();
+        app.add_plugins(MinimalPlugins)
+            .init_resource::<Assets<Mesh>>()
+            .init_resource::<Assets<StandardMaterial>>()
+            .init_resource::<EditorState>()
+            .insert_resource(LightParams {
+                position: Vec3::new(1.0, 5.0, 2.0),
+                direction: Vec3::NEG_Y,
+                radius: 0.7,
+                intensity: 5e5,
+                color: [1.0, 0.5, 0.25],
+                method: EditorMethod::default(),
+            })
+            .add_message::<LoadScene>()
+            .add_systems(Update, load_scene);
+        app
+    }
+
+    fn meshes(app: &mut App) -> Vec<Entity> {
+        app.world_mut().query_filtered::<Entity, With<EditorMesh>>().iter(app.world()).collect()
+    }
+
+    #[test]
+    fn a_failed_load_leaves_the_current_scene_and_light_as_they_were() {
+        let mut app = app();
+        app.world_mut().write_message(LoadScene::new(SceneSource::Demo));
+        app.update();
+        let before = meshes(&mut app);
+        assert!(before.len() > 3, "the demo scene is loaded");
+        let light = *app.world().resource::<LightParams>();
+        let broken = std::env::temp_dir().join(format!("fin-editor-broken-{}.gltf", std::process::id()));
+        std::fs::write(&broken, "{\"asset\": {\"version\": \"2.0\"}, \"nodes\": [").unwrap();
+        for path in [broken.clone(), "/nonexistent/scene.glb".into()] {
+            app.world_mut().write_message(LoadScene::new(SceneSource::Gltf(path.clone())));
+            app.update();
+            assert_eq!(meshes(&mut app), before, "{}: the scene's meshes stay", path.display());
+            assert_eq!(*app.world().resource::<LightParams>(), light, "the light stays");
+            let error = app.world().resource::<EditorState>().error.clone().expect("the error is shown");
+            assert!(error.contains("could not open"), "{error}");
+        }
+        std::fs::remove_file(&broken).unwrap();
+    }
 }

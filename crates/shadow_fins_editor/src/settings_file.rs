@@ -115,18 +115,63 @@ impl EditorSettings {
         Self::from_ron(&text, &p)
     }
 
-    /// Writes the file through a temporary next to it, so a failed write
-    /// never destroys the previous settings.
+    /// Writes the file through a temporary next to it, flushed to disk before
+    /// it replaces the old one: a failed write or a crash (of the editor or
+    /// the machine) leaves either the old settings or the new, never half a file.
     pub fn save(&self, path: &Path) -> Result<(), SettingsFileError> {
+        use std::io::Write;
         let p = path.display().to_string();
         let write = |source| SettingsFileError::Write { path: p.clone(), source };
-        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
+        if let Some(dir) = dir {
             std::fs::create_dir_all(dir).map_err(write)?;
         }
         let tmp = path.with_extension("ron.tmp");
-        std::fs::write(&tmp, self.to_ron()).map_err(write)?;
-        std::fs::rename(&tmp, path).map_err(write)
+        let mut file = std::fs::File::create(&tmp).map_err(write)?;
+        file.write_all(self.to_ron().as_bytes()).and_then(|()| file.sync_all()).map_err(write)?;
+        drop(file);
+        std::fs::rename(&tmp, path).map_err(write)?;
+        // The rename itself is durable once the directory is flushed (best effort:
+        // not every platform can open a directory).
+        if let Ok(d) = std::fs::File::open(dir.unwrap_or(Path::new("."))) {
+            let _ = d.sync_all();
+        }
+        Ok(())
     }
+
+    /// Loads `path` into the light and fin settings. On any error nothing is
+    /// changed: the user's current settings stay as they were.
+    pub fn load_into(
+        path: &Path,
+        light: &mut LightParams,
+        fins: &mut FinShadowSettings,
+    ) -> Result<(), SettingsFileError> {
+        let file = Self::load(path)?;
+        file.apply(light, fins);
+        Ok(())
+    }
+}
+
+/// What the `settings_ron` fuzz target and the corpus test assert of any text:
+/// no panic; a file that parses applies to finite, in-range settings.
+#[doc(hidden)]
+pub fn check_settings_text(text: &str) {
+    let Ok(file) = EditorSettings::from_ron(text, "fuzz.ron") else { return };
+    let mut light = LightParams {
+        position: Vec3::new(0.0, 4.0, 0.0),
+        direction: Vec3::NEG_Y,
+        radius: 0.5,
+        intensity: 1e6,
+        color: [1.0; 3],
+        method: EditorMethod::default(),
+    };
+    let mut fins = FinShadowSettings::default();
+    file.apply(&mut light, &mut fins);
+    assert!(light.position.is_finite() && light.direction.is_finite() && light.direction != Vec3::ZERO);
+    assert!(light.radius.is_finite() && light.radius >= 0.0);
+    assert!(light.intensity.is_finite() && light.intensity >= 0.0);
+    assert!(light.color.iter().all(|c| (0.0..=1.0).contains(c)));
+    assert_eq!(fins, fins.clamped(), "applied settings are within their ranges");
 }
 
 #[cfg(test)]
@@ -164,5 +209,80 @@ mod tests {
         s.apply(&mut l, &mut f);
         assert_eq!((l.radius, f.layers, f.map_resolution, l.intensity), (0.0, 1, 4096, 1e6));
         assert!(matches!(EditorSettings::from_ron("(radius: oops", "bad.ron"), Err(SettingsFileError::Parse { .. })));
+    }
+
+    #[test]
+    fn a_failed_load_leaves_the_current_settings_as_they_were() {
+        let dir = std::env::temp_dir().join(format!("fin-editor-load-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let broken = dir.join("broken.ron");
+        std::fs::write(&broken, "(light_position: (1.0, 2.0").unwrap();
+        let fins = FinShadowSettings { layers: 7, refinement: false, ..Default::default() };
+        let (mut l, mut f) = (light(), fins);
+        for path in [broken.clone(), dir.join("missing.ron")] {
+            assert!(EditorSettings::load_into(&path, &mut l, &mut f).is_err());
+            assert_eq!((l, f), (light(), fins), "{}", path.display());
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn saving_replaces_the_file_whole_and_leaves_no_temporary() {
+        let dir = std::env::temp_dir().join(format!("fin-editor-save-{}", std::process::id()));
+        let path = dir.join("nested/settings.ron");
+        let a = EditorSettings::capture(&light(), &FinShadowSettings::default());
+        let b = EditorSettings { layers: 3, ..a.clone() };
+        a.save(&path).unwrap();
+        b.save(&path).unwrap();
+        assert_eq!(EditorSettings::load(&path).unwrap(), b);
+        assert!(!path.with_extension("ron.tmp").exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// The fuzz target's seeds (and what it kept), on the stable toolchain.
+    #[test]
+    fn the_fuzz_corpus_parses_without_panic_and_in_bounded_time() {
+        let dir = Path::new(&std::env::var("CARGO_MANIFEST_DIR").unwrap()).join("../../fuzz/corpus/settings_ron");
+        let mut files = 0;
+        for entry in std::fs::read_dir(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display())) {
+            let bytes = std::fs::read(entry.unwrap().path()).unwrap();
+            let start = std::time::Instant::now();
+            if let Ok(text) = std::str::from_utf8(&bytes) {
+                check_settings_text(text);
+            }
+            assert!(start.elapsed().as_secs_f32() < 2.0, "slow input");
+            files += 1;
+        }
+        assert!(files >= 5, "the seed corpus is committed ({files} files)");
+    }
+
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+        #[test]
+        fn generated_settings_never_panic(
+            radius in prop_oneof![Just(f32::NAN), Just(f32::INFINITY), Just(-1.0f32), any::<f32>()],
+            layers in any::<u32>(),
+            map in any::<u32>(),
+            direction in proptest::array::uniform3(prop_oneof![Just(0.0f32), Just(f32::NAN), any::<f32>()]),
+            method in "[a-z-]{0,12}",
+        ) {
+            let mut s = EditorSettings::capture(&light(), &FinShadowSettings::default());
+            (s.radius, s.layers, s.map_resolution, s.light_direction, s.method) = (radius, layers, map, direction, method);
+            check_settings_text(&s.to_ron());
+        }
+
+        #[test]
+        fn mutated_settings_text_never_panics(cut in any::<usize>(), flips in proptest::collection::vec((any::<usize>(), 32u8..127), 0..6)) {
+            let mut text = EditorSettings::capture(&light(), &FinShadowSettings::default()).to_ron().into_bytes();
+            for (at, c) in flips {
+                let n = text.len();
+                text[at % n] = c;
+            }
+            let n = text.len();
+            text.truncate(cut % (n + 1));
+            check_settings_text(&String::from_utf8(text).unwrap());
+        }
     }
 }

@@ -182,7 +182,14 @@ fn panels(
                 let s = fin_stats.0;
                 ui.label(format!("casters {} · triangles {}", s.casters, s.triangles));
                 ui.label(format!("silhouette edges {} · fins {}", s.silhouettes, s.fins));
-                ui.label(format!("layers in use {} · CPU {:.2} ms", s.layers, s.extract_ms));
+                ui.label(format!(
+                    "layers in use {} · maps {}² · CPU {:.2} ms",
+                    s.layers, s.map_resolution, s.extract_ms
+                ));
+                // What the GPU's limits or the budget cut, said where the user looks.
+                if let Some(why) = s.degraded {
+                    ui.colored_label(egui::Color32::from_rgb(240, 190, 80), format!("degraded: {why}"));
+                }
             }
 
             ui.separator();
@@ -229,14 +236,14 @@ fn panels(
                     }
                 }
                 if ui.button("load").clicked() {
-                    match EditorSettings::load(std::path::Path::new(&paths.settings)) {
-                        Ok(file) => {
-                            let (mut p, mut s) = (*params, *fin_settings);
-                            file.apply(&mut p, &mut s);
+                    let (mut p, mut s) = (*params, *fin_settings);
+                    match EditorSettings::load_into(std::path::Path::new(&paths.settings), &mut p, &mut s) {
+                        Ok(()) => {
                             *params = p;
                             *fin_settings = s;
                             state.status = Some(format!("loaded {}", paths.settings));
                         }
+                        // Nothing applied: the current settings stay.
                         Err(e) => state.error = Some(e.to_string()),
                     }
                 }
