@@ -205,8 +205,10 @@ pub fn cases() -> Vec<Case> {
     s.light = Light::Disk(DiskLight { center: Vec3::new(0.0, 1.5, 0.0), ..disk(&s) });
     out.push(rendered("light-inside-caster", "the light's centre inside the box", s));
 
-    // Receivers 1.5×, 10× and 1000× deeper than the reference plane, under the box's shadow.
-    let s = base();
+    // Receivers 1.5×, 10× and 1000× deeper than the reference plane, in the
+    // box's shadow; without the ground, which would put them in its umbra.
+    let mut s = base();
+    s.scene.objects.retain(|o| o.name != "ground");
     let ls = LightSpaceScene::new(&s.scene, s.light);
     let l0 = ls.reference_depth;
     let mut receivers = vec![];
@@ -277,7 +279,9 @@ pub fn run(case: &Case, samples: u32) -> Outcome {
             }
         }
         CaseKind::Oracle { scene, light, receivers } => {
-            let ls = LightSpaceScene::new(scene, *light);
+            let mut ls = LightSpaceScene::new(scene, *light);
+            // The plugin's L0 covers every surface it draws; given points must be covered too.
+            ls.cover_receivers(receivers.iter().map(|r| r.position));
             let model = FinShadowModel::new(scene, &ls, Method::MultiLayer, FinSettings::default());
             let maps = model.raster(512);
             let values: Vec<f32> = receivers.iter().map(|r| maps.visibility(*r)).collect();
@@ -296,7 +300,7 @@ pub fn run(case: &Case, samples: u32) -> Outcome {
 /// The report table.
 pub fn markdown(outcomes: &[Outcome]) -> String {
     let mut s = String::from(
-        "| case | what | values | NaN/Inf | out of [0,1] | MAE | p99 | umbra over | leak | silhouettes / fins / layers |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        "| case | what | values | NaN/Inf | out of [0,1] | scored px | MAE | p99 | umbra over | leak | silhouettes / fins / layers |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for o in outcomes {
         let m = o.metrics;
@@ -306,12 +310,13 @@ pub fn markdown(outcomes: &[Outcome]) -> String {
             None => o.what.clone(),
         };
         s += &format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
             o.name,
             what,
             o.values,
             o.non_finite,
             o.out_of_range,
+            m.map_or("–".into(), |m| m.count.to_string()),
             cell(m.map(|m| m.mae), 4),
             cell(m.map(|m| m.p99), 4),
             percent(m.map(|m| m.umbra_over)),
