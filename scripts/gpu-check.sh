@@ -13,8 +13,8 @@
 # With the device tool: pack first, then one call
 #   run(command="bash scripts/gpu-check.sh run", carry=[".gpu-check", ".gl"], timeout_s=540)
 # where .gl holds the Vulkan loader's .deb files (see the device tool's README;
-# `pack` downloads them when apt can). The run takes about 8 minutes at most:
-# each step has its own time limit and a step that runs out is reported, not fatal.
+# `pack` downloads them when apt can). The run takes 8 minutes at most (its
+# steps' limits add up to 480 s): a step that runs out is reported, not fatal.
 # Paste the report into BENCHMARKS.md with the GPU named.
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -32,7 +32,7 @@ pack)
   grep -qx '/.gl/' .git/info/exclude 2>/dev/null || echo '/.gl/' >>.git/info/exclude
   flag=(); [ "$profile" = release ] && flag=(--release)
   echo "gpu-check: building the render tests and the render lab ($profile)…"
-  cargo test --workspace --locked --all-targets "${flag[@]}" --no-run
+  cargo test --workspace --locked --all-targets ${flag[@]+"${flag[@]}"} --no-run
   dir="$target/$([ "$profile" = release ] && echo release || echo debug)"
   tests=$(ls -t "$dir"/deps/render-* | grep -v '\.d$' | head -1)
   rm -rf "$pack_dir" && mkdir -p "$pack_dir"
@@ -57,7 +57,9 @@ run)
   log="$out/gpu-check.log"
   : >"$log"
   # The Vulkan loader, where the machine lacks one.
-  if ! ldconfig -p 2>/dev/null | grep -q libvulkan.so.1 && ls .gl/*.deb >/dev/null 2>&1; then
+  # (A process substitution: under pipefail, grep -q closing the pipe early
+  # would read as "no loader" and unpack over a working one.)
+  if ! grep -q libvulkan.so.1 < <(ldconfig -p 2>/dev/null) && ls .gl/*.deb >/dev/null 2>&1; then
     for f in .gl/*.deb; do dpkg -x "$f" /; done
     ldconfig
   fi
@@ -71,7 +73,7 @@ run)
   else
     echo "gpu-check: no packed binaries in $pack_dir; building here ($profile)…" | tee -a "$log"
     flag=(); [ "$profile" = release ] && flag=(--release)
-    cargo test --workspace --locked --all-targets "${flag[@]}" --no-run >>"$log" 2>&1 || exit 1
+    cargo test --workspace --locked --all-targets ${flag[@]+"${flag[@]}"} --no-run >>"$log" 2>&1 || exit 1
     dir="$target/$([ "$profile" = release ] && echo release || echo debug)"
     cp "$(ls -t "$dir"/deps/render-* | grep -v '\.d$' | head -1)" "$bin/render-tests"
     cp "$dir/shadow-fins-render-lab" "$bin/render-lab"
@@ -99,14 +101,14 @@ run)
   # Render tests on the GPU (the race test, oracle agreement, compositing…);
   # the editor tests start the editor binary built here and need a display:
   # they test the UI, not the GPU, and stay on the build machine.
-  step "render tests" 240 "$bin/render-tests" --test-threads 2 --skip editor
+  step "render tests" 200 "$bin/render-tests" --test-threads 2 --skip editor
   grep -m1 -i "AdapterInfo\|adapter" "$log" >>"$report" 2>/dev/null
   lab=("$bin/render-lab" measure --layers 16 --refinement on --falloff disk-segment --map-resolution 1024)
-  step "static scene, 1k–1M triangles" 120 "${lab[@]}" --blob-triangles 1000,10000,100000,1000000 --no-truth \
+  step "static scene, 1k–1M triangles" 100 "${lab[@]}" --blob-triangles 1000,10000,100000,1000000 --no-truth \
     --methods fins,bevy-hard,bevy-pcss --frames 20 --warmup 3 --out "$out/static"
-  step "light moving every frame, 1k–1M triangles" 120 "${lab[@]}" --blob-triangles 1000,10000,100000,1000000 \
+  step "light moving every frame, 1k–1M triangles" 100 "${lab[@]}" --blob-triangles 1000,10000,100000,1000000 \
     --no-truth --methods fins,bevy-hard,bevy-pcss --moving-light --frames 20 --warmup 3 --out "$out/moving"
-  step "speed against accuracy (large-light, near-contact)" 90 "${lab[@]}" --scenes large-light,near-contact \
+  step "speed against accuracy (large-light, near-contact)" 80 "${lab[@]}" --scenes large-light,near-contact \
     --methods fins,outer-fins,bevy-hard,bevy-pcss --frames 20 --warmup 3 --out "$out/accuracy"
   echo "gpu-check: report in $report"
   ;;

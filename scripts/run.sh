@@ -20,7 +20,7 @@ if [ ! -x "$editor" ]; then
   echo "run: first build on this machine: the editor with the test suite's build (~25 min on 2 cores, once)…"
   quiet=()
 fi
-cargo test --workspace --locked --all-targets --no-run "${quiet[@]}"
+cargo test --workspace --locked --all-targets --no-run ${quiet[@]+"${quiet[@]}"}
 echo "run: starting the editor ($editor)"
 if [ -n "${DISPLAY:-}" ]; then
   exec "$editor" "$@"

@@ -3,7 +3,7 @@
 //! as it does near it, and buffer limits degrade with a reason instead of
 //! failing.
 
-use bevy_shadow_fins::{FinDegradation, FinShadowBudget, FinShadowSettings};
+use bevy_shadow_fins::{FinDegradation, FinExtraction, FinShadowBudget, FinShadowSettings};
 use shadow_fins::{
     glam::Vec3,
     light::{DiskLight, Light},
@@ -120,8 +120,17 @@ fn a_scene_over_the_buffer_limit_degrades_with_the_reason_in_the_stats() {
         let degraded = shot.stats.degraded.unwrap_or_else(|| panic!("{want}: the stats say what was cut"));
         println!("limit {limit}: {degraded}");
         match (want, degraded) {
-            ("maps", FinDegradation::Maps { resolution, .. }) => assert!(resolution < 1024),
-            ("cpu", FinDegradation::ExtractedOnCpu { .. } | FinDegradation::Capacity { .. }) => {}
+            ("maps", FinDegradation::Maps { resolution, .. }) => {
+                assert!(resolution < 1024);
+                assert_eq!(shot.stats.extraction, FinExtraction::Gpu, "the extraction fits");
+            }
+            // The CPU path reports what it cut first (maps, then dropped casters).
+            (
+                "cpu",
+                FinDegradation::ExtractedOnCpu { .. } | FinDegradation::Capacity { .. } | FinDegradation::Maps { .. },
+            ) => {
+                assert_eq!(shot.stats.extraction, FinExtraction::Cpu, "the geometry does not fit: CPU extraction");
+            }
             (want, other) => panic!("{want}: unexpected {other:?}"),
         }
         assert!(shot.stats.map_resolution <= 1024);

@@ -17,6 +17,8 @@ use bevy::prelude::*;
 ///
 /// Defaults: 768 MiB of penumbra maps, and the device's own largest binding.
 /// Set `max_buffer_bytes` lower to see degradation on a big GPU (the tests do).
+/// A lower budget takes effect the next frame: buffers larger than it are
+/// reallocated at the new size.
 #[derive(Resource, Debug, Clone, Copy, PartialEq, Eq, Hash, Reflect)]
 #[reflect(Resource, Default, Debug, Clone)]
 pub struct FinShadowBudget {
@@ -49,8 +51,11 @@ impl Default for FinDeviceLimits {
 
 impl FinDeviceLimits {
     /// The largest buffer allowed under this budget.
+    /// Rounded down to 256 bytes: storage bindings must be a multiple of 4,
+    /// and a user's odd byte count must not become a validation error.
     pub fn max_buffer(&self, budget: &FinShadowBudget) -> u64 {
-        budget.max_buffer_bytes.map_or(self.max_binding_bytes, |b| b.min(self.max_binding_bytes)).max(256)
+        let b = budget.max_buffer_bytes.map_or(self.max_binding_bytes, |b| b.min(self.max_binding_bytes));
+        (b & !255).max(256)
     }
 }
 

@@ -66,8 +66,11 @@ pub struct FinFrameStats {
     /// Why the frame models less than the settings ask for (a GPU limit or the
     /// [`FinShadowBudget`](crate::FinShadowBudget)); `None` when nothing was cut.
     pub degraded: Option<FinDegradation>,
-    /// The penumbra maps' resolution and layer count as allocated.
+    /// The penumbra maps' resolution as allocated.
     pub map_resolution: u32,
+    /// Where the fins were extracted: the settings' choice, or the CPU when
+    /// the scene's geometry did not fit a GPU buffer (see `degraded`).
+    pub extraction: FinExtraction,
 }
 
 /// What the fin light's shadows currently model (see [`FinFrameStats`]).
@@ -110,6 +113,8 @@ pub struct FinFrameData {
     pub(crate) map_layers: u32,
     /// The largest buffer this frame was built for, bytes.
     pub(crate) limit_bytes: u64,
+    /// The most the penumbra maps may take, bytes (`FinShadowBudget::map_bytes`).
+    pub(crate) map_limit_bytes: u64,
     /// World → light frame: origin and axes (u, v, n), in f64 so that each
     /// camera's view → light transform is composed without losing precision far
     /// from the world origin.
@@ -139,6 +144,10 @@ pub(crate) struct MeshCache {
     /// GPU buffer sizes, grown when a read-back says a frame overflowed them.
     pub(crate) capacity: Option<GpuCapacity>,
     pub(crate) capacity_epoch: u64,
+    /// What the latest GPU read-back said did not fit (kept into new frames).
+    pub(crate) shortfall: Option<FinDegradation>,
+    /// The degradation last warned about.
+    pub(crate) warned: Option<FinDegradation>,
 }
 
 pub(crate) fn build(app: &mut App) {
@@ -296,6 +305,7 @@ fn update_fin_frame(
                 region: MapRegion { min: Vec2::ZERO, texel: 1.0, resolution: alloc.resolution },
                 map_layers: alloc.layers,
                 limit_bytes: limits.max_buffer,
+                map_limit_bytes: limits.map_bytes,
                 origin: disk.center.as_dvec3(),
                 axes: scene.axes,
                 radius,
@@ -311,18 +321,30 @@ fn update_fin_frame(
                 cpu_frame(Scene::new(objects), disk, settings, cache.generation, start, receiver_bound, limits);
             if let Some(Err(why)) = fallback {
                 // What the CPU path had to cut (maps, dropped casters) shows first.
-                warn!("fin shadows: {why}");
                 data.stats.degraded = data.stats.degraded.or(Some(why));
             }
             data
         }
     };
     data.stats.map_resolution = data.region.resolution;
-    if let Some(why) = data.stats.degraded.filter(|_| data.stats.degraded != stats.0.degraded) {
-        warn!("fin shadows: {why}");
-    }
+    data.stats.extraction = if data.gpu.is_some() { FinExtraction::Gpu } else { FinExtraction::Cpu };
+    // What the last read-back said the GPU had to drop still holds until a
+    // read-back says otherwise (no flicker between re-extractions).
+    data.stats.degraded = data.stats.degraded.or(cache.shortfall);
+    warn_degradation(&mut cache.warned, data.stats.degraded);
     stats.0 = data.stats;
     frame.0 = Some(Arc::new(data));
+}
+
+/// Logs a degradation once per distinct reason (a moving light re-extracts
+/// every frame; the same reason is said once, not sixty times a second).
+pub(crate) fn warn_degradation(warned: &mut Option<FinDegradation>, now: Option<FinDegradation>) {
+    if let Some(why) = now
+        && *warned != now
+    {
+        warn!("fin shadows: {why}");
+        *warned = now;
+    }
 }
 
 /// Bytes per penumbra-map texel (nine 32-bit channels, `fin_types.wgsl`).
@@ -378,7 +400,7 @@ fn cpu_frame(
     // What does not fit one buffer is dropped (and said so).
     let mut capped = |buffer: &'static str, n: usize, bytes: u64| {
         let keep = (limits.max_buffer / bytes) as usize;
-        if n > keep {
+        if n > keep && degraded.is_none() {
             degraded = Some(FinDegradation::Capacity {
                 buffer,
                 kept: keep as u32,
@@ -418,6 +440,7 @@ fn cpu_frame(
         up_to_date: true,
         degraded,
         map_resolution: region.resolution,
+        extraction: FinExtraction::Cpu,
     };
     FinFrameData {
         generation,
@@ -427,6 +450,7 @@ fn cpu_frame(
         region,
         map_layers: alloc.layers,
         limit_bytes: limits.max_buffer,
+        map_limit_bytes: limits.map_bytes,
         origin: ls.frame.origin(),
         axes: ls.frame.axes_f64(),
         radius,

@@ -273,7 +273,9 @@ impl FinBuilder {
                 continue;
             }
             let center = frame.map(pos);
-            let patch = edges[first_edge].patch;
+            // The smallest patch id among the vertex's silhouettes: a rule of
+            // the geometry (the GPU's threads meet here in no fixed order).
+            let patch = group.iter().map(|&(_, i, _)| edges[i as usize].patch).min().unwrap_or(edges[first_edge].patch);
             let mut sector = |from: Vec2, to: Vec2, side: FinSide| {
                 // Skip empty or degenerate sectors (collinear fins need no fan).
                 if from.is_nan() || to.is_nan() || from.perp_dot(to).abs() < 1e-6 && from.dot(to) > 0.0 {
@@ -361,8 +363,12 @@ mod tests {
             patch: 0,
         };
         // Exactly opposite bounds, with +0 and −0 cross products.
-        for (from, to) in [(Vec2::X, Vec2::NEG_X), (Vec2::new(-0.0, 1.0), Vec2::new(0.0, -1.0))] {
-            assert_eq!(from.perp_dot(to).abs(), 0.0);
+        let cases = [(Vec2::X, Vec2::NEG_X), (Vec2::Y, Vec2::NEG_Y)];
+        assert!(
+            cases[0].0.perp_dot(cases[0].1).is_sign_positive() && cases[1].0.perp_dot(cases[1].1).is_sign_negative()
+        );
+        for (from, to) in cases {
+            assert_eq!(from.perp_dot(to), 0.0);
             let f = sector(from, to);
             let left = from.perp() * 0.5;
             assert!(f.sample(left, true).is_some(), "{from:?}→{to:?}: the counter-clockwise half is in");

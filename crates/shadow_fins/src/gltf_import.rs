@@ -12,17 +12,22 @@
 //! not pay for: buffers are capped at [`MAX_BUFFER_BYTES`] before anything is
 //! read, every accessor is checked against its buffer (type, stride, range,
 //! count) before the `gltf` crate's readers touch it, the element count of the
-//! whole file is capped at [`MAX_ELEMENTS`], and the node graph is walked with
-//! each node visited once, so a child cycle cannot loop.
+//! whole file is capped at [`MAX_ELEMENTS`] (and at four per byte of input,
+//! for sparse accessors whose zeros take no bytes), each buffer source and
+//! each primitive is read once however many buffers or nodes name it, and the
+//! node graph is walked with each node visited once, so a child cycle cannot
+//! loop.
 
 use std::path::Path;
+
+use std::{collections::HashMap, sync::Arc};
 
 use glam::{Affine3A, Mat4, Vec3};
 use gltf::mesh::Mode;
 
 use crate::{
     error::{GltfError, MeshError},
-    mesh::Mesh,
+    mesh::{Mesh, Topology},
     scene::{Scene, SceneObject},
 };
 
@@ -49,32 +54,11 @@ pub const MAX_ELEMENTS: u64 = 1 << 27;
 /// Parses glTF/GLB bytes; `base_dir` resolves external buffer files.
 pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, GltfError> {
     let gltf = parse_document(bytes)?;
-    let mut buffers = Vec::new();
-    for buffer in gltf.buffers() {
-        let index = buffer.index();
-        if buffer.length() as u64 > MAX_BUFFER_BYTES {
-            return Err(GltfError::TooLarge {
-                what: format!("buffer {index}"),
-                amount: buffer.length() as u64,
-                limit: MAX_BUFFER_BYTES,
-            });
-        }
-        let data = match buffer.source() {
-            gltf::buffer::Source::Bin => {
-                gltf.blob.clone().ok_or_else(|| GltfError::Buffer { index, reason: "GLB has no BIN chunk".into() })?
-            }
-            gltf::buffer::Source::Uri(uri) => {
-                read_uri(uri, base_dir).map_err(|reason| GltfError::Buffer { index, reason })?
-            }
-        };
-        if data.len() < buffer.length() {
-            return Err(GltfError::Buffer {
-                index,
-                reason: format!("holds {} bytes, the file declares {}", data.len(), buffer.length()),
-            });
-        }
-        buffers.push(data);
-    }
+    let buffers = read_buffers(&gltf, base_dir)?;
+    let buffer_bytes = buffers.distinct_bytes;
+    // Elements not backed by bytes (sparse accessors without a buffer view
+    // are zeros but for their sparse values) are bounded by the input's size.
+    let element_limit = MAX_ELEMENTS.min(4 * (bytes.len() as u64 + buffer_bytes) + 1024);
 
     let mut objects = Vec::new();
     let mut skipped = Vec::new();
@@ -87,6 +71,9 @@ pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, G
     // A valid file's nodes form a forest: each is reached once. A damaged one
     // may list a node as its own descendant; visiting each node once ends that.
     let mut visited = vec![false; gltf.nodes().len()];
+    // Each primitive is read once, however many nodes instance it.
+    // (A broken one is reported once and skipped at every node.)
+    let mut read: HashMap<(usize, usize), Option<(Arc<Mesh>, Arc<Topology>)>> = HashMap::new();
     let mut elements = 0u64;
     while let Some((node, parent)) = stack.pop() {
         if std::mem::replace(&mut visited[node.index()], true) {
@@ -97,45 +84,28 @@ pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, G
         let Some(mesh) = node.mesh() else { continue };
         let mesh_name = mesh.name().unwrap_or("unnamed").to_string();
         for (pi, prim) in mesh.primitives().enumerate() {
-            let fail = |source: MeshError| GltfError::Mesh { mesh: mesh_name.clone(), primitive: pi, source };
-            let Some(position_accessor) = prim.get(&gltf::Semantic::Positions) else {
-                skipped.push(fail(MeshError::Empty));
-                continue;
-            };
-            let checked = check_accessor(&position_accessor, Usage::Positions, &buffers).and_then(|n| {
-                prim.indices().map_or(Ok(0), |a| check_accessor(&a, Usage::Indices, &buffers)).map(|i| n + i)
-            });
-            match checked {
-                Ok(n) => elements += n,
-                Err(e) => {
-                    skipped.push(e);
-                    continue;
+            if !matches!(prim.mode(), Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+                continue; // Points and lines cast no shadow.
+            }
+            let key = (mesh.index(), pi);
+            if !read.contains_key(&key) {
+                let result = match read_primitive(&prim, &mesh_name, pi, &buffers.data, &mut elements, element_limit) {
+                    Ok(m) => Some(m),
+                    Err(e @ GltfError::TooLarge { .. }) => return Err(e),
+                    Err(e) => {
+                        skipped.push(e);
+                        None
+                    }
+                };
+                read.insert(key, result);
+            }
+            if let Some((mesh, topology)) = &read[&key] {
+                let placed =
+                    SceneObject::shared(mesh_name.clone(), mesh.clone(), topology.clone(), Affine3A::from_mat4(world));
+                match placed {
+                    Ok(o) => objects.push(o),
+                    Err(source) => skipped.push(GltfError::Mesh { mesh: mesh_name.clone(), primitive: pi, source }),
                 }
-            }
-            if elements > MAX_ELEMENTS {
-                return Err(GltfError::TooLarge { what: "mesh data".into(), amount: elements, limit: MAX_ELEMENTS });
-            }
-            let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
-            let Some(positions) = reader.read_positions() else {
-                skipped.push(fail(MeshError::Empty));
-                continue;
-            };
-            let positions: Vec<Vec3> = positions.map(Vec3::from).collect();
-            let raw: Vec<u32> = match reader.read_indices() {
-                Some(i) => i.into_u32().collect(),
-                None => (0..positions.len() as u32).collect(),
-            };
-            let indices = match prim.mode() {
-                Mode::Triangles => raw,
-                Mode::TriangleStrip => strip_to_list(&raw),
-                Mode::TriangleFan => fan_to_list(&raw),
-                // Points and lines cast no shadow.
-                _ => continue,
-            };
-            let transform = Affine3A::from_mat4(world);
-            match Mesh::new(positions, indices).and_then(|m| SceneObject::new(mesh_name.clone(), m, transform)) {
-                Ok(o) => objects.push(o),
-                Err(e) => skipped.push(fail(e)),
             }
         }
     }
@@ -143,6 +113,91 @@ pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, G
         return Err(skipped.into_iter().next().unwrap_or(GltfError::NoMeshes));
     }
     Ok(GltfImport { scene: Scene::new(objects), skipped })
+}
+
+/// The file's buffers, each source read once (the GLB blob and every
+/// external file are shared by the buffers naming them).
+struct Buffers {
+    data: Vec<Arc<Vec<u8>>>,
+    /// Bytes of the distinct sources, capped at [`MAX_BUFFER_BYTES`] in all.
+    distinct_bytes: u64,
+}
+
+fn read_buffers(gltf: &gltf::Gltf, base_dir: Option<&Path>) -> Result<Buffers, GltfError> {
+    let blob = gltf.blob.clone().map(Arc::new);
+    let mut files: HashMap<String, Arc<Vec<u8>>> = HashMap::new();
+    let (mut data, mut distinct_bytes) = (Vec::new(), blob.as_ref().map_or(0, |b| b.len() as u64));
+    for buffer in gltf.buffers() {
+        let index = buffer.index();
+        let too_large =
+            |amount: u64| GltfError::TooLarge { what: format!("buffer {index}"), amount, limit: MAX_BUFFER_BYTES };
+        if buffer.length() as u64 > MAX_BUFFER_BYTES {
+            return Err(too_large(buffer.length() as u64));
+        }
+        let bytes = match buffer.source() {
+            gltf::buffer::Source::Bin => {
+                blob.clone().ok_or_else(|| GltfError::Buffer { index, reason: "GLB has no BIN chunk".into() })?
+            }
+            gltf::buffer::Source::Uri(uri) => match files.get(uri) {
+                Some(b) => b.clone(),
+                None => {
+                    let b = Arc::new(read_uri(uri, base_dir).map_err(|reason| GltfError::Buffer { index, reason })?);
+                    distinct_bytes += b.len() as u64;
+                    files.insert(uri.to_string(), b.clone());
+                    b
+                }
+            },
+        };
+        if distinct_bytes > MAX_BUFFER_BYTES {
+            return Err(GltfError::TooLarge {
+                what: "buffers in all".into(),
+                amount: distinct_bytes,
+                limit: MAX_BUFFER_BYTES,
+            });
+        }
+        if bytes.len() < buffer.length() {
+            return Err(GltfError::Buffer {
+                index,
+                reason: format!("holds {} bytes, the file declares {}", bytes.len(), buffer.length()),
+            });
+        }
+        data.push(bytes);
+    }
+    Ok(Buffers { data, distinct_bytes })
+}
+
+/// One triangle primitive as a mesh, its accessors checked first.
+fn read_primitive(
+    prim: &gltf::Primitive,
+    mesh_name: &str,
+    pi: usize,
+    buffers: &[Arc<Vec<u8>>],
+    elements: &mut u64,
+    element_limit: u64,
+) -> Result<(Arc<Mesh>, Arc<Topology>), GltfError> {
+    let fail = |source: MeshError| GltfError::Mesh { mesh: mesh_name.to_string(), primitive: pi, source };
+    let position_accessor = prim.get(&gltf::Semantic::Positions).ok_or_else(|| fail(MeshError::Empty))?;
+    *elements += check_accessor(&position_accessor, Usage::Positions, buffers)?;
+    if let Some(a) = prim.indices() {
+        *elements += check_accessor(&a, Usage::Indices, buffers)?;
+    }
+    if *elements > element_limit {
+        return Err(GltfError::TooLarge { what: "mesh data".into(), amount: *elements, limit: element_limit });
+    }
+    let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+    let positions: Vec<Vec3> = reader.read_positions().ok_or_else(|| fail(MeshError::Empty))?.map(Vec3::from).collect();
+    let raw: Vec<u32> = match reader.read_indices() {
+        Some(i) => i.into_u32().collect(),
+        None => (0..positions.len() as u32).collect(),
+    };
+    let indices = match prim.mode() {
+        Mode::TriangleStrip => strip_to_list(&raw),
+        Mode::TriangleFan => fan_to_list(&raw),
+        _ => raw,
+    };
+    let mesh = Mesh::new(positions, indices).map_err(fail)?;
+    let topology = Topology::build(&mesh);
+    Ok((Arc::new(mesh), Arc::new(topology)))
 }
 
 /// The document, validated, without the `gltf` crate's own validation
@@ -193,7 +248,7 @@ enum Usage {
 /// Checks an accessor against what the `gltf` crate's readers assume (they
 /// index and debug-assert rather than return errors) and against its buffer;
 /// returns its element count.
-fn check_accessor(a: &gltf::Accessor, usage: Usage, buffers: &[Vec<u8>]) -> Result<u64, GltfError> {
+fn check_accessor(a: &gltf::Accessor, usage: Usage, buffers: &[Arc<Vec<u8>>]) -> Result<u64, GltfError> {
     use gltf::accessor::{DataType, Dimensions};
     let bad = |reason: String| Err(GltfError::Accessor { index: a.index(), reason });
     let count = a.count() as u64;

@@ -255,7 +255,7 @@ impl Topology {
             return false;
         }
         const DIRECTIONS: [[f64; 3]; 3] =
-            [[0.5773, 0.5775, 0.5771], [-0.2672, 0.8018, -0.5346], [0.8944, -0.1234, 0.4297]];
+            [[0.3112, 0.8597, 0.4049], [-0.2672, 0.8018, -0.5346], [0.8944, -0.1234, 0.4297]];
         let p = p.as_dvec3();
         let mut votes = 0;
         for (k, d) in DIRECTIONS.iter().enumerate() {

@@ -103,11 +103,12 @@ pub struct ObjectToFrame {
     /// The transform mirrors (negative determinant): face orientation flips.
     pub mirrors: bool,
     /// The disk light's centre lies inside this closed mesh (ray parity, see
-    /// [`Topology::contains_point`]). Seen from inside, every face of a closed
-    /// mesh faces away from the light, so the usual rule (back faces of closed
-    /// meshes stay out of the maps) would leave nothing to block it and the
-    /// whole world outside would be lit; such an instance is drawn as an open
-    /// mesh instead, both sides, and shadows everything outside it.
+    /// [`Topology::contains_point`]). From inside, the faces that block the
+    /// way out are the ones facing away from the light, which the usual rule
+    /// (back faces of closed meshes stay out of the maps) leaves out — for a
+    /// convex mesh all of them, and the whole world outside was lit; such an
+    /// instance is drawn as an open mesh instead, both sides, and shadows
+    /// everything outside it.
     pub light_inside: bool,
 }
 

@@ -2,7 +2,9 @@
 //! change, at most twice a second, they are written (atomically, flushed to
 //! disk: see [`EditorSettings::save`]) to the autosave file; the next start
 //! without `--settings` restores them. A crash, a killed process or a power
-//! cut loses at most the last half second of tuning, never the file.
+//! cut loses at most the last half second of tuning, never the file. Nothing
+//! is written before the first change, and an autosave that does not read at
+//! start is moved aside to `*.ron.bad` rather than overwritten.
 //!
 //! Where: `--autosave PATH`, or by default (interactive runs only, not
 //! `--screenshot` runs) `$XDG_STATE_HOME/shadow-fins/editor-autosave.ron`
@@ -74,6 +76,14 @@ fn autosave_settings(
 ) {
     let (Some(params), Ok(fins)) = (params, fins.single()) else { return };
     let now = EditorSettings::capture(&params, fins);
+    // Until the user changes something, the settings the editor started from
+    // are on disk already (or were kept aside if they did not read): the
+    // first write waits for a change, so nothing is overwritten for nothing.
+    if autosave.written.is_none() && autosave.last_write.is_none() {
+        autosave.written = Some(now);
+        autosave.last_write = Some(Instant::now());
+        return;
+    }
     let exiting = exits.read().count() > 0;
     let due = autosave.last_write.is_none_or(|t| t.elapsed().as_secs_f32() >= INTERVAL_S);
     if autosave.written.as_ref() == Some(&now) || !(due || exiting) {

@@ -137,7 +137,7 @@ impl LoadScene {
 
 pub(crate) fn build(app: &mut App) {
     app.add_message::<LoadScene>()
-        .add_systems(Startup, (spawn_rig, request_initial_scene))
+        .add_systems(Startup, (spawn_rig, request_initial_scene).chain())
         .add_systems(Update, (load_dropped_files, load_scene, drag_light_with_shift, sync_light, sync_marker).chain());
 }
 
@@ -159,10 +159,23 @@ pub fn read_scene(source: &SceneSource) -> Result<(String, Scene, Light, CoreCam
     }
 }
 
-fn request_initial_scene(options: Res<EditorOptions>, mut load: MessageWriter<LoadScene>) {
+/// Whether the settings the editor started from (`--settings` or the
+/// autosave) were read.
+#[derive(Resource, Debug, Clone, Copy)]
+pub(crate) struct StartSettings {
+    pub loaded: bool,
+}
+
+fn request_initial_scene(
+    options: Res<EditorOptions>,
+    start: Option<Res<StartSettings>>,
+    mut load: MessageWriter<LoadScene>,
+) {
     let source = options.scene.clone().map_or(SceneSource::Demo, SceneSource::Gltf);
-    // A settings file's light stays; so does an autosaved one, unless a new scene was asked for.
-    let keep_light = options.settings.is_some() || (options.scene.is_none() && options.start_settings().is_some());
+    // A settings file's light stays; so does an autosaved one, unless a new
+    // scene was asked for; a file that did not read keeps nothing.
+    let loaded = start.is_some_and(|s| s.loaded);
+    let keep_light = loaded && (options.settings.is_some() || options.scene.is_none());
     load.write(LoadScene { source, keep_light });
 }
 
@@ -185,15 +198,29 @@ fn spawn_rig(
     };
     let mut settings = FinShadowSettings::default();
     // `--settings`, or the autosave an earlier run left.
+    let mut loaded = false;
     if let Some(path) = options.start_settings() {
         match EditorSettings::load_into(&path, &mut params, &mut settings) {
-            Ok(()) if options.settings.is_none() => {
-                state.status = Some(format!("restored the autosaved settings from {}", path.display()))
+            Ok(()) => {
+                loaded = true;
+                if options.settings.is_none() {
+                    state.status = Some(format!("restored the autosaved settings from {}", path.display()));
+                }
             }
-            Ok(()) => {}
+            // An autosave that does not read is kept aside, not overwritten by
+            // the next autosave: nothing of the user's is lost.
+            Err(e) if options.settings.is_none() => {
+                let aside = path.with_extension("ron.bad");
+                let kept = std::fs::rename(&path, &aside).map_or_else(
+                    |err| format!("it could not be moved aside ({err}); autosave is off"),
+                    |()| format!("it was kept as {}", aside.display()),
+                );
+                state.error = Some(format!("the autosaved settings could not be read: {e}; {kept}"));
+            }
             Err(e) => state.error = Some(e.to_string()),
         }
     }
+    commands.insert_resource(StartSettings { loaded });
     commands.insert_resource(params);
     commands.spawn((EditorLight, settings, params.transform()));
     // The light's position, drawn as a small unlit disc that casts nothing.

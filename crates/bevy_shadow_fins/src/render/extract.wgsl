@@ -518,9 +518,27 @@ fn emit_sector(center: vec2<f32>, radius: f32, from_dir: vec2<f32>, to_dir: vec2
 
 // Unit left normal of the projected edge (the fins' outward direction), zero if degenerate.
 fn edge_direction(s: Silhouette) -> vec2<f32> {
-    let m0 = map_point(s.a.xyz);
-    let m1 = map_point(s.b.xyz);
+    return edge_direction_of(s.a.xyz, s.b.xyz);
+}
+
+fn edge_direction_of(a: vec3<f32>, b: vec3<f32>) -> vec2<f32> {
+    let m0 = map_point(a);
+    let m1 = map_point(b);
     return direction(vec2<f32>(m0.y - m1.y, m1.x - m0.x));
+}
+
+// While the vertex pass runs, other threads write silhouettes' `dir_a`/`dir_b`:
+// read only the fields written before it (a whole-struct load would race).
+fn end_a(s: u32) -> vec3<f32> {
+    return silhouettes[s].a.xyz;
+}
+
+fn end_b(s: u32) -> vec3<f32> {
+    return silhouettes[s].b.xyz;
+}
+
+fn direction_at(s: u32) -> vec2<f32> {
+    return edge_direction_of(end_a(s), end_b(s));
 }
 
 // Only the owner thread of the end's vertex writes that end (`owns_vertex`),
@@ -570,7 +588,7 @@ fn process_vertex(s: u32, inst: Instance, v: u32) {
     for (var j = start; j < end; j++) {
         let t = atomicLoad(&state[edge_silhouette_slot(inst.ids.w + g(inst, list + j))]);
         if (t != NONE) {
-            set_end_direction(t, select(1u, 0u, silhouettes[t].ids.y == v), edge_direction(silhouettes[t]));
+            set_end_direction(t, select(1u, 0u, silhouettes[t].ids.y == v), direction_at(t));
         }
     }
     let incident = vertex_silhouettes(inst, v);
@@ -584,8 +602,8 @@ fn process_vertex(s: u32, inst: Instance, v: u32) {
     if (n_in == 1u && n_out == 1u) {
         let a = incident.x;
         let b = incident.y;
-        let da = edge_direction(silhouettes[a]);
-        let db = edge_direction(silhouettes[b]);
+        let da = direction_at(a);
+        let db = direction_at(b);
         if (silhouettes[a].info.x == 0u && silhouettes[b].info.x == 0u) {
             // Smooth vertex: both quads bend to the projected vertex normal.
             var d = direction(map_direction(pos, normal));
@@ -607,14 +625,16 @@ fn process_vertex(s: u32, inst: Instance, v: u32) {
         return;
     }
     let center = map_point(pos);
-    let patch_id = silhouettes[s].ids.w;
+    // The vertex's sectors soften the patch of smallest id among its
+    // silhouettes (`FinBuilder`): a rule of the geometry, not of thread order.
+    let patch_id = vertex_patch(inst, v);
     if (n_in == 1u && n_out == 1u) {
-        let sa = silhouettes[incident.x];
-        let sb = silhouettes[incident.y];
-        let ea = map_point(sa.b.xyz) - map_point(sa.a.xyz);
-        let eb = map_point(sb.b.xyz) - map_point(sb.a.xyz);
-        let da = edge_direction(sa);
-        let db = edge_direction(sb);
+        let a = incident.x;
+        let b = incident.y;
+        let ea = map_point(end_b(a)) - map_point(end_a(a));
+        let eb = map_point(end_b(b)) - map_point(end_a(b));
+        let da = direction_at(a);
+        let db = direction_at(b);
         // Interior is on the right: a right turn (negative cross) is convex.
         let turn = cross2(ea, eb);
         if (turn < 0.0) {
@@ -624,10 +644,10 @@ fn process_vertex(s: u32, inst: Instance, v: u32) {
         }
     } else if (n_in + n_out == 1u) {
         // Open chain end: outer half-disk cap around the edge's extension.
-        let only = silhouettes[select(incident.y, incident.x, n_in == 1u)];
-        let m0 = map_point(only.a.xyz);
-        let m1 = map_point(only.b.xyz);
-        let d = edge_direction(only);
+        let only = select(incident.y, incident.x, n_in == 1u);
+        let m0 = map_point(end_a(only));
+        let m1 = map_point(end_b(only));
+        let d = direction_at(only);
         let along = direction(m1 - m0);
         let ext = select(along, -along, n_in == 0u);
         emit_sector(center, radius, d, ext, pos.z, true, patch_id);
@@ -640,13 +660,27 @@ fn process_vertex(s: u32, inst: Instance, v: u32) {
             if (t == NONE) {
                 continue;
             }
-            let d = edge_direction(silhouettes[t]);
+            let d = direction_at(t);
             if (dot(d, avg) > -0.999) {
                 emit_sector(center, radius, d, avg, pos.z, true, patch_id);
                 emit_sector(center, radius, -d, -avg, pos.z, false, patch_id);
             }
         }
     }
+}
+
+// The smallest patch id among the silhouettes at local vertex `v`.
+fn vertex_patch(inst: Instance, v: u32) -> u32 {
+    let csr = g(inst, G_CSR_AT);
+    let list = csr + g(inst, G_VERTICES) + 1u;
+    var patch_id = NONE;
+    for (var j = g(inst, csr + v); j < g(inst, csr + v + 1u); j++) {
+        let t = atomicLoad(&state[edge_silhouette_slot(inst.ids.w + g(inst, list + j))]);
+        if (t != NONE) {
+            patch_id = min(patch_id, silhouettes[t].ids.w);
+        }
+    }
+    return patch_id;
 }
 
 fn owns_vertex(s: u32, inst: Instance, v: u32) -> bool {
@@ -660,12 +694,12 @@ fn silhouette_vertices(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invo
     if (s >= silhouette_count()) {
         return;
     }
-    let sil = silhouettes[s];
+    let ids = silhouettes[s].ids;
     // Sub-layer histogram of edge midpoints (§4.1).
     let lo = order_value(atomicLoad(&control[C_DEPTH_MIN]));
     let hi = order_value(atomicLoad(&control[C_DEPTH_MAX]));
     let bins = params.layering.x;
-    let mid = 0.5 * (sil.a.z + sil.b.z);
+    let mid = 0.5 * (end_a(s).z + end_b(s).z);
     if (hi > lo) {
         let step = (hi - lo) / f32(bins);
         let bin = min(u32(max((mid - lo) / step, 0.0)), bins - 1u);
@@ -673,9 +707,9 @@ fn silhouette_vertices(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invo
     } else {
         atomicAdd(&control[C_HISTOGRAM], 1u);
     }
-    let inst = instances[sil.ids.x];
+    let inst = instances[ids.x];
     for (var e = 0u; e < 2u; e++) {
-        let v = select(sil.ids.z, sil.ids.y, e == 0u);
+        let v = select(ids.z, ids.y, e == 0u);
         if (owns_vertex(s, inst, v)) {
             process_vertex(s, inst, v);
         }

@@ -113,6 +113,9 @@ fn on_stats_readback(
         .next()
         .map(|(buffer, kept, wanted)| FinDegradation::Capacity { buffer, kept, wanted, limit_bytes: f.limit_bytes })
         .or(layers_cut);
+    if grown.is_none() {
+        cache.shortfall = shortfall;
+    }
     let stats_now = FinFrameStats {
         silhouettes: w[0].min(gpu.capacity.silhouettes) as usize,
         fins: w[1].min(gpu.capacity.fins) as usize,
@@ -121,11 +124,7 @@ fn on_stats_readback(
         degraded: if grown.is_none() { shortfall.or(f.stats.degraded) } else { f.stats.degraded },
         ..f.stats
     };
-    if stats_now.degraded != stats.0.degraded
-        && let Some(why) = stats_now.degraded
-    {
-        warn!("fin shadows: {why}");
-    }
+    crate::extract::warn_degradation(&mut cache.warned, stats_now.degraded);
     if stats.0 != stats_now {
         stats.0 = stats_now;
     }
@@ -211,8 +210,8 @@ pub(super) struct ExtractBuffers {
 
 /// Allocates `buf` (half again as large, so a growing scene does not reallocate
 /// every frame, but never past `cap` nor the device's binding limit) when it
-/// is missing or smaller than `size`. The main world keeps `size` within both
-/// (`budget.rs`).
+/// is missing, smaller than `size`, or larger than `cap` allows. The main
+/// world keeps `size` within both (`budget.rs`).
 pub(super) fn ensure(
     buf: &mut Option<Buffer>,
     device: &RenderDevice,
@@ -221,11 +220,13 @@ pub(super) fn ensure(
     usage: BufferUsages,
     cap: u64,
 ) {
-    if buf.as_ref().is_none_or(|b| b.size() < size) {
-        let cap = device.limits().max_storage_buffer_binding_size.min(cap).max(size);
+    // Whole 16-byte steps: a binding must be a multiple of 4 bytes.
+    let cap = (device.limits().max_storage_buffer_binding_size.min(cap) & !15).max(size);
+    // Too small, or larger than a lowered budget allows: allocate anew.
+    if buf.as_ref().is_none_or(|b| b.size() < size || b.size() > cap.max(64).next_multiple_of(16)) {
         *buf = Some(device.create_buffer(&BufferDescriptor {
             label: Some(label),
-            size: (size + size / 2).min(cap).max(64).next_multiple_of(16).min(cap.max(64)),
+            size: (size + size / 2).min(cap).max(64).next_multiple_of(16).min(cap.max(64).next_multiple_of(16)),
             usage,
             mapped_at_creation: false,
         }));

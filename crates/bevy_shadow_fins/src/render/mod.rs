@@ -274,7 +274,8 @@ fn prepare_maps(
     use extract_gpu::ensure;
     let cap = f.limit_bytes;
     ensure(&mut gpu.params, &device, "fin_params", 128, BufferUsages::UNIFORM | BufferUsages::COPY_DST, cap);
-    ensure(&mut gpu.maps, &device, "fin_maps", maps_size, storage | BufferUsages::COPY_SRC, cap);
+    // The maps grow to their budget at most (their size is already within it).
+    ensure(&mut gpu.maps, &device, "fin_maps", maps_size, storage | BufferUsages::COPY_SRC, cap.min(f.map_limit_bytes));
     let (caster_bytes, fin_bytes) = match &f.gpu {
         Some(scene) => (
             scene.capacity.casters as u64 * extract_gpu::CASTER_BYTES,
