@@ -80,6 +80,39 @@ impl Bvh {
         false
     }
 
+    /// How many triangles the segment `origin + t·dir`, `t ∈ (t_min, t_max)`,
+    /// crosses: the depth complexity along it (Laine et al. 2005), which the
+    /// coverage method needs at one reference point of the light.
+    pub fn count_hits(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> u32 {
+        if self.nodes.is_empty() {
+            return 0;
+        }
+        let inv = dir.recip();
+        let mut stack = [0u32; 64];
+        let (mut sp, mut hits) = (1, 0);
+        while sp > 0 {
+            sp -= 1;
+            let idx = stack[sp] as usize;
+            let node = &self.nodes[idx];
+            if !slab_hit(node, origin, inv, t_min, t_max) {
+                continue;
+            }
+            if node.count > 0 {
+                let s = node.index as usize;
+                for tri in &self.triangles[s..s + node.count as usize] {
+                    if intersect(tri, origin, dir).is_some_and(|t| t > t_min && t < t_max) {
+                        hits += 1;
+                    }
+                }
+            } else if sp + 2 <= stack.len() {
+                stack[sp] = node.index;
+                stack[sp + 1] = idx as u32 + 1;
+                sp += 2;
+            }
+        }
+        hits
+    }
+
     /// Nearest hit with `t > t_min`.
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, t_min: f32) -> Option<Hit> {
         if self.nodes.is_empty() {
@@ -216,6 +249,8 @@ mod tests {
             let o = Vec3::new(rnd(), rnd(), rnd()) * 4.0;
             let d = Vec3::new(rnd(), rnd(), rnd());
             assert_eq!(bvh.any_hit(o, d, 1e-4, 2.0), brute_any(&tris, o, d, 1e-4, 2.0));
+            let count = tris.iter().filter(|t| intersect(t, o, d).is_some_and(|t| t > 1e-4 && t < 2.0)).count();
+            assert_eq!(bvh.count_hits(o, d, 1e-4, 2.0) as usize, count);
             let brute =
                 tris.iter().filter_map(|t| intersect(t, o, d).filter(|&t| t > 1e-4)).fold(f32::INFINITY, f32::min);
             match bvh.closest_hit(o, d, 1e-4) {

@@ -7,6 +7,9 @@
 //! - [`mesh`]: validated triangle meshes, welding, edge → face adjacency;
 //! - [`light`]: disk and sun lights and the light frame everything runs in;
 //! - [`silhouette`], [`fins`], [`layers`], [`refine`]: the method's stages;
+//! - [`coverage`]: exact coverage with occluder fusion (beyond the paper):
+//!   per light sample, the depth complexity counted from potential
+//!   silhouette edges;
 //! - [`oracle`]: the method evaluated exactly ([`oracle::AnalyticIndex`]) and as
 //!   light-space maps at a resolution ([`oracle::RasterMaps`]), the GPU's reference;
 //! - [`ground_truth`]: many-sample disk visibility through a [`bvh::Bvh`];
@@ -30,6 +33,7 @@
 
 pub mod bvh;
 pub mod camera;
+pub mod coverage;
 pub mod error;
 pub mod fins;
 #[cfg(feature = "gltf")]

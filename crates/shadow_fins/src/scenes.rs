@@ -54,10 +54,22 @@ pub enum SceneId {
     /// contact, a ramp (tilted receiver), spheres with overlapping penumbrae, a
     /// ring over a star prism. Exported as `assets/demo.gltf`.
     Demo,
+    /// Like a real asset: interpenetrating closed and open parts — a box
+    /// through a sphere, bent open sheets, thin straps through both, a hose of
+    /// overlapping rings. Where fins fail: the union's outline is none of the
+    /// parts' outlines (occluder fusion). `assets/kitbash.gltf`.
+    Kitbash,
+    /// A character-like figure of separate overlapping limbs (ellipsoids and
+    /// boxes that interpenetrate at every joint), standing on the ground.
+    /// `assets/figure.gltf`.
+    Figure,
+    /// A dense object over the ground under a large light: a tower of 160
+    /// small overlapping boxes and balls on a block. `assets/greeble-tower.gltf`.
+    GreebleTower,
 }
 
 impl SceneId {
-    pub const ALL: [SceneId; 9] = [
+    pub const ALL: [SceneId; 12] = [
         SceneId::BoxOverPlane,
         SceneId::NearContact,
         SceneId::RingPlate,
@@ -67,7 +79,13 @@ impl SceneId {
         SceneId::SphereGrid,
         SceneId::DenseBlob,
         SceneId::Demo,
+        SceneId::Kitbash,
+        SceneId::Figure,
+        SceneId::GreebleTower,
     ];
+
+    /// The scenes made to look like real assets (many overlapping parts).
+    pub const REAL_ASSET_LIKE: [SceneId; 3] = [SceneId::Kitbash, SceneId::Figure, SceneId::GreebleTower];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -80,6 +98,9 @@ impl SceneId {
             SceneId::SphereGrid => "sphere-grid",
             SceneId::DenseBlob => "dense-blob",
             SceneId::Demo => "demo",
+            SceneId::Kitbash => "kitbash",
+            SceneId::Figure => "figure",
+            SceneId::GreebleTower => "greeble-tower",
         }
     }
 
@@ -180,6 +201,9 @@ fn build(id: SceneId) -> BuiltinScene {
             cam(Vec3::new(3.0, 4.0, 4.5), Vec3::new(0.0, 0.5, 0.0)),
         ),
         SceneId::Demo => demo(),
+        SceneId::Kitbash => kitbash(),
+        SceneId::Figure => figure(),
+        SceneId::GreebleTower => greeble_tower(),
     };
     BuiltinScene { id, scene: Scene::new(objects), light, camera }
 }
@@ -205,4 +229,122 @@ fn demo() -> (Vec<SceneObject>, Light, Camera) {
     }
     let camera = Camera::looking_at(Vec3::new(0.5, 6.5, 7.5), Vec3::new(0.0, 0.2, 0.0));
     (objects, disk(Vec3::new(0.2, 5.0, 0.3), 0.8), camera)
+}
+
+fn placed(p: Vec3, rotation: Quat, scale: Vec3) -> Affine3A {
+    Affine3A::from_scale_rotation_translation(scale, rotation, p)
+}
+
+fn kitbash() -> (Vec<SceneObject>, Light, Camera) {
+    let q = |x: f32, y: f32, z: f32| Quat::from_euler(glam::EulerRot::YXZ, x, y, z);
+    let mut objects = vec![
+        ground(10.0),
+        object(
+            "block",
+            shapes::cuboid(Vec3::new(0.45, 0.35, 0.4)),
+            placed(Vec3::new(-0.2, 1.1, 0.0), q(0.5, 0.2, 0.1), Vec3::ONE),
+        ),
+        object("ball", shapes::uv_sphere(0.42, 16, 32), at(Vec3::new(0.3, 1.25, 0.15))),
+        object(
+            "sheet-a",
+            shapes::open_sheet(1.4, 0.7, 1.2, 6),
+            placed(Vec3::new(-0.6, 1.55, 0.45), q(0.3, -1.1, 0.2), Vec3::ONE),
+        ),
+        object(
+            "sheet-b",
+            shapes::open_sheet(0.9, 0.9, -0.8, 5),
+            placed(Vec3::new(0.8, 1.0, -0.4), q(-0.7, 0.9, 0.0), Vec3::ONE),
+        ),
+    ];
+    for (i, (p, r)) in [
+        (Vec3::new(0.0, 1.2, 0.0), q(0.2, 0.0, 0.3)),
+        (Vec3::new(0.1, 1.35, -0.1), q(1.3, 0.1, -0.2)),
+        (Vec3::new(-0.3, 1.0, 0.2), q(-0.6, 0.4, 0.1)),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        objects.push(object(
+            &format!("strap-{i}"),
+            shapes::cuboid(Vec3::new(0.95, 0.02, 0.05)),
+            placed(p, r, Vec3::ONE),
+        ));
+    }
+    // A hose: rings along an arc, each overlapping the next.
+    for i in 0..9 {
+        let a = i as f32 * 0.16;
+        let p = Vec3::new(-1.2 + 0.9 * a.sin() * 1.6, 0.9 + 0.45 * a, -0.9 + 0.2 * a);
+        objects.push(object(
+            &format!("hose-{i}"),
+            shapes::torus(0.2, 0.06, 24, 8),
+            placed(p, q(a * 2.0, 1.2, 0.3), Vec3::ONE),
+        ));
+    }
+    let camera = Camera::looking_at(Vec3::new(2.6, 3.6, 3.4), Vec3::new(0.0, 0.4, 0.0));
+    (objects, disk(Vec3::new(0.4, 4.6, 0.3), 0.8), camera)
+}
+
+fn figure() -> (Vec<SceneObject>, Light, Camera) {
+    let ball = shapes::uv_sphere(1.0, 12, 24);
+    let limb = |name: &str, from: Vec3, to: Vec3, thickness: f32| {
+        let d = to - from;
+        let rotation = Quat::from_rotation_arc(Vec3::Y, d.normalize());
+        let scale = Vec3::new(thickness, d.length() * 0.5 + thickness * 0.5, thickness);
+        object(name, ball.clone(), placed((from + to) * 0.5, rotation, scale))
+    };
+    let (hip, neck) = (Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 1.75, 0.0));
+    let objects = vec![
+        ground(10.0),
+        object("torso", shapes::cuboid(Vec3::new(0.24, 0.38, 0.13)), at((hip + neck) * 0.5)),
+        object("head", ball.clone(), placed(Vec3::new(0.0, 1.98, 0.02), Quat::IDENTITY, Vec3::new(0.15, 0.18, 0.16))),
+        limb("neck", Vec3::new(0.0, 1.7, 0.0), Vec3::new(0.0, 1.86, 0.01), 0.06),
+        limb("upper-arm-l", Vec3::new(0.27, 1.68, 0.0), Vec3::new(0.5, 1.4, 0.15), 0.08),
+        limb("forearm-l", Vec3::new(0.5, 1.4, 0.15), Vec3::new(0.45, 1.15, 0.45), 0.065),
+        object(
+            "hand-l",
+            shapes::cuboid(Vec3::new(0.05, 0.08, 0.03)),
+            placed(Vec3::new(0.44, 1.08, 0.5), Quat::from_rotation_x(0.6), Vec3::ONE),
+        ),
+        limb("upper-arm-r", Vec3::new(-0.27, 1.68, 0.0), Vec3::new(-0.45, 1.35, -0.1), 0.08),
+        limb("forearm-r", Vec3::new(-0.45, 1.35, -0.1), Vec3::new(-0.62, 1.1, 0.1), 0.065),
+        limb("thigh-l", Vec3::new(0.12, 1.02, 0.0), Vec3::new(0.16, 0.52, 0.12), 0.1),
+        limb("shin-l", Vec3::new(0.16, 0.52, 0.12), Vec3::new(0.17, 0.06, 0.0), 0.075),
+        object("foot-l", shapes::cuboid(Vec3::new(0.06, 0.04, 0.13)), at(Vec3::new(0.17, 0.04, 0.07))),
+        limb("thigh-r", Vec3::new(-0.12, 1.02, 0.0), Vec3::new(-0.18, 0.55, -0.2), 0.1),
+        limb("shin-r", Vec3::new(-0.18, 0.55, -0.2), Vec3::new(-0.2, 0.06, -0.15), 0.075),
+        object("foot-r", shapes::cuboid(Vec3::new(0.06, 0.04, 0.13)), at(Vec3::new(-0.2, 0.04, -0.1))),
+    ];
+    let camera = Camera::looking_at(Vec3::new(1.8, 3.2, 3.0), Vec3::new(-0.3, 0.5, -0.6));
+    (objects, disk(Vec3::new(0.9, 4.0, 1.4), 0.6), camera)
+}
+
+fn greeble_tower() -> (Vec<SceneObject>, Light, Camera) {
+    let cube = std::sync::Arc::new(shapes::cuboid(Vec3::splat(0.5)));
+    let cube_topology = std::sync::Arc::new(crate::mesh::Topology::build(&cube));
+    let ball = std::sync::Arc::new(shapes::uv_sphere(0.5, 8, 16));
+    let ball_topology = std::sync::Arc::new(crate::mesh::Topology::build(&ball));
+    let mut objects =
+        vec![ground(12.0), object("block", shapes::cuboid(Vec3::new(0.5, 0.25, 0.5)), at(Vec3::new(0.0, 0.25, 0.0)))];
+    // A deterministic cloud of parts, denser near the axis, stacked to 2.2 high.
+    let mut s = 0x9e37_79b9u32;
+    let mut rnd = move || {
+        s ^= s << 13;
+        s ^= s >> 17;
+        s ^= s << 5;
+        s as f32 / u32::MAX as f32
+    };
+    for i in 0..160 {
+        let h = 0.5 + 1.7 * rnd();
+        let spread = 0.55 * (1.0 - 0.6 * (h - 0.5) / 1.7);
+        let p = Vec3::new((rnd() - 0.5) * 2.0 * spread, h, (rnd() - 0.5) * 2.0 * spread);
+        let size = Vec3::new(0.08 + 0.25 * rnd(), 0.05 + 0.2 * rnd(), 0.08 + 0.25 * rnd());
+        let rotation = Quat::from_euler(glam::EulerRot::YXZ, rnd() * 3.0, rnd() - 0.5, rnd() - 0.5);
+        let (mesh, topology) = if i % 3 == 0 { (&ball, &ball_topology) } else { (&cube, &cube_topology) };
+        objects.push(
+            SceneObject::shared(format!("part-{i}"), mesh.clone(), topology.clone(), placed(p, rotation, size))
+                .expect("valid"),
+        );
+    }
+    let camera = Camera::looking_at(Vec3::new(3.2, 3.4, 3.8), Vec3::new(0.0, 0.6, 0.0));
+    (objects, disk(Vec3::new(0.3, 4.5, 0.2), 1.5), camera)
 }

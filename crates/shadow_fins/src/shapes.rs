@@ -149,6 +149,37 @@ pub fn star_prism(points: u32, inner: f32, outer: f32, height: f32) -> Mesh {
     b.finish()
 }
 
+/// An open sheet (one layer of triangles, with a boundary): `width × height`,
+/// bent around the Y axis by `bend` radians over its width, `cells²` quads,
+/// facing +Z at its middle. Real assets are full of such open parts (leaves,
+/// cloth, panels without a back).
+pub fn open_sheet(width: f32, height: f32, bend: f32, cells: u32) -> Mesh {
+    let cells = cells.max(1);
+    let n = cells + 1;
+    let mut b = Builder::default();
+    for j in 0..n {
+        for i in 0..n {
+            let (u, v) = (i as f32 / cells as f32 - 0.5, j as f32 / cells as f32 - 0.5);
+            let p = if bend.abs() < 1e-4 {
+                Vec3::new(u * width, v * height, 0.0)
+            } else {
+                // An arc of length `width` on a circle of radius width / bend.
+                let r = width / bend;
+                let a = u * bend;
+                Vec3::new(r * a.sin(), v * height, r * (1.0 - a.cos()))
+            };
+            b.vertex(p);
+        }
+    }
+    for j in 0..cells {
+        for i in 0..cells {
+            let k = j * n + i;
+            b.quad(k, k + 1, k + n + 1, k + n);
+        }
+    }
+    b.finish()
+}
+
 /// A bumpy closed blob of about `triangles` triangles (≥ 1k): the scaling mesh.
 pub fn bumpy_blob(triangles: u32) -> Mesh {
     // A UV sphere with s segments and s/2 rings has s² triangles (poles included).
@@ -167,6 +198,13 @@ pub fn signed_volume(mesh: &Mesh) -> f32 {
 mod tests {
     use super::*;
     use crate::mesh::Topology;
+
+    #[test]
+    fn an_open_sheet_has_a_boundary_all_around() {
+        let t = crate::mesh::Topology::build(&open_sheet(2.0, 1.0, 1.0, 4));
+        assert_eq!(t.boundary_edge_count(), 16);
+        assert!(!t.is_closed_manifold());
+    }
 
     #[test]
     fn closed_shapes_wind_outward_and_are_manifold() {

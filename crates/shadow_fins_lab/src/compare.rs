@@ -1,6 +1,7 @@
 //! Side-by-side comparison of methods against the ground truth on one view.
 
 use shadow_fins::{
+    coverage::CoverageSettings,
     metrics::ErrorMetrics,
     oracle::{FinSettings, Method, Overlap, Receiver},
     scene::LightSpaceScene,
@@ -15,7 +16,7 @@ use crate::{
 #[derive(Debug, Clone)]
 pub struct Config {
     pub label: String,
-    pub method: Method,
+    pub measured: Measured,
     pub settings: FinSettings,
 }
 
@@ -30,7 +31,16 @@ impl Config {
             ),
             m => m.name().to_string(),
         };
-        Self { label, method, settings }
+        Self { label, measured: Measured::Method(method), settings }
+    }
+
+    /// The coverage method with `samples` light samples.
+    pub fn coverage(samples: u32) -> Self {
+        Self {
+            label: format!("coverage {samples}"),
+            measured: Measured::Coverage(CoverageSettings { samples }),
+            settings: FinSettings::default(),
+        }
     }
 
     pub fn labelled(mut self, label: impl Into<String>) -> Self {
@@ -51,6 +61,7 @@ pub fn standard_configs(base: FinSettings) -> Vec<Config> {
         Config::new(Method::MultiLayer, FinSettings { refinement: false, ..paper }),
         Config::new(Method::MultiLayer, paper),
         Config::new(Method::MultiLayer, base),
+        Config::coverage(CoverageSettings::default().samples),
     ]
 }
 
@@ -103,8 +114,7 @@ pub fn compare(
     let rows = configs
         .iter()
         .map(|c| {
-            let evaluation =
-                evaluate(&loaded.scene, &ls, Measured::Method(c.method), c.settings, map_resolution, samples, &hits);
+            let evaluation = evaluate(&loaded.scene, &ls, c.measured, c.settings, map_resolution, samples, &hits);
             let metrics = ErrorMetrics::compute(&scored(&evaluation.values), &reference_scored);
             Row { config: c.clone(), evaluation, metrics }
         })

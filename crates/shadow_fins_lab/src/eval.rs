@@ -6,6 +6,7 @@ use rayon::prelude::*;
 use shadow_fins::{
     bvh::Bvh,
     camera::{Camera, pixel_receiver},
+    coverage::CoverageModel,
     ground_truth::GroundTruth,
     oracle::{FinSettings, FinShadowModel, Receiver},
     scene::{LightSpaceScene, Scene},
@@ -50,6 +51,13 @@ pub fn evaluate(
             let t = Instant::now();
             let values = receivers.par_iter().map(|r| gt.visibility(*r)).collect();
             Evaluation { values, prepare_ms, evaluate_ms: ms(t), silhouettes: 0, fins: 0, layers: 0 }
+        }
+        Measured::Coverage(cs) => {
+            let model = CoverageModel::new(scene, light_space, cs);
+            let prepare_ms = ms(start);
+            let t = Instant::now();
+            let values = receivers.par_iter().map(|r| model.visibility(*r)).collect();
+            Evaluation { values, prepare_ms, evaluate_ms: ms(t), silhouettes: model.edges.len(), fins: 0, layers: 0 }
         }
         Measured::Method(method) => {
             let model = FinShadowModel::new(scene, light_space, method, settings);

@@ -12,6 +12,8 @@ use shadow_fins::{
     scenes::SceneId,
 };
 
+use shadow_fins::coverage::CoverageSettings;
+
 use crate::LabError;
 
 /// Where the scene comes from and how it is lit.
@@ -93,20 +95,32 @@ impl FinArgs {
     }
 }
 
-/// What a run measures: a fin method or the ground truth.
+/// What a run measures: a fin method, the coverage method or the ground truth.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Measured {
     Method(Method),
+    /// Exact coverage with occluder fusion (`shadow_fins::coverage`).
+    Coverage(CoverageSettings),
     GroundTruth,
 }
 
-pub fn parse_measured(s: &str) -> Result<Measured, LabError> {
-    if s == "ground-truth" {
-        return Ok(Measured::GroundTruth);
+/// A method name: `ground-truth`, `coverage` (with `samples` light samples)
+/// or a fin method.
+pub fn parse_measured_with(s: &str, coverage_samples: u32) -> Result<Measured, LabError> {
+    match s {
+        "ground-truth" => return Ok(Measured::GroundTruth),
+        "coverage" => return Ok(Measured::Coverage(CoverageSettings { samples: coverage_samples })),
+        _ => {}
     }
     Method::parse(s).map(Measured::Method).ok_or_else(|| {
-        LabError::Usage(format!("unknown method '{s}': use ground-truth, fins, hard, outer-fins or single-layer"))
+        LabError::Usage(format!(
+            "unknown method '{s}': use ground-truth, coverage, fins, hard, outer-fins or single-layer"
+        ))
     })
+}
+
+pub fn parse_measured(s: &str) -> Result<Measured, LabError> {
+    parse_measured_with(s, CoverageSettings::default().samples)
 }
 
 /// A loaded scene with its light and camera.

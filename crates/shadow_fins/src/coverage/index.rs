@@ -1,0 +1,148 @@
+//! The tiled edge list (C4 in [`super`]): a uniform grid over light-map
+//! space whose cells list the potential silhouette edges whose penumbra
+//! footprint touches them. An edge at depth `z` reaches a receiver at depth
+//! `z_p` only within map distance `R(1/z − 1/z_p) < R/z` of its own map
+//! projection (disk light), or `tanθ (z_p − z) ≤ tanθ (L0 − z)` (sun); the
+//! edge is binned with that radius, and [`EdgeIndex::may_reach`] applies the
+//! receiver's exact bound.
+
+use glam::{Vec2, Vec3};
+
+use super::CoverageEdge;
+use crate::light::{LightFrame, Projection};
+
+/// Map coordinates beyond this (about 89° off the light axis) are clamped.
+const MAP_LIMIT: f32 = 64.0;
+
+/// Per cell, the edges whose footprint touches it (CSR).
+#[derive(Debug, Clone)]
+pub struct EdgeIndex {
+    min: Vec2,
+    inv_cell: Vec2,
+    dims: [usize; 2],
+    starts: Vec<u32>,
+    items: Vec<u32>,
+    /// Per edge: its map-space segment (clipped endpoints' projections).
+    segments: Vec<(Vec2, Vec2)>,
+}
+
+/// An edge's map segment and footprint radius, or `None` when it lies wholly
+/// at or behind the light plane.
+fn footprint(e: &CoverageEdge, frame: &LightFrame, reference_depth: f32) -> Option<(Vec2, Vec2, f32)> {
+    match frame.projection {
+        Projection::Perspective { radius } => {
+            let near = reference_depth * 1e-5;
+            let (a, b) = e.clipped(near, f32::INFINITY)?;
+            Some((frame.map(a), frame.map(b), radius / a.z.min(b.z).max(near)))
+        }
+        Projection::Orthographic { tan_angle } => {
+            Some((frame.map(e.a), frame.map(e.b), tan_angle * (reference_depth - e.min_depth()).max(0.0)))
+        }
+    }
+}
+
+/// Distance from `q` to the segment `a b`.
+#[inline]
+fn segment_distance(q: Vec2, a: Vec2, b: Vec2) -> f32 {
+    let ab = b - a;
+    let t = if ab.length_squared() > 0.0 { ((q - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0) } else { 0.0 };
+    (a + ab * t - q).length()
+}
+
+impl EdgeIndex {
+    pub fn new(edges: &[CoverageEdge], frame: &LightFrame, reference_depth: f32) -> Self {
+        let feet: Vec<Option<(Vec2, Vec2, f32)>> = edges.iter().map(|e| footprint(e, frame, reference_depth)).collect();
+        let clamp = |v: Vec2| v.clamp(Vec2::splat(-MAP_LIMIT), Vec2::splat(MAP_LIMIT));
+        let bounds: Vec<Option<(Vec2, Vec2)>> = feet
+            .iter()
+            .map(|f| f.filter(|(a, b, r)| a.is_finite() && b.is_finite() && r.is_finite()))
+            .map(|f| f.map(|(a, b, r)| (clamp(a.min(b) - Vec2::splat(r)), clamp(a.max(b) + Vec2::splat(r)))))
+            .collect();
+        let (mut min, mut max) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+        for (lo, hi) in bounds.iter().flatten() {
+            min = min.min(*lo);
+            max = max.max(*hi);
+        }
+        if !(min.x <= max.x && min.y <= max.y) {
+            (min, max) = (Vec2::ZERO, Vec2::ONE);
+        }
+        let size = (max - min).max(Vec2::splat(1e-12));
+        let n = (edges.len() as f32).sqrt().clamp(1.0, 256.0);
+        let aspect = (size.x / size.y).clamp(1e-3, 1e3).sqrt();
+        let dims = [((n * aspect).ceil() as usize).clamp(1, 512), ((n / aspect).ceil() as usize).clamp(1, 512)];
+        let inv_cell = Vec2::new(dims[0] as f32, dims[1] as f32) / size;
+        let range = |lo: Vec2, hi: Vec2| {
+            let (a, b) = (((lo - min) * inv_cell).floor(), ((hi - min) * inv_cell).floor());
+            let c = |v: f32, d: usize| (v.max(0.0) as usize).min(d - 1);
+            (c(a.x, dims[0]), c(b.x, dims[0]), c(a.y, dims[1]), c(b.y, dims[1]))
+        };
+        let mut counts = vec![0u32; dims[0] * dims[1] + 1];
+        for (lo, hi) in bounds.iter().flatten() {
+            let (x0, x1, y0, y1) = range(*lo, *hi);
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    counts[y * dims[0] + x + 1] += 1;
+                }
+            }
+        }
+        for i in 1..counts.len() {
+            counts[i] += counts[i - 1];
+        }
+        let starts = counts.clone();
+        let mut fill = counts;
+        let mut items = vec![0u32; *starts.last().unwrap_or(&0) as usize];
+        for (id, b) in bounds.iter().enumerate() {
+            let Some((lo, hi)) = b else { continue };
+            let (x0, x1, y0, y1) = range(*lo, *hi);
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let c = y * dims[0] + x;
+                    items[fill[c] as usize] = id as u32;
+                    fill[c] += 1;
+                }
+            }
+        }
+        let segments = feet.iter().map(|f| f.map_or((Vec2::NAN, Vec2::NAN), |(a, b, _)| (a, b))).collect();
+        Self { min, inv_cell, dims, starts, items, segments }
+    }
+
+    /// The edges binned in the cell of map point `q` (none outside the grid).
+    pub fn cell(&self, q: Vec2) -> &[u32] {
+        let c = (q - self.min) * self.inv_cell;
+        if !(c.x >= 0.0 && c.y >= 0.0 && (c.x as usize) < self.dims[0] && (c.y as usize) < self.dims[1]) {
+            return &[];
+        }
+        let cell = c.y as usize * self.dims[0] + c.x as usize;
+        &self.items[self.starts[cell] as usize..self.starts[cell + 1] as usize]
+    }
+
+    /// Whether edge `id` (`e`) can cross the cone from the receiver `p`
+    /// (light frame) to the light: its map segment within the receiver's
+    /// footprint bound (C4), taken at the edge's nearest depth (conservative).
+    #[inline]
+    pub fn may_reach(&self, id: u32, e: &CoverageEdge, p: Vec3, frame: &LightFrame) -> bool {
+        let z = e.min_depth();
+        if !(z < p.z) {
+            return false;
+        }
+        let reach = match frame.projection {
+            Projection::Perspective { radius } => {
+                let z = z.max(p.z * 1e-6);
+                radius * ((p.z - z) / z) / p.z
+            }
+            Projection::Orthographic { tan_angle } => tan_angle * (p.z - z),
+        };
+        let (a, b) = self.segments[id as usize];
+        !(segment_distance(frame.map(p), a, b) > reach * (1.0 + 1e-4) + 1e-12)
+    }
+
+    /// Total cell entries (the index's size).
+    pub fn entries(&self) -> usize {
+        self.items.len()
+    }
+
+    /// The map segment of edge `id`.
+    pub fn segment(&self, id: u32) -> (Vec2, Vec2) {
+        self.segments[id as usize]
+    }
+}
