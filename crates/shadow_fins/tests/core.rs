@@ -4,6 +4,7 @@ mod core {
     pub mod common;
     mod contact;
     mod convergence;
+    mod coverage;
     mod gltf_files;
     mod ground_truth_closed_form;
     mod hostile_gltf;

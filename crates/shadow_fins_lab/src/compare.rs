@@ -38,7 +38,7 @@ impl Config {
     pub fn coverage(samples: u32) -> Self {
         Self {
             label: format!("coverage {samples}"),
-            measured: Measured::Coverage(CoverageSettings { samples }),
+            measured: Measured::Coverage(CoverageSettings { samples, ..Default::default() }),
             settings: FinSettings::default(),
         }
     }

@@ -6,7 +6,7 @@ use rayon::prelude::*;
 use shadow_fins::{
     bvh::Bvh,
     camera::{Camera, pixel_receiver},
-    coverage::CoverageModel,
+    coverage::{CoverageModel, ReferenceCount},
     ground_truth::GroundTruth,
     oracle::{FinSettings, FinShadowModel, Receiver},
     scene::{LightSpaceScene, Scene},
@@ -33,7 +33,12 @@ impl Evaluation {
     }
 }
 
-/// Evaluates `measured` at every receiver (light frame).
+/// Caster depths per texel of the coverage method's depth lists through maps.
+pub const DEPTH_LIST_LENGTH: u32 = 16;
+
+/// Evaluates `measured` at every receiver (light frame). With
+/// `map_resolution`, fins are looked up in raster maps and the coverage
+/// method counts `D(r)` from depth lists at that resolution.
 pub fn evaluate(
     scene: &Scene,
     light_space: &LightSpaceScene,
@@ -52,7 +57,11 @@ pub fn evaluate(
             let values = receivers.par_iter().map(|r| gt.visibility(*r)).collect();
             Evaluation { values, prepare_ms, evaluate_ms: ms(t), silhouettes: 0, fins: 0, layers: 0 }
         }
-        Measured::Coverage(cs) => {
+        Measured::Coverage(mut cs) => {
+            // Through maps: the reference count from depth lists, as a GPU finds it.
+            if let Some(resolution) = map_resolution {
+                cs.reference = ReferenceCount::Raster { resolution, depths: DEPTH_LIST_LENGTH };
+            }
             let model = CoverageModel::new(scene, light_space, cs);
             let prepare_ms = ms(start);
             let t = Instant::now();

@@ -109,7 +109,9 @@ pub enum Measured {
 pub fn parse_measured_with(s: &str, coverage_samples: u32) -> Result<Measured, LabError> {
     match s {
         "ground-truth" => return Ok(Measured::GroundTruth),
-        "coverage" => return Ok(Measured::Coverage(CoverageSettings { samples: coverage_samples })),
+        "coverage" => {
+            return Ok(Measured::Coverage(CoverageSettings { samples: coverage_samples, ..Default::default() }));
+        }
         _ => {}
     }
     Method::parse(s).map(Measured::Method).ok_or_else(|| {

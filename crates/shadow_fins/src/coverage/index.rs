@@ -50,13 +50,19 @@ fn segment_distance(q: Vec2, a: Vec2, b: Vec2) -> f32 {
 }
 
 impl EdgeIndex {
-    pub fn new(edges: &[CoverageEdge], frame: &LightFrame, reference_depth: f32) -> Self {
+    /// Bins `edges` by footprint, each widened by `margin` map units (the
+    /// raster reference count corrects over up to a texel).
+    pub fn new(edges: &[CoverageEdge], frame: &LightFrame, reference_depth: f32, margin: f32) -> Self {
         let feet: Vec<Option<(Vec2, Vec2, f32)>> = edges.iter().map(|e| footprint(e, frame, reference_depth)).collect();
         let clamp = |v: Vec2| v.clamp(Vec2::splat(-MAP_LIMIT), Vec2::splat(MAP_LIMIT));
         let bounds: Vec<Option<(Vec2, Vec2)>> = feet
             .iter()
             .map(|f| f.filter(|(a, b, r)| a.is_finite() && b.is_finite() && r.is_finite()))
-            .map(|f| f.map(|(a, b, r)| (clamp(a.min(b) - Vec2::splat(r)), clamp(a.max(b) + Vec2::splat(r)))))
+            .map(|f| {
+                f.map(|(a, b, r)| {
+                    (clamp(a.min(b) - Vec2::splat(r + margin)), clamp(a.max(b) + Vec2::splat(r + margin)))
+                })
+            })
             .collect();
         let (mut min, mut max) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
         for (lo, hi) in bounds.iter().flatten() {

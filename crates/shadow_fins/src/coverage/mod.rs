@@ -49,6 +49,7 @@
 
 pub mod edges;
 pub mod index;
+pub mod reference;
 
 use glam::{Vec2, Vec3};
 
@@ -62,6 +63,7 @@ use crate::{
 
 pub use edges::{CoverageEdge, potential_silhouette_edges};
 pub use index::EdgeIndex;
+pub use reference::{DepthLists, ReferenceCount};
 
 /// Settings of the coverage method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -69,11 +71,13 @@ pub struct CoverageSettings {
     /// Light samples `N` per receiver (Fibonacci spiral), 1..=4096; error
     /// against the truth falls as about `1/N` on an edge (default 256).
     pub samples: u32,
+    /// Where `D(r)` comes from: a ray, or light-space depth lists (the GPU's way).
+    pub reference: ReferenceCount,
 }
 
 impl Default for CoverageSettings {
     fn default() -> Self {
-        Self { samples: 256 }
+        Self { samples: 256, reference: ReferenceCount::Exact }
     }
 }
 
@@ -96,6 +100,8 @@ pub struct CoverageModel<'a> {
     pub settings: CoverageSettings,
     pub edges: Vec<CoverageEdge>,
     pub index: EdgeIndex,
+    /// The raster reference count's depth lists (`None` for the exact one).
+    pub depth_lists: Option<DepthLists>,
     bvh: Bvh,
     /// Unit-disk sample points.
     samples: Vec<Vec2>,
@@ -139,12 +145,20 @@ impl<'a> CoverageModel<'a> {
     pub fn new(scene: &Scene, light_space: &'a LightSpaceScene, settings: CoverageSettings) -> Self {
         let near = crate::oracle::near_depth(light_space);
         let edges = potential_silhouette_edges(scene, light_space, near);
-        let index = EdgeIndex::new(&edges, &light_space.frame, light_space.reference_depth);
+        let depth_lists = match settings.reference {
+            ReferenceCount::Exact => None,
+            ReferenceCount::Raster { resolution, depths } => {
+                Some(DepthLists::new(&light_space.casters, &light_space.frame, near, resolution, depths))
+            }
+        };
+        let margin = depth_lists.as_ref().map_or(0.0, |d| 1.5 * d.region.texel);
+        let index = EdgeIndex::new(&edges, &light_space.frame, light_space.reference_depth, margin);
         Self {
             light_space,
             settings,
             index,
             edges,
+            depth_lists,
             bvh: Bvh::new(&light_space.casters),
             samples: disk_samples(settings.samples.clamp(1, 4096)),
             near,
@@ -191,11 +205,18 @@ impl<'a> CoverageModel<'a> {
         if total == 0 {
             return (0.0, work);
         }
-        let u_r = Self::sample_vector(shape, p, REFERENCE);
-        let reference_count = match shape {
-            LightShape::Disk { .. } => self.bvh.count_hits(p, u_r, eps / u_r.length().max(eps), 1.0),
-            LightShape::Sun { .. } => self.bvh.count_hits(p, u_r, eps, ls.extent * 4.0 + p.z.abs()),
-        } as i32;
+        let (reference, reference_count) = match &self.depth_lists {
+            None => {
+                let u_r = Self::sample_vector(shape, p, REFERENCE);
+                let count = match shape {
+                    LightShape::Disk { .. } => self.bvh.count_hits(p, u_r, eps / u_r.length().max(eps), 1.0),
+                    LightShape::Sun { .. } => self.bvh.count_hits(p, u_r, eps, ls.extent * 4.0 + p.z.abs()),
+                };
+                (REFERENCE, count as i32)
+            }
+            Some(lists) => (Vec2::ZERO, self.raster_reference_count(lists, p, receiver.normal)),
+        };
+        let u_r = Self::sample_vector(shape, p, reference);
         let mut depth = vec![reference_count; self.samples.len()];
         for &id in self.index.cell(ls.frame.map(p)) {
             work.cell_edges += 1;
@@ -215,7 +236,7 @@ impl<'a> CoverageModel<'a> {
             }
             work.counted_edges += 1;
             let edge_line = Line::of(normal, shape, p);
-            let r_side = edge_line.positive(REFERENCE);
+            let r_side = edge_line.positive(reference);
             // Planes through p, the reference ray and each end (C1's crossing test).
             let line_a = Line::of(da.cross(u_r), shape, p);
             let line_b = Line::of(db.cross(u_r), shape, p);
@@ -228,5 +249,130 @@ impl<'a> CoverageModel<'a> {
         }
         let visible = depth.iter().zip(&above).filter(|(d, a)| **a && **d == 0).count();
         (visible as f32 / total as f32, work)
+    }
+
+    /// `D(c)` both ways at a receiver (exact ray, depth lists): what the
+    /// raster reference count is tested against.
+    #[doc(hidden)]
+    pub fn reference_counts(&self, receiver: Receiver) -> Option<(i32, i32)> {
+        let lists = self.depth_lists.as_ref()?;
+        let ls = self.light_space;
+        let eps = surface_epsilon(receiver.position, ls.extent);
+        let p = receiver.position + receiver.normal * eps;
+        let u = Self::sample_vector(self.shape(), p, Vec2::ZERO);
+        let exact = match self.shape() {
+            LightShape::Disk { .. } => self.bvh.count_hits(p, u, eps / u.length().max(eps), 1.0),
+            LightShape::Sun { .. } => self.bvh.count_hits(p, u, eps, ls.extent * 4.0 + p.z.abs()),
+        } as i32;
+        Some((exact, self.raster_reference_count(lists, p, receiver.normal)))
+    }
+
+    /// `D(c)` from the depth lists: the count along a texel centre's ray up to
+    /// the receiver's depth, then (C1) with the light's centre as apex along
+    /// the move, at that depth, from the texel centre's ray to the receiver:
+    /// each edge crossed in front of the receiver adds its faces' sides of the
+    /// plane through the centre ray and it.
+    ///
+    /// The move runs at the receiver's depth, so its end can pass through a
+    /// face — where an object stands on the receiver's surface — and a face
+    /// passed through toggles whether it lies between the light and the
+    /// moving point with no edge crossed. So the faces of the cell's edges are
+    /// tested against the move too (each once): a face crossed counts `−1`
+    /// when the move leaves its light side, `+1` when it enters it. The
+    /// receiver's own surface is kept out of the way by taking, of the four
+    /// texel centres around the receiver, the one whose ray passes furthest in
+    /// front of the receiver's tangent plane (a plane through the receiver has
+    /// texel centres on both its sides), so the receiver needs no texel-sized
+    /// lift, which cost accuracy at every contact. Exact up to faces with no
+    /// potential silhouette edge (the inside of a large flat region) passed
+    /// through within a texel of the receiver, and to the lists' length.
+    fn raster_reference_count(&self, lists: &DepthLists, p: Vec3, normal: Vec3) -> i32 {
+        let frame = &self.light_space.frame;
+        let region = &lists.region;
+        let m_p = frame.map(p);
+        let at_depth = |m: Vec2| if frame.is_perspective() { (m * p.z).extend(p.z) } else { m.extend(p.z) };
+        let corner = ((m_p - region.min) / region.texel - 0.5).floor();
+        let mut candidates: Vec<((u32, u32), Vec3, f32)> = Vec::with_capacity(4);
+        for (dx, dy) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+            let (x, y) = (corner.x + dx, corner.y + dy);
+            let r = region.resolution as f32;
+            if x >= 0.0 && y >= 0.0 && x < r && y < r {
+                let texel = (x as u32, y as u32);
+                let p_t = at_depth(region.texel_center(texel.0, texel.1));
+                candidates.push((texel, p_t, normal.dot(p_t - p)));
+            }
+        }
+        let Some(&(texel, p_t, _)) = candidates.iter().max_by(|a, b| a.2.total_cmp(&b.2)) else { return 0 };
+        let cell = self.index.cell(m_p);
+        [(texel, p_t)]
+            .iter()
+            .map(|&(texel, p_t)| {
+                let mut count = lists.count_before(texel, p.z) as i32;
+                count += self.faces_passed(cell, p_t, p);
+                for &id in cell {
+                    let e = &self.edges[id as usize];
+                    let Some((a, b)) = e.clipped(self.near, p.z) else { continue };
+                    // The plane through the centre ray and the edge: through the
+                    // light's centre (disk), or containing its direction (sun).
+                    let n = if frame.is_perspective() { a.cross(b) } else { (b - a).cross(Vec3::Z) };
+                    let side = |x: Vec3| n.dot(x - a) >= 0.0;
+                    let (from, to) = (side(p_t), side(p));
+                    if from == to {
+                        continue;
+                    }
+                    // The edge's ends on either side of the swept plane (the centre
+                    // rays through the move): one plane test for both edges at a
+                    // shared vertex, so a move through it counts once.
+                    let m = if frame.is_perspective() { p_t.cross(p) } else { (p - p_t).cross(Vec3::Z) };
+                    if (m.dot(a - p_t) >= 0.0) == (m.dot(b - p_t) >= 0.0) {
+                        continue;
+                    }
+                    let sigma: i32 = e.third[..e.faces as usize].iter().map(|v| if side(*v) { 1 } else { -1 }).sum();
+                    count += if to { sigma } else { -sigma };
+                }
+                count.max(0)
+            })
+            .min()
+            .unwrap_or(0)
+    }
+
+    /// The change in how many faces lie between the light's centre and a
+    /// point moving from `from` to `to` through the faces it passes: the
+    /// faces of the cell's edges, each tested once.
+    fn faces_passed(&self, cell: &[u32], from: Vec3, to: Vec3) -> i32 {
+        let frame = &self.light_space.frame;
+        // The light's side of a face: towards the centre (disk) or up the sun.
+        let light_side = |n: Vec3, a: Vec3| if frame.is_perspective() { n.dot(-a) } else { -n.z };
+        let mut seen: Vec<[u32; 9]> = Vec::new();
+        let mut change = 0;
+        for &id in cell {
+            let e = &self.edges[id as usize];
+            for v in &e.third[..e.faces as usize] {
+                let (a, b, c) = (e.a, e.b, *v);
+                let n = (b - a).cross(c - a);
+                let (fa, fb) = (n.dot(from - a), n.dot(to - a));
+                if (fa >= 0.0) == (fb >= 0.0) {
+                    continue;
+                }
+                // Where the move meets the face's plane, inside the triangle?
+                let x = from + (to - from) * (fa / (fa - fb));
+                let inside = |p: Vec3, q: Vec3| n.dot((q - p).cross(x - p)) >= 0.0;
+                if !(inside(a, b) && inside(b, c) && inside(c, a)) {
+                    continue;
+                }
+                let mut key: Vec<[u32; 3]> = [a, b, c].iter().map(|p| p.to_array().map(f32::to_bits)).collect();
+                key.sort_unstable();
+                let key: [u32; 9] = std::array::from_fn(|i| key[i / 3][i % 3]);
+                if seen.contains(&key) {
+                    continue;
+                }
+                seen.push(key);
+                // Leaving the light's side puts the face between light and point.
+                let s = light_side(n, a);
+                let leaves = (fa >= 0.0) == (s >= 0.0);
+                change += if leaves { 1 } else { -1 };
+            }
+        }
+        change
     }
 }

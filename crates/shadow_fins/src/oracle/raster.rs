@@ -38,7 +38,7 @@ impl MapRegion {
     }
 
     /// Inclusive texel range whose centres may lie in `[lo, hi]`.
-    fn texel_range(&self, lo: Vec2, hi: Vec2) -> Option<(u32, u32, u32, u32)> {
+    pub fn texel_range(&self, lo: Vec2, hi: Vec2) -> Option<(u32, u32, u32, u32)> {
         let a = ((lo - self.min) / self.texel - 0.5).ceil();
         let b = ((hi - self.min) / self.texel - 0.5).floor();
         let r = self.resolution as f32 - 1.0;
