@@ -5,6 +5,7 @@
 mod render {
     pub mod common;
     mod compositing;
+    mod coverage;
     mod editor;
     mod gpu_extraction;
     mod lab;

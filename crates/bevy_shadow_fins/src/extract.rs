@@ -31,6 +31,7 @@ use shadow_fins::{
 
 use crate::{
     budget::{FinDegradation, FinDeviceLimits, FinShadowBudget, FinShadowsUnsupported, allocate_maps},
+    coverage_frame::{CoverageFrame, coverage_frame},
     gpu_scene::{GpuCapacity, GpuMeshGeometry, GpuScene, GpuSceneBuilder},
     light::{FinExtraction, FinLight, FinMethod, FinShadowSettings, NotFinShadowCaster},
 };
@@ -127,6 +128,8 @@ pub struct FinFrameData {
     pub(crate) settings: FinShadowSettings,
     /// GPU extraction: geometry, instances and buffer capacities (`None` on the CPU path).
     pub(crate) gpu: Option<GpuScene>,
+    /// The coverage method's edges, grid, casters and samples (`None` for fins).
+    pub(crate) coverage: Option<CoverageFrame>,
 }
 
 /// The current fin frame (`None` without a fin light). Read `stats` for counts.
@@ -254,6 +257,13 @@ fn update_fin_frame(
     let max_buffer = device.max_buffer(&budget);
     let limits = FrameLimits { max_buffer, map_bytes: budget.map_bytes.min(max_buffer) };
     cache.generation += 1;
+    if settings.method == FinMethod::Coverage {
+        let data = coverage_data(&objects, disk, settings, cache.generation, start, unread_bounds, limits);
+        warn_degradation(&mut cache.warned, data.stats.degraded);
+        stats.0 = data.stats;
+        frame.0 = Some(Arc::new(data));
+        return;
+    }
     let mut extraction = settings.extraction;
     let mut gpu_scene = None;
     if extraction == FinExtraction::Gpu {
@@ -314,6 +324,7 @@ fn update_fin_frame(
                 scene_extent: scene.extent,
                 settings,
                 gpu: Some(scene),
+                coverage: None,
             }
         }
         (_, fallback) => {
@@ -334,6 +345,60 @@ fn update_fin_frame(
     warn_degradation(&mut cache.warned, data.stats.degraded);
     stats.0 = data.stats;
     frame.0 = Some(Arc::new(data));
+}
+
+/// The coverage method's frame: edges and lists from the core crate.
+fn coverage_data(
+    objects: &[SceneObject],
+    disk: DiskLight,
+    settings: FinShadowSettings,
+    generation: u64,
+    start: std::time::Instant,
+    unread_bounds: Vec<[Vec3; 8]>,
+    limits: FrameLimits,
+) -> FinFrameData {
+    let scene = Scene::new(objects.to_vec());
+    let (coverage, degraded, potential_silhouettes) = coverage_frame(
+        &scene,
+        disk,
+        settings.map_resolution,
+        settings.coverage_samples,
+        unread_bounds.into_iter().flatten(),
+        limits.map_bytes,
+        limits.max_buffer,
+    );
+    let stats = FinFrameStats {
+        casters: scene.objects.iter().filter(|o| o.casts_shadows).count(),
+        triangles: scene.triangle_count(),
+        silhouettes: potential_silhouettes,
+        fins: 0,
+        layers: if coverage.casters.is_empty() { 0 } else { 1 },
+        extract_ms: start.elapsed().as_secs_f32() * 1e3,
+        up_to_date: true,
+        degraded,
+        map_resolution: coverage.region.resolution,
+        extraction: FinExtraction::Cpu,
+    };
+    let axes = shadow_fins::light::LightFrame::disk(&disk).axes_f64();
+    FinFrameData {
+        generation,
+        stats,
+        casters: Vec::new(),
+        fins: Vec::new(),
+        region: coverage.region,
+        map_layers: 1,
+        limit_bytes: limits.max_buffer,
+        map_limit_bytes: limits.map_bytes,
+        origin: disk.center.as_dvec3(),
+        axes,
+        radius: disk.radius,
+        reference_depth: 0.0,
+        near: coverage.near,
+        scene_extent: coverage.extent,
+        settings,
+        gpu: None,
+        coverage: Some(coverage),
+    }
 }
 
 /// Logs a degradation once per distinct reason (a moving light re-extracts
@@ -459,6 +524,7 @@ fn cpu_frame(
         scene_extent: ls.extent,
         settings,
         gpu: None,
+        coverage: None,
     }
 }
 

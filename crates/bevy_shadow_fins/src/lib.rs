@@ -60,6 +60,7 @@
 //! something changed.
 
 mod budget;
+mod coverage_frame;
 mod extract;
 mod gpu_scene;
 mod light;

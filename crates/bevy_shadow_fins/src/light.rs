@@ -52,12 +52,20 @@ pub enum FinMethod {
     /// Inner and outer fins in layers (the paper's §4).
     #[default]
     MultiLayer,
+    /// Exact coverage with occluder fusion (beyond the paper, see
+    /// `shadow_fins::coverage`): per light sample, how many casters lie
+    /// between the receiver and the sample, counted from potential silhouette
+    /// edges; right where fins fail, on assets of many overlapping parts.
+    /// Costs more per penumbra pixel than fins; `coverage_samples` trades it.
+    Coverage,
 }
 
 impl From<FinMethod> for Method {
+    /// The core's fin method. `Coverage` has no fins: it maps to the hard
+    /// shadow map, which is what its fin-map views (the editor's) show.
     fn from(m: FinMethod) -> Self {
         match m {
-            FinMethod::Hard => Method::Hard,
+            FinMethod::Hard | FinMethod::Coverage => Method::Hard,
             FinMethod::OuterFins => Method::OuterFins,
             FinMethod::SingleLayer => Method::SingleLayer,
             FinMethod::MultiLayer => Method::MultiLayer,
@@ -101,8 +109,12 @@ pub struct FinShadowSettings {
     pub falloff: Falloff,
     #[reflect(ignore)]
     pub overlap: Overlap,
-    /// GPU (default) or CPU fin extraction and layer assignment.
+    /// GPU (default) or CPU fin extraction and layer assignment. (The
+    /// coverage method's edges are extracted on the CPU for now.)
     pub extraction: FinExtraction,
+    /// Light samples per receiver of [`FinMethod::Coverage`], 1..=256
+    /// (default 256: MAE about 0.003 against the truth; 64: about 0.01).
+    pub coverage_samples: u32,
 }
 
 impl Default for FinShadowSettings {
@@ -117,6 +129,7 @@ impl Default for FinShadowSettings {
             falloff: core.falloff,
             overlap: core.overlap,
             extraction: FinExtraction::Gpu,
+            coverage_samples: 256,
         }
     }
 }
@@ -128,6 +141,7 @@ impl FinShadowSettings {
             layers: self.layers.clamp(1, MAX_LAYERS),
             sub_layers: self.sub_layers.clamp(1, 65536),
             map_resolution: self.map_resolution.clamp(16, 4096),
+            coverage_samples: self.coverage_samples.clamp(1, 256),
             ..self
         }
     }

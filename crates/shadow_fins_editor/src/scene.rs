@@ -53,11 +53,12 @@ impl Default for EditorMethod {
 }
 
 impl EditorMethod {
-    pub const ALL: [EditorMethod; 5] = [
+    pub const ALL: [EditorMethod; 6] = [
         EditorMethod::Fins(FinMethod::Hard),
         EditorMethod::Fins(FinMethod::OuterFins),
         EditorMethod::Fins(FinMethod::SingleLayer),
         EditorMethod::Fins(FinMethod::MultiLayer),
+        EditorMethod::Fins(FinMethod::Coverage),
         EditorMethod::BevyPcss,
     ];
 
@@ -75,6 +76,7 @@ impl EditorMethod {
             Some(FinMethod::OuterFins) => "outer fins only",
             Some(FinMethod::SingleLayer) => "single-layer fins",
             Some(FinMethod::MultiLayer) => "multi-layer fins",
+            Some(FinMethod::Coverage) => "coverage (exact, fused)",
             None => "Bevy PCSS",
         }
     }

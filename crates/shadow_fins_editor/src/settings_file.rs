@@ -18,7 +18,7 @@ pub struct EditorSettings {
     pub radius: f32,
     pub intensity: f32,
     pub color: [f32; 3],
-    /// `hard`, `outer-fins`, `single-layer`, `multi-layer` or `bevy-pcss`.
+    /// `hard`, `outer-fins`, `single-layer`, `multi-layer`, `coverage` or `bevy-pcss`.
     pub method: String,
     pub layers: u32,
     pub sub_layers: u32,
@@ -28,6 +28,13 @@ pub struct EditorSettings {
     pub falloff: String,
     /// `union` or `min-max`.
     pub overlap: String,
+    /// Light samples of the coverage method (absent in files from before it).
+    #[serde(default = "default_coverage_samples")]
+    pub coverage_samples: u32,
+}
+
+fn default_coverage_samples() -> u32 {
+    FinShadowSettings::default().coverage_samples
 }
 
 /// A settings file that could not be read or written.
@@ -47,6 +54,7 @@ fn method_name(m: EditorMethod) -> &'static str {
         EditorMethod::Fins(FinMethod::OuterFins) => "outer-fins",
         EditorMethod::Fins(FinMethod::SingleLayer) => "single-layer",
         EditorMethod::Fins(FinMethod::MultiLayer) => "multi-layer",
+        EditorMethod::Fins(FinMethod::Coverage) => "coverage",
         EditorMethod::BevyPcss => "bevy-pcss",
     }
 }
@@ -67,6 +75,7 @@ impl EditorSettings {
             refinement: fins.refinement,
             falloff: fins.falloff.name().into(),
             overlap: fins.overlap.name().into(),
+            coverage_samples: fins.coverage_samples,
         }
     }
 
@@ -92,6 +101,7 @@ impl EditorSettings {
             refinement: self.refinement,
             falloff: Falloff::parse(&self.falloff).unwrap_or(fins.falloff),
             overlap: Overlap::parse(&self.overlap).unwrap_or(fins.overlap),
+            coverage_samples: self.coverage_samples,
             ..*fins
         }
         .clamped();
@@ -209,6 +219,24 @@ mod tests {
         s.apply(&mut l, &mut f);
         assert_eq!((l.radius, f.layers, f.map_resolution, l.intensity), (0.0, 1, 4096, 1e6));
         assert!(matches!(EditorSettings::from_ron("(radius: oops", "bad.ron"), Err(SettingsFileError::Parse { .. })));
+    }
+
+    #[test]
+    fn coverage_samples_are_saved_clamped_and_default_in_older_files() {
+        let fins = FinShadowSettings { method: FinMethod::Coverage, coverage_samples: 64, ..Default::default() };
+        let saved =
+            EditorSettings::capture(&LightParams { method: EditorMethod::Fins(FinMethod::Coverage), ..light() }, &fins);
+        let (mut l, mut f) = (light(), FinShadowSettings::default());
+        EditorSettings::from_ron(&saved.to_ron(), "x.ron").unwrap().apply(&mut l, &mut f);
+        assert_eq!((f.method, f.coverage_samples), (FinMethod::Coverage, 64));
+        let older = saved.to_ron().replace("coverage_samples: 64,", "");
+        assert!(!older.contains("coverage_samples"));
+        let loaded = EditorSettings::from_ron(&older, "old.ron").unwrap();
+        assert_eq!(loaded.coverage_samples, FinShadowSettings::default().coverage_samples);
+        let mut huge = saved.clone();
+        huge.coverage_samples = 1 << 30;
+        huge.apply(&mut l, &mut f);
+        assert_eq!(f.coverage_samples, 256);
     }
 
     #[test]

@@ -256,6 +256,8 @@ pub(super) fn prepare(
         FinMethod::OuterFins => 1,
         FinMethod::SingleLayer => 2,
         FinMethod::MultiLayer => 3,
+        // The coverage method never runs the fin extraction.
+        FinMethod::Coverage => 0,
     };
     let layers = if s.method == FinMethod::MultiLayer { s.layers } else { 1 };
     let v4 = |v: bevy::math::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];

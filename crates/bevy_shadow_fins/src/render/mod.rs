@@ -37,6 +37,7 @@ use crate::{
 };
 
 mod composite;
+mod coverage;
 mod extract_gpu;
 
 pub(crate) fn build(app: &mut App) {
@@ -45,6 +46,7 @@ pub(crate) fn build(app: &mut App) {
     embedded_asset!(app, "visibility.wgsl");
     app.add_plugins((ExtractResourcePlugin::<FinFrame>::default(), ExtractComponentPlugin::<FinShadowView>::default()));
     composite::build(app);
+    coverage::build(app);
     extract_gpu::build(app);
 }
 
@@ -84,6 +86,7 @@ pub(crate) fn finish(app: &mut App) {
         )
         .add_systems(RenderGraph, render_maps.before(camera_driver))
         .add_systems(Core3d, fin_visibility.after(Core3dSystems::Prepass).before(Core3dSystems::MainPass));
+    coverage::finish(app);
     composite::finish(app);
 }
 
@@ -102,6 +105,8 @@ impl bevy::render::sync_component::SyncComponent for FinShadowView {
         FinViewTexture,
         FinViewBindGroup,
         FinViewBuffer,
+        coverage::CoverageViewBindGroup,
+        coverage::CoverageViewBuffers,
         composite::FinCompositePipeline,
         composite::FinCompositeBindGroup,
         bevy::pbr::deferred::SkipDeferredLighting,
@@ -251,7 +256,8 @@ fn prepare_maps(
     pipelines: Option<Res<FinPipelines>>,
     pipeline_cache: Res<PipelineCache>,
 ) {
-    let (Some(f), Some(pipelines)) = (frame.0.as_ref(), pipelines) else {
+    // No fin frame, or the coverage method's (`coverage.rs` renders that).
+    let (Some(f), Some(pipelines)) = (frame.0.as_ref().filter(|f| f.coverage.is_none()), pipelines) else {
         gpu.bind_group = None;
         gpu.generation = 0;
         return;
@@ -336,7 +342,7 @@ fn prepare_maps(
 }
 
 /// Workgroup counts for `n` items, split over y when x would exceed the limit.
-fn workgroups(n: u32) -> (u32, u32) {
+pub(super) fn workgroups(n: u32) -> (u32, u32) {
     if n <= 65535 { (n, 1) } else { (65535, n.div_ceil(65535)) }
 }
 
@@ -441,14 +447,36 @@ fn render_maps(
 
 /// Per camera: its visibility (illuminance) buffer.
 #[derive(Component)]
-pub struct FinViewTexture(CachedTexture);
+pub struct FinViewTexture(pub(super) CachedTexture);
 
 #[derive(Component)]
 pub struct FinViewBindGroup(BindGroup);
 
 /// Per camera: its view → light-frame transform (`FinView` in `visibility.wgsl`).
 #[derive(Component)]
-pub struct FinViewBuffer(Buffer);
+pub struct FinViewBuffer(pub(super) Buffer);
+
+/// The view's view → light-frame uniform, written for this frame (created the
+/// first time).
+pub(super) fn view_transform(
+    device: &RenderDevice,
+    queue: &RenderQueue,
+    frame: &FinFrameData,
+    world_from_view: &GlobalTransform,
+    existing: Option<&FinViewBuffer>,
+) -> Buffer {
+    let buffer = match existing {
+        Some(b) => b.0.clone(),
+        None => device.create_buffer(&BufferDescriptor {
+            label: Some("fin_view_uniform"),
+            size: size_of::<FinViewUniform>() as u64,
+            usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        }),
+    };
+    queue.write_buffer(&buffer, 0, bytemuck::bytes_of(&FinViewUniform::new(frame, world_from_view)));
+    buffer
+}
 
 /// `FinView` in `visibility.wgsl`: the columns of the linear part and the translation.
 #[repr(C)]
@@ -477,7 +505,7 @@ impl FinViewUniform {
 /// Views whose visibility buffer was written this frame (the compositing pass
 /// uses the buffer only then).
 #[derive(Resource, Default)]
-struct ViewsWithVisibility(std::collections::HashSet<Entity>);
+pub(super) struct ViewsWithVisibility(pub(super) std::collections::HashSet<Entity>);
 
 fn clear_views_with_visibility(mut views: ResMut<ViewsWithVisibility>) {
     views.0.clear();
@@ -548,16 +576,7 @@ fn prepare_view_bind_groups(
             commands.entity(entity).remove::<FinViewBindGroup>();
             continue;
         };
-        let buffer = match view_buffer {
-            Some(b) => b.0.clone(),
-            None => device.create_buffer(&BufferDescriptor {
-                label: Some("fin_view_uniform"),
-                size: size_of::<FinViewUniform>() as u64,
-                usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
-        };
-        queue.write_buffer(&buffer, 0, bytemuck::bytes_of(&FinViewUniform::new(f, &view.world_from_view)));
+        let buffer = view_transform(&device, &queue, f, &view.world_from_view, view_buffer);
         let bind_group = device.create_bind_group(
             "fin_visibility_bind_group",
             &pipeline_cache.get_bind_group_layout(&pipelines.view_layout),
@@ -599,6 +618,17 @@ fn fin_visibility(
     }
     span.end(ctx.command_encoder());
     written.0.insert(entity);
+    copy_to_target(&mut ctx, settings, texture, &images, size);
+}
+
+/// Copies a camera's visibility buffer into its `visibility_target`, if any.
+pub(super) fn copy_to_target(
+    ctx: &mut RenderContext,
+    settings: &FinShadowView,
+    texture: &FinViewTexture,
+    images: &RenderAssets<GpuImage>,
+    size: Extent3d,
+) {
     if let Some(target) = settings.visibility_target.as_ref().and_then(|h| images.get(h)) {
         let t = target.texture.size();
         if t == size && target.texture_descriptor.format == TextureFormat::R32Float {

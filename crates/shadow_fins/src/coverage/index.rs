@@ -1,10 +1,11 @@
 //! The tiled edge list (C4 in [`super`]): a uniform grid over light-map
 //! space whose cells list the potential silhouette edges whose penumbra
 //! footprint touches them. An edge at depth `z` reaches a receiver at depth
-//! `z_p` only within map distance `R(1/z − 1/z_p) < R/z` of its own map
-//! projection (disk light), or `tanθ (z_p − z) ≤ tanθ (L0 − z)` (sun); the
-//! edge is binned with that radius, and [`EdgeIndex::may_reach`] applies the
-//! receiver's exact bound.
+//! `z_p ≤ L0` only within map distance `R(1/z − 1/z_p) ≤ R(1/z − 1/L0)` of
+//! its own map projection (disk light), or `tanθ (z_p − z) ≤ tanθ (L0 − z)`
+//! (sun); the edge is binned with that radius, and [`EdgeIndex::may_reach`]
+//! applies the receiver's exact bound. The cells coarsen until the lists
+//! hold at most [`MAX_ENTRIES`].
 
 use glam::{Vec2, Vec3};
 
@@ -13,6 +14,9 @@ use crate::light::{LightFrame, Projection};
 
 /// Map coordinates beyond this (about 89° off the light axis) are clamped.
 const MAP_LIMIT: f32 = 64.0;
+
+/// The most cell entries the grid keeps (4M: 16 MiB of edge ids).
+pub const MAX_ENTRIES: usize = 4 << 20;
 
 /// Per cell, the edges whose footprint touches it (CSR).
 #[derive(Debug, Clone)]
@@ -31,9 +35,11 @@ pub struct EdgeIndex {
 fn footprint(e: &CoverageEdge, frame: &LightFrame, reference_depth: f32) -> Option<(Vec2, Vec2, f32)> {
     match frame.projection {
         Projection::Perspective { radius } => {
+            // Receivers lie no deeper than L0, so R(1/z − 1/L0) bounds the reach.
             let near = reference_depth * 1e-5;
             let (a, b) = e.clipped(near, f32::INFINITY)?;
-            Some((frame.map(a), frame.map(b), radius / a.z.min(b.z).max(near)))
+            let z = a.z.min(b.z).max(near);
+            Some((frame.map(a), frame.map(b), (radius * ((reference_depth - z) / z) / reference_depth).max(0.0)))
         }
         Projection::Orthographic { tan_angle } => {
             Some((frame.map(e.a), frame.map(e.b), tan_angle * (reference_depth - e.min_depth()).max(0.0)))
@@ -75,13 +81,31 @@ impl EdgeIndex {
         let size = (max - min).max(Vec2::splat(1e-12));
         let n = (edges.len() as f32).sqrt().clamp(1.0, 256.0);
         let aspect = (size.x / size.y).clamp(1e-3, 1e3).sqrt();
-        let dims = [((n * aspect).ceil() as usize).clamp(1, 512), ((n / aspect).ceil() as usize).clamp(1, 512)];
-        let inv_cell = Vec2::new(dims[0] as f32, dims[1] as f32) / size;
-        let range = |lo: Vec2, hi: Vec2| {
+        let mut dims = [((n * aspect).ceil() as usize).clamp(1, 512), ((n / aspect).ceil() as usize).clamp(1, 512)];
+        let range_in = |dims: [usize; 2], lo: Vec2, hi: Vec2| {
+            let inv_cell = Vec2::new(dims[0] as f32, dims[1] as f32) / size;
             let (a, b) = (((lo - min) * inv_cell).floor(), ((hi - min) * inv_cell).floor());
             let c = |v: f32, d: usize| (v.max(0.0) as usize).min(d - 1);
             (c(a.x, dims[0]), c(b.x, dims[0]), c(a.y, dims[1]), c(b.y, dims[1]))
         };
+        // Edges of a large light reach far: coarser cells, until the lists
+        // hold at most `MAX_ENTRIES` (what a GPU buffer of them can take).
+        loop {
+            let entries: usize = bounds
+                .iter()
+                .flatten()
+                .map(|(lo, hi)| {
+                    let (x0, x1, y0, y1) = range_in(dims, *lo, *hi);
+                    (x1 - x0 + 1) * (y1 - y0 + 1)
+                })
+                .sum();
+            if entries <= MAX_ENTRIES || dims == [1, 1] {
+                break;
+            }
+            dims = [(dims[0] / 2).max(1), (dims[1] / 2).max(1)];
+        }
+        let inv_cell = Vec2::new(dims[0] as f32, dims[1] as f32) / size;
+        let range = |lo: Vec2, hi: Vec2| range_in(dims, lo, hi);
         let mut counts = vec![0u32; dims[0] * dims[1] + 1];
         for (lo, hi) in bounds.iter().flatten() {
             let (x0, x1, y0, y1) = range(*lo, *hi);
@@ -140,6 +164,16 @@ impl EdgeIndex {
         };
         let (a, b) = self.segments[id as usize];
         !(segment_distance(frame.map(p), a, b) > reach * (1.0 + 1e-4) + 1e-12)
+    }
+
+    /// The grid's origin, cells per map unit and size in cells (for a GPU copy).
+    pub fn grid(&self) -> (Vec2, Vec2, [usize; 2]) {
+        (self.min, self.inv_cell, self.dims)
+    }
+
+    /// The CSR arrays: where each cell's edges start in `items`, and the edge ids.
+    pub fn lists(&self) -> (&[u32], &[u32]) {
+        (&self.starts, &self.items)
     }
 
     /// Total cell entries (the index's size).

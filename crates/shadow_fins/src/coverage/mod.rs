@@ -302,7 +302,15 @@ impl<'a> CoverageModel<'a> {
                 candidates.push((texel, p_t, normal.dot(p_t - p)));
             }
         }
-        let Some(&(texel, p_t, _)) = candidates.iter().max_by(|a, b| a.2.total_cmp(&b.2)) else { return 0 };
+        // The first of the best (the GPU's order: ties, as on a flat ground, pick alike).
+        let Some(&(texel, p_t, _)) =
+            candidates.iter().fold(None, |best: Option<&((u32, u32), Vec3, f32)>, c| match best {
+                Some(b) if !(c.2 > b.2) => Some(b),
+                _ => Some(c),
+            })
+        else {
+            return 0;
+        };
         let cell = self.index.cell(m_p);
         [(texel, p_t)]
             .iter()

@@ -48,25 +48,10 @@ impl DepthLists {
     /// Rasterises every caster triangle (both sides: every crossing counts)
     /// at texel centres, clipped at the near plane like the fins' maps.
     pub fn new(casters: &[[Vec3; 3]], frame: &LightFrame, near: f32, resolution: u32, depths: u32) -> Self {
-        let resolution = resolution.clamp(1, 8192);
         let depths = depths.clamp(1, 64) as usize;
-        let perspective = frame.is_perspective();
-        let triangles: Vec<MapTriangle> =
-            casters.iter().flat_map(|t| MapTriangle::clipped(t, frame, near, perspective)).collect();
-        let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
-        for t in &triangles {
-            let (a, b) = t.bounds();
-            lo = lo.min(a);
-            hi = hi.max(b);
-        }
-        lo = lo.max(Vec2::splat(-MAP_LIMIT));
-        hi = hi.min(Vec2::splat(MAP_LIMIT));
-        if !(lo.x <= hi.x && lo.y <= hi.y) {
-            (lo, hi) = (Vec2::ZERO, Vec2::ONE);
-        }
-        let size = (hi - lo).max_element().max(1e-9) * 1.001;
-        let center = (lo + hi) * 0.5;
-        let region = MapRegion { min: center - Vec2::splat(size * 0.5), texel: size / resolution as f32, resolution };
+        let triangles = map_triangles(casters, frame, near);
+        let region = covering_region(&triangles, resolution);
+        let resolution = region.resolution;
         let far_depths = (depths / 2).max(1);
         let mut lists = vec![f32::INFINITY; (resolution * resolution) as usize * depths];
         let mut far = vec![f32::NEG_INFINITY; (resolution * resolution) as usize * far_depths];
@@ -128,6 +113,33 @@ impl DepthLists {
     pub fn memory_bytes(&self) -> usize {
         (self.lists.len() + self.far.len() + self.totals.len()) * 4
     }
+}
+
+/// Every caster triangle, both sides, in map space, clipped at the near plane
+/// (what the depth lists rasterise, on the CPU and on the GPU).
+pub fn map_triangles(casters: &[[Vec3; 3]], frame: &LightFrame, near: f32) -> Vec<MapTriangle> {
+    let perspective = frame.is_perspective();
+    casters.iter().flat_map(|t| MapTriangle::clipped(t, frame, near, perspective)).collect()
+}
+
+/// The square of map space the depth lists cover: every caster, clamped to
+/// ±83° off the light's axis.
+pub fn covering_region(triangles: &[MapTriangle], resolution: u32) -> MapRegion {
+    let resolution = resolution.clamp(1, 8192);
+    let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+    for t in triangles {
+        let (a, b) = t.bounds();
+        lo = lo.min(a);
+        hi = hi.max(b);
+    }
+    lo = lo.max(Vec2::splat(-MAP_LIMIT));
+    hi = hi.min(Vec2::splat(MAP_LIMIT));
+    if !(lo.x <= hi.x && lo.y <= hi.y) {
+        (lo, hi) = (Vec2::ZERO, Vec2::ONE);
+    }
+    let size = (hi - lo).max_element().max(1e-9) * 1.001;
+    let center = (lo + hi) * 0.5;
+    MapRegion { min: center - Vec2::splat(size * 0.5), texel: size / resolution as f32, resolution }
 }
 
 /// Whether the map triangle `c` owns point `q`: inside, or on an edge by the

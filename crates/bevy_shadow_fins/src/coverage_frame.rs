@@ -1,0 +1,196 @@
+//! Main world: the coverage method's frame (see `shadow_fins::coverage`),
+//! built with the core crate when a caster, the light or a setting changed:
+//! the potential silhouette edges and their footprint grid, every caster
+//! triangle in light-map space for the depth lists, and the light samples.
+//! The render world uploads them and runs `render/coverage_lists.wgsl` and
+//! `render/coverage.wgsl`.
+
+use bevy::prelude::*;
+use shadow_fins::{
+    coverage::{EdgeIndex, potential_silhouette_edges, reference},
+    ground_truth::disk_samples,
+    light::{DiskLight, Light},
+    oracle::{MapRegion, near_depth},
+    scene::{LightSpaceScene, Scene},
+};
+
+use crate::{
+    budget::{FinDegradation, allocate_maps},
+    extract::GpuCaster,
+};
+
+/// Caster depths each texel's near list keeps (the far list keeps half):
+/// `shadow_fins::coverage::DepthLists`.
+pub(crate) const NEAR_DEPTHS: u32 = 16;
+/// Words per texel of the depth lists: near, far, total.
+pub(crate) const LIST_WORDS: u64 = (NEAR_DEPTHS + NEAR_DEPTHS / 2 + 1) as u64;
+
+/// Texels of a caster's bounding box one workgroup of `raster_lists` covers:
+/// a big triangle is split over several, so that no invocation runs long (a
+/// GPU's watchdog; llvmpipe stops a shader after 65535 loop iterations).
+pub(crate) const LIST_BLOCK_TEXELS: u32 = 4096;
+
+/// One potential silhouette edge (`Edge` in `coverage.wgsl`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct GpuCoverageEdge {
+    /// `a.w`: the number of faces.
+    pub a: [f32; 4],
+    pub b: [f32; 4],
+    pub third0: [f32; 4],
+    pub third1: [f32; 4],
+    /// The map segment of the near-clipped ends.
+    pub segment: [f32; 4],
+}
+
+/// Everything the coverage passes need for one frame.
+#[derive(Debug)]
+pub(crate) struct CoverageFrame {
+    pub edges: Vec<GpuCoverageEdge>,
+    pub cell_starts: Vec<u32>,
+    pub cell_items: Vec<u32>,
+    /// Grid origin (xy) and cells per map unit (zw); cells in x and y.
+    pub grid: [f32; 4],
+    pub dims: [u32; 2],
+    pub casters: Vec<GpuCaster>,
+    /// `raster_lists` work: (caster, block of `LIST_BLOCK_TEXELS` texels of
+    /// its bounding box), one workgroup each.
+    pub raster_work: Vec<[u32; 2]>,
+    pub region: MapRegion,
+    pub samples: Vec<[f32; 2]>,
+    pub near: f32,
+    pub extent: f32,
+}
+
+impl CoverageFrame {
+    /// The samples as `coverage.wgsl` reads them: per quad of four samples
+    /// their x then their y, padded with zeros to whole 32-sample words
+    /// (padding lanes are never counted: they are not above the horizon).
+    pub(crate) fn sample_planes(&self) -> Vec<[f32; 4]> {
+        let n = self.samples.len().div_ceil(32) * 32;
+        let at = |k: usize| self.samples.get(k).copied().unwrap_or([0.0, 0.0]);
+        (0..n / 4)
+            .flat_map(|quad| {
+                let q = [at(quad * 4), at(quad * 4 + 1), at(quad * 4 + 2), at(quad * 4 + 3)];
+                [[q[0][0], q[1][0], q[2][0], q[3][0]], [q[0][1], q[1][1], q[2][1], q[3][1]]]
+            })
+            .collect()
+    }
+}
+
+/// The blocks of texels of a map triangle's bounding box (one texel wider on
+/// each side than `texel_range` in `coverage_lists.wgsl`, so rounding never
+/// drops one: a block past the range's end does nothing).
+fn raster_blocks(corners: &[Vec2; 3], region: &MapRegion) -> u32 {
+    let lo = corners[0].min(corners[1]).min(corners[2]);
+    let hi = corners[0].max(corners[1]).max(corners[2]);
+    let res = region.resolution as f32;
+    let to_texel = |v: f32, min: f32| (v - min) / region.texel - 0.5;
+    let span = |lo: f32, hi: f32, min: f32| {
+        let a = (to_texel(lo, min).ceil() - 1.0).max(0.0);
+        let b = (to_texel(hi, min).floor() + 1.0).min(res - 1.0);
+        if b >= a && a.is_finite() && b.is_finite() { (b - a + 1.0) as u64 } else { 0 }
+    };
+    let texels = span(lo.x, hi.x, region.min.x) * span(lo.y, hi.y, region.min.y);
+    texels.div_ceil(LIST_BLOCK_TEXELS as u64).min(u32::MAX as u64) as u32
+}
+
+/// The coverage frame of a scene under a disk light; the maps' budget caps
+/// the depth lists (resolution first), the buffer limit the edge lists.
+pub(crate) fn coverage_frame(
+    scene: &Scene,
+    disk: DiskLight,
+    resolution: u32,
+    samples: u32,
+    receiver_bound: impl Iterator<Item = Vec3>,
+    map_bytes: u64,
+    max_buffer: u64,
+) -> (CoverageFrame, Option<FinDegradation>, usize) {
+    let mut ls = LightSpaceScene::new(scene, Light::Disk(disk));
+    let frame = ls.frame;
+    ls.cover_receivers(receiver_bound.map(|p| frame.to_frame(p)));
+    let near = near_depth(&ls);
+    let alloc = allocate_maps(resolution, 1, LIST_WORDS * 4, map_bytes);
+    let mut degraded = alloc.degradation;
+    let triangles = reference::map_triangles(&ls.casters, &ls.frame, near);
+    let region = reference::covering_region(&triangles, alloc.resolution);
+    let edges = potential_silhouette_edges(scene, &ls, near);
+    let index = EdgeIndex::new(&edges, &ls.frame, ls.reference_depth, 1.5 * region.texel);
+    let (min, inv_cell, dims) = index.grid();
+    let (starts, items) = index.lists();
+    let mut keep = |what: &'static str, n: usize, bytes: u64| {
+        let fit = (max_buffer / bytes) as usize;
+        if n > fit && degraded.is_none() {
+            degraded = Some(FinDegradation::Capacity {
+                buffer: what,
+                kept: fit as u32,
+                wanted: n as u32,
+                limit_bytes: max_buffer,
+            });
+        }
+        n.min(fit)
+    };
+    let n_casters = keep("map casters", triangles.len(), size_of::<GpuCaster>() as u64);
+    let n_items = keep("edge lists", items.len(), 4);
+    let n_edges = keep("potential silhouette edges", edges.len(), size_of::<GpuCoverageEdge>() as u64);
+    let v4 = |v: Vec3, w: f32| [v.x, v.y, v.z, w];
+    let gpu_edges = edges
+        .iter()
+        .enumerate()
+        .take(n_edges)
+        .map(|(id, e)| {
+            let (ma, mb) = index.segment(id as u32);
+            GpuCoverageEdge {
+                a: v4(e.a, e.faces as f32),
+                b: v4(e.b, 0.0),
+                third0: v4(e.third[0], 0.0),
+                third1: v4(e.third[1], 0.0),
+                segment: [ma.x, ma.y, mb.x, mb.y],
+            }
+        })
+        .collect();
+    // The cell lists without the edges that did not fit, and no longer than fits.
+    let (mut cell_starts, mut cell_items) = (Vec::with_capacity(starts.len()), Vec::with_capacity(n_items));
+    cell_starts.push(0u32);
+    for w in starts.windows(2) {
+        for &i in &items[w[0] as usize..w[1] as usize] {
+            if (i as usize) < n_edges && cell_items.len() < n_items {
+                cell_items.push(i);
+            }
+        }
+        cell_starts.push(cell_items.len() as u32);
+    }
+    let casters = triangles
+        .iter()
+        .take(n_casters)
+        .map(|t| GpuCaster {
+            corners: [t.corners[0].x, t.corners[0].y, t.corners[1].x, t.corners[1].y, t.corners[2].x, t.corners[2].y],
+            normal: t.normal.to_array(),
+            offset: t.offset,
+            min_depth: t.min_depth,
+            max_depth: t.max_depth,
+            layer: 0,
+            _pad: 0,
+        })
+        .collect();
+    let raster_work = triangles
+        .iter()
+        .take(n_casters)
+        .enumerate()
+        .flat_map(|(i, t)| (0..raster_blocks(&t.corners, &region)).map(move |b| [i as u32, b]))
+        .collect();
+    let frame = CoverageFrame {
+        edges: gpu_edges,
+        cell_starts,
+        cell_items,
+        grid: [min.x, min.y, inv_cell.x, inv_cell.y],
+        dims: [dims[0] as u32, dims[1] as u32],
+        casters,
+        raster_work,
+        region,
+        samples: disk_samples(samples.clamp(1, 256)).iter().map(|q| q.to_array()).collect(),
+        near,
+        extent: ls.extent,
+    };
+    (frame, degraded, edges.len())
+}

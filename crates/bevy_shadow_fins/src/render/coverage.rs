@@ -1,0 +1,412 @@
+//! Render world of the coverage method: the depth lists (`coverage_lists.wgsl`,
+//! once per frame, only when the frame changed) and, per camera, the
+//! visibility passes (`coverage.wgsl`: reference count, samples by 32-sample
+//! word, resolve) writing the same visibility buffer the fins write, so
+//! compositing is unchanged.
+
+use std::borrow::Cow;
+
+use bevy::{
+    asset::{embedded_asset, load_embedded_asset},
+    core_pipeline::{
+        prepass::ViewPrepassTextures,
+        schedule::{Core3d, Core3dSystems, camera_driver},
+    },
+    prelude::*,
+    render::{
+        Render, RenderApp, RenderSystems,
+        diagnostic::RecordDiagnostics,
+        render_resource::{
+            binding_types::{
+                storage_buffer_read_only_sized, storage_buffer_sized, texture_2d, texture_depth_2d, texture_storage_2d,
+                uniform_buffer, uniform_buffer_sized,
+            },
+            *,
+        },
+        renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue, ViewQuery},
+        view::{ExtractedView, ViewUniform, ViewUniformOffset, ViewUniforms},
+    },
+    shader::load_shader_library,
+};
+
+use super::{FinViewBuffer, FinViewTexture, ViewsWithVisibility, extract_gpu::ensure, view_transform, workgroups};
+use crate::{
+    coverage_frame::{LIST_WORDS, NEAR_DEPTHS},
+    extract::{FinFrame, FinFrameData},
+    light::FinShadowView,
+};
+
+const WORKGROUP: u32 = 64;
+
+pub(super) fn build(app: &mut App) {
+    load_shader_library!(app, "coverage_types.wgsl");
+    embedded_asset!(app, "coverage_lists.wgsl");
+    embedded_asset!(app, "coverage.wgsl");
+}
+
+pub(super) fn finish(app: &mut App) {
+    let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
+    render_app
+        .init_resource::<CoverageGpu>()
+        .add_systems(bevy::render::RenderStartup, init_pipelines)
+        .add_systems(
+            Render,
+            (
+                prepare_coverage.in_set(RenderSystems::PrepareResources),
+                prepare_view_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+            ),
+        )
+        .add_systems(RenderGraph, render_lists.before(camera_driver))
+        .add_systems(Core3d, coverage_visibility.after(Core3dSystems::Prepass).before(Core3dSystems::MainPass));
+}
+
+/// `CoverageParams` in `coverage_types.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct CoverageParams {
+    lists: [f32; 4],
+    counts: [u32; 4],
+    light: [f32; 4],
+    grid: [f32; 4],
+    info: [u32; 4],
+    axis_u: [f32; 4],
+    axis_v: [f32; 4],
+    axis_n: [f32; 4],
+}
+
+fn params_of(f: &FinFrameData) -> Option<CoverageParams> {
+    let c = f.coverage.as_ref()?;
+    let v4 = |v: bevy::math::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
+    Some(CoverageParams {
+        lists: [c.region.min.x, c.region.min.y, c.region.texel, 0.0],
+        counts: [c.region.resolution, NEAR_DEPTHS, NEAR_DEPTHS / 2, c.raster_work.len() as u32],
+        light: [f.radius, c.near, c.extent * 1e-7, shadow_fins::scene::SURFACE_EPSILON],
+        grid: c.grid,
+        info: [c.dims[0], c.dims[1], c.samples.len() as u32, 1],
+        axis_u: v4(f.axes[0]),
+        axis_v: v4(f.axes[1]),
+        axis_n: v4(f.axes[2]),
+    })
+}
+
+#[derive(Resource)]
+struct CoveragePipelines {
+    lists_layout: BindGroupLayoutDescriptor,
+    view_layout: BindGroupLayoutDescriptor,
+    clear: CachedComputePipelineId,
+    raster: CachedComputePipelineId,
+    reference: CachedComputePipelineId,
+    samples: CachedComputePipelineId,
+    resolve: CachedComputePipelineId,
+}
+
+fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, asset_server: Res<AssetServer>) {
+    let lists_layout = BindGroupLayoutDescriptor::new(
+        "fin_coverage_lists_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                uniform_buffer_sized(false, None),
+                storage_buffer_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+            ),
+        ),
+    );
+    let view_layout = BindGroupLayoutDescriptor::new(
+        "fin_coverage_view_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                uniform_buffer_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                texture_depth_2d(),
+                texture_2d(TextureSampleType::Float { filterable: false }),
+                texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
+                uniform_buffer::<ViewUniform>(true),
+                uniform_buffer_sized(false, None),
+                storage_buffer_sized(false, None),
+                storage_buffer_sized(false, None),
+            ),
+        ),
+    );
+    let lists_shader = load_embedded_asset!(asset_server.as_ref(), "coverage_lists.wgsl");
+    let visibility_shader = load_embedded_asset!(asset_server.as_ref(), "coverage.wgsl");
+    let compute =
+        |label: &'static str, layout: &BindGroupLayoutDescriptor, shader: &Handle<Shader>, entry: &'static str| {
+            pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
+                label: Some(label.into()),
+                layout: vec![layout.clone()],
+                shader: shader.clone(),
+                entry_point: Some(Cow::from(entry)),
+                ..default()
+            })
+        };
+    commands.insert_resource(CoveragePipelines {
+        clear: compute("fin_coverage_clear_lists", &lists_layout, &lists_shader, "clear_lists"),
+        raster: compute("fin_coverage_raster_lists", &lists_layout, &lists_shader, "raster_lists"),
+        reference: compute("fin_coverage_reference", &view_layout, &visibility_shader, "coverage_reference"),
+        samples: compute("fin_coverage_samples", &view_layout, &visibility_shader, "coverage_samples"),
+        resolve: compute("fin_coverage_resolve", &view_layout, &visibility_shader, "coverage_resolve"),
+        lists_layout,
+        view_layout,
+    });
+}
+
+/// GPU copies of the current coverage frame.
+#[derive(Resource, Default)]
+struct CoverageGpu {
+    generation: u64,
+    /// The depth lists must be (re)built: new content, or pipelines were not ready.
+    dirty: bool,
+    params: Option<Buffer>,
+    lists: Option<Buffer>,
+    casters: Option<Buffer>,
+    edges: Option<Buffer>,
+    starts: Option<Buffer>,
+    items: Option<Buffer>,
+    samples: Option<Buffer>,
+    work: Option<Buffer>,
+    lists_bind_group: Option<BindGroup>,
+    /// (raster work items, texels, 32-sample words)
+    counts: (u32, u32, u32),
+}
+
+impl CoverageGpu {
+    fn ready(&self) -> bool {
+        self.lists_bind_group.is_some()
+    }
+}
+
+fn prepare_coverage(
+    frame: Res<FinFrame>,
+    mut gpu: ResMut<CoverageGpu>,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    pipelines: Option<Res<CoveragePipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+) {
+    let (Some(f), Some(pipelines)) = (frame.0.as_ref(), pipelines) else {
+        gpu.lists_bind_group = None;
+        gpu.generation = 0;
+        return;
+    };
+    let (Some(c), Some(params)) = (f.coverage.as_ref(), params_of(f)) else {
+        gpu.lists_bind_group = None;
+        gpu.generation = 0;
+        return;
+    };
+    if f.generation == gpu.generation && gpu.ready() {
+        return;
+    }
+    let storage = BufferUsages::STORAGE | BufferUsages::COPY_DST;
+    let cap = f.limit_bytes;
+    let texels = c.region.resolution as u64 * c.region.resolution as u64;
+    let g = &mut *gpu;
+    ensure(&mut g.params, &device, "fin_coverage_params", 128, BufferUsages::UNIFORM | BufferUsages::COPY_DST, cap);
+    ensure(&mut g.lists, &device, "fin_coverage_lists", texels * LIST_WORDS * 4, storage, cap.min(f.map_limit_bytes));
+    let upload = |buf: &mut Option<Buffer>, label: &str, bytes: &[u8]| {
+        ensure(buf, &device, label, (bytes.len() as u64).max(64), storage, cap);
+        if !bytes.is_empty() {
+            queue.write_buffer(buf.as_ref().unwrap(), 0, bytes);
+        }
+    };
+    upload(&mut g.casters, "fin_coverage_casters", bytemuck::cast_slice(&c.casters));
+    upload(&mut g.edges, "fin_coverage_edges", bytemuck::cast_slice(&c.edges));
+    upload(&mut g.starts, "fin_coverage_cell_starts", bytemuck::cast_slice(&c.cell_starts));
+    upload(&mut g.items, "fin_coverage_cell_items", bytemuck::cast_slice(&c.cell_items));
+    upload(&mut g.samples, "fin_coverage_samples", bytemuck::cast_slice(&c.sample_planes()));
+    upload(&mut g.work, "fin_coverage_raster_work", bytemuck::cast_slice(&c.raster_work));
+    queue.write_buffer(g.params.as_ref().unwrap(), 0, bytemuck::bytes_of(&params));
+    g.lists_bind_group = Some(device.create_bind_group(
+        "fin_coverage_lists_bind_group",
+        &pipeline_cache.get_bind_group_layout(&pipelines.lists_layout),
+        &BindGroupEntries::sequential((
+            g.params.as_ref().unwrap().as_entire_binding(),
+            g.lists.as_ref().unwrap().as_entire_binding(),
+            g.casters.as_ref().unwrap().as_entire_binding(),
+            g.work.as_ref().unwrap().as_entire_binding(),
+        )),
+    ));
+    g.counts = (c.raster_work.len() as u32, texels as u32, c.samples.len().div_ceil(32) as u32);
+    g.generation = f.generation;
+    g.dirty = true;
+}
+
+/// Clears and fills the depth lists when the frame changed.
+fn render_lists(
+    mut gpu: ResMut<CoverageGpu>,
+    pipelines: Option<Res<CoveragePipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    mut ctx: RenderContext,
+) {
+    if !gpu.dirty {
+        return;
+    }
+    let (Some(pipelines), Some(bind_group)) = (pipelines, gpu.lists_bind_group.clone()) else { return };
+    let (Some(clear), Some(raster)) =
+        (pipeline_cache.get_compute_pipeline(pipelines.clear), pipeline_cache.get_compute_pipeline(pipelines.raster))
+    else {
+        return;
+    };
+    let (work, texels, _) = gpu.counts;
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/coverage_lists");
+    {
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor { label: Some("fin_coverage_lists"), timestamp_writes: None });
+        pass.set_bind_group(0, &bind_group, &[]);
+        pass.set_pipeline(clear);
+        let (x, y) = workgroups(texels.div_ceil(WORKGROUP));
+        pass.dispatch_workgroups(x, y, 1);
+        if work > 0 {
+            pass.set_pipeline(raster);
+            let (x, y) = workgroups(work);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+    }
+    span.end(ctx.command_encoder());
+    gpu.dirty = false;
+}
+
+/// Per camera: the coverage visibility passes' bind group.
+#[derive(Component)]
+pub struct CoverageViewBindGroup(BindGroup);
+
+/// Per camera: D(c) and the sample tally per pixel, kept while the size holds.
+#[derive(Component)]
+pub struct CoverageViewBuffers {
+    pixels: u64,
+    reference: Buffer,
+    tally: Buffer,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn prepare_view_bind_groups(
+    mut commands: Commands,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    gpu: Res<CoverageGpu>,
+    frame: Res<FinFrame>,
+    pipelines: Option<Res<CoveragePipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    view_uniforms: Res<ViewUniforms>,
+    views: Query<(
+        Entity,
+        &FinViewTexture,
+        &ViewPrepassTextures,
+        &ExtractedView,
+        Option<&FinViewBuffer>,
+        Option<&CoverageViewBuffers>,
+    )>,
+) {
+    let f = frame.0.as_ref().filter(|f| f.coverage.is_some());
+    let binding = view_uniforms.uniforms.binding();
+    for (entity, texture, prepass, view, view_buffer, buffers) in &views {
+        let (Some(f), Some(pipelines), Some(view_binding), true) =
+            (f, pipelines.as_ref(), binding.clone(), gpu.ready())
+        else {
+            commands.entity(entity).remove::<CoverageViewBindGroup>();
+            continue;
+        };
+        if prepass.depth.as_ref().is_some_and(|d| d.texture.texture.sample_count() > 1) {
+            commands.entity(entity).remove::<CoverageViewBindGroup>();
+            continue;
+        }
+        let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else {
+            commands.entity(entity).remove::<CoverageViewBindGroup>();
+            continue;
+        };
+        let buffer = view_transform(&device, &queue, f, &view.world_from_view, view_buffer);
+        let size = texture.0.texture.size();
+        let pixels = size.width as u64 * size.height as u64;
+        let per_pixel = match buffers {
+            Some(b) if b.pixels == pixels => {
+                CoverageViewBuffers { pixels, reference: b.reference.clone(), tally: b.tally.clone() }
+            }
+            _ => {
+                let buffer = |label: &str| {
+                    device.create_buffer(&BufferDescriptor {
+                        label: Some(label),
+                        size: (pixels * 4).max(16),
+                        usage: BufferUsages::STORAGE,
+                        mapped_at_creation: false,
+                    })
+                };
+                CoverageViewBuffers {
+                    pixels,
+                    reference: buffer("fin_coverage_reference"),
+                    tally: buffer("fin_coverage_tally"),
+                }
+            }
+        };
+        let bind_group = device.create_bind_group(
+            "fin_coverage_view_bind_group",
+            &pipeline_cache.get_bind_group_layout(&pipelines.view_layout),
+            &BindGroupEntries::sequential((
+                gpu.params.as_ref().unwrap().as_entire_binding(),
+                gpu.lists.as_ref().unwrap().as_entire_binding(),
+                gpu.edges.as_ref().unwrap().as_entire_binding(),
+                gpu.starts.as_ref().unwrap().as_entire_binding(),
+                gpu.items.as_ref().unwrap().as_entire_binding(),
+                gpu.samples.as_ref().unwrap().as_entire_binding(),
+                depth,
+                normal,
+                &texture.0.default_view,
+                view_binding,
+                buffer.as_entire_binding(),
+                per_pixel.reference.as_entire_binding(),
+                per_pixel.tally.as_entire_binding(),
+            )),
+        );
+        commands.entity(entity).insert((CoverageViewBindGroup(bind_group), FinViewBuffer(buffer), per_pixel));
+    }
+}
+
+fn coverage_visibility(
+    view: ViewQuery<(Entity, &FinShadowView, &FinViewTexture, &CoverageViewBindGroup, &ViewUniformOffset)>,
+    pipelines: Option<Res<CoveragePipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    images: Res<bevy::render::render_asset::RenderAssets<bevy::render::texture::GpuImage>>,
+    gpu: Res<CoverageGpu>,
+    mut written: ResMut<ViewsWithVisibility>,
+    mut ctx: RenderContext,
+) {
+    let (entity, settings, texture, bind_group, offset) = view.into_inner();
+    let Some(pipelines) = pipelines else { return };
+    let (Some(reference), Some(samples), Some(resolve)) = (
+        pipeline_cache.get_compute_pipeline(pipelines.reference),
+        pipeline_cache.get_compute_pipeline(pipelines.samples),
+        pipeline_cache.get_compute_pipeline(pipelines.resolve),
+    ) else {
+        return;
+    };
+    let words = gpu.counts.2.clamp(1, 8);
+    let size = texture.0.texture.size();
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/visibility");
+    {
+        let mut pass = ctx.command_encoder().begin_compute_pass(&ComputePassDescriptor {
+            label: Some("fin_coverage_visibility"),
+            timestamp_writes: None,
+        });
+        pass.set_bind_group(0, &bind_group.0, &[offset.offset]);
+        let (x, y) = (size.width.div_ceil(8), size.height.div_ceil(8));
+        pass.set_pipeline(reference);
+        pass.dispatch_workgroups(x, y, 1);
+        pass.set_pipeline(samples);
+        pass.dispatch_workgroups(x, y, words);
+        pass.set_pipeline(resolve);
+        pass.dispatch_workgroups(x, y, 1);
+    }
+    span.end(ctx.command_encoder());
+    written.0.insert(entity);
+    super::copy_to_target(&mut ctx, settings, texture, &images, size);
+}
