@@ -12,7 +12,7 @@ use bevy_shadow_fins::{FinMethod, FinShadowSettings};
 use shadow_fins::{
     bvh::Bvh,
     camera::pixel_receiver,
-    coverage::{CoverageModel, CoverageSettings, ReferenceCount},
+    coverage::{CoverageModel, CoverageSettings, DEPTH_LIST_LENGTH, ReferenceCount},
     scene::LightSpaceScene,
     scenes::SceneId,
 };
@@ -27,7 +27,7 @@ fn coverage_settings() -> FinShadowSettings {
 fn coverage_oracle(setup: &Setup) -> Vec<f32> {
     let ls = LightSpaceScene::new(&setup.scene, setup.light);
     let s = setup.settings.clamped();
-    let reference = ReferenceCount::Raster { resolution: s.map_resolution, depths: 16 };
+    let reference = ReferenceCount::Raster { resolution: s.map_resolution, depths: DEPTH_LIST_LENGTH };
     let model = CoverageModel::new(&setup.scene, &ls, CoverageSettings { samples: s.coverage_samples, reference });
     let bvh = Bvh::new(&ls.casters);
     (0..setup.width * setup.height)
@@ -49,7 +49,9 @@ fn gpu_coverage_matches_the_coverage_oracle() {
         assert!(shadowed > 200 && lit > 200, "{}: {shadowed} shadowed, {lit} lit pixels", id.name());
         let (mad, far) = compare(&shot.visibility, &coverage_oracle(&setup));
         println!("{}: mean |gpu − oracle| = {mad:.5}, share > 0.1 = {:.2}%", id.name(), far * 100.0);
-        assert!(mad <= 0.01 && far <= 0.03, "{}: {mad} / {far}", id.name());
+        // Same rules, f32 on both sides: what differs is a sample whose line
+        // test is a rounding away from zero (measured ≤ 0.001 mean, ≤ 0.1% far).
+        assert!(mad <= 0.002 && far <= 0.005, "{}: {mad} / {far}", id.name());
         assert_eq!(shot.stats.fins, 0, "coverage builds no fins");
     }
 }

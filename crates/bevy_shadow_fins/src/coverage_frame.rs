@@ -7,7 +7,7 @@
 
 use bevy::prelude::*;
 use shadow_fins::{
-    coverage::{EdgeIndex, potential_silhouette_edges, reference},
+    coverage::{DEPTH_LIST_LENGTH, EdgeIndex, far_list_length, potential_silhouette_edges, reference},
     ground_truth::disk_samples,
     light::{DiskLight, Light},
     oracle::{MapRegion, near_depth},
@@ -19,11 +19,13 @@ use crate::{
     extract::GpuCaster,
 };
 
-/// Caster depths each texel's near list keeps (the far list keeps half):
-/// `shadow_fins::coverage::DepthLists`.
-pub(crate) const NEAR_DEPTHS: u32 = 16;
+/// Caster depths each texel's near list keeps, as the core's
+/// `shadow_fins::coverage::DepthLists` at [`DEPTH_LIST_LENGTH`].
+pub(crate) const NEAR_DEPTHS: u32 = DEPTH_LIST_LENGTH;
+/// And its far list.
+pub(crate) const FAR_DEPTHS: u32 = far_list_length(NEAR_DEPTHS);
 /// Words per texel of the depth lists: near, far, total.
-pub(crate) const LIST_WORDS: u64 = (NEAR_DEPTHS + NEAR_DEPTHS / 2 + 1) as u64;
+pub(crate) const LIST_WORDS: u64 = (NEAR_DEPTHS + FAR_DEPTHS + 1) as u64;
 
 /// Texels of a caster's bounding box one workgroup of `raster_lists` covers:
 /// a big triangle is split over several, so that no invocation runs long (a
@@ -173,12 +175,15 @@ pub(crate) fn coverage_frame(
             _pad: 0,
         })
         .collect();
-    let raster_work = triangles
+    let mut raster_work: Vec<[u32; 2]> = triangles
         .iter()
         .take(n_casters)
         .enumerate()
         .flat_map(|(i, t)| (0..raster_blocks(&t.corners, &region)).map(move |b| [i as u32, b]))
         .collect();
+    // Blocks past the buffer limit are dropped (their texels miss casters).
+    let n_work = keep("depth-list raster work", raster_work.len(), size_of::<[u32; 2]>() as u64);
+    raster_work.truncate(n_work);
     let frame = CoverageFrame {
         edges: gpu_edges,
         cell_starts,

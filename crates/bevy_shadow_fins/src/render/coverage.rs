@@ -31,7 +31,7 @@ use bevy::{
 
 use super::{FinViewBuffer, FinViewTexture, ViewsWithVisibility, extract_gpu::ensure, view_transform, workgroups};
 use crate::{
-    coverage_frame::{LIST_WORDS, NEAR_DEPTHS},
+    coverage_frame::{FAR_DEPTHS, LIST_WORDS, NEAR_DEPTHS},
     extract::{FinFrame, FinFrameData},
     light::FinShadowView,
 };
@@ -78,8 +78,9 @@ fn params_of(f: &FinFrameData) -> Option<CoverageParams> {
     let c = f.coverage.as_ref()?;
     let v4 = |v: bevy::math::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
     Some(CoverageParams {
-        lists: [c.region.min.x, c.region.min.y, c.region.texel, 0.0],
-        counts: [c.region.resolution, NEAR_DEPTHS, NEAR_DEPTHS / 2, c.raster_work.len() as u32],
+        // w: edges, so that casters without raster work still shadow.
+        lists: [c.region.min.x, c.region.min.y, c.region.texel, c.edges.len() as f32],
+        counts: [c.region.resolution, NEAR_DEPTHS, FAR_DEPTHS, c.raster_work.len() as u32],
         light: [f.radius, c.near, c.extent * 1e-7, shadow_fins::scene::SURFACE_EPSILON],
         grid: c.grid,
         info: [c.dims[0], c.dims[1], c.samples.len() as u32, 1],

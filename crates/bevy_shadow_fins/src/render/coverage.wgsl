@@ -15,8 +15,8 @@
 //  coverage_resolve     per pixel: V = visible / above, into the visibility
 //                       texture the fins also write
 //
-// Why split: one invocation per word keeps 7 counter words live instead of
-// 56, and no invocation loops longer than the cell's edges (llvmpipe ends a
+// Why split: one invocation per word keeps 8 counter words live instead of
+// 64, and no invocation loops longer than the cell's edges (llvmpipe ends a
 // shader after 65535 loop iterations in all; a GPU's watchdog is similar).
 // The per-sample and per-face tests are unrolled for the same reason.
 #import bevy_render::view::View
@@ -41,6 +41,8 @@
 
 // `reference` sentinels: no receiver here (visibility 1); a receiver no
 // sample is above, or one in front of the near plane (visibility 0).
+// `shadow_fins::coverage::MAX_REFERENCE_COUNT`: the count D(c) saturates here.
+const MAX_REFERENCE: i32 = 127;
 const LIT: u32 = 0xffffffffu;
 const DARK: u32 = 0xfffffffeu;
 
@@ -327,8 +329,10 @@ fn ripple(plane: u32, carry: u32, up: bool) -> vec2<u32> {
 }
 
 // Adds `step` (±1, ±2) to the bit-sliced counters of the samples in `mask`:
-// plane i holds bit i of every sample's count (unrolled: see the header).
-fn add_masked(planes: ptr<function, array<u32, 7>>, mask: u32, step: i32) {
+// plane i holds bit i of every sample's count, modulo 256 (unrolled: see the
+// header). D(c) ≤ MAX_REFERENCE and |Σ steps| stay below 256, so zero
+// modulo 256 is zero (the core clamps D(c) alike).
+fn add_masked(planes: ptr<function, array<u32, 8>>, mask: u32, step: i32) {
     let up = step > 0;
     var r = vec2<u32>(0u, mask);
     if (abs(step) == 1) {
@@ -347,6 +351,8 @@ fn add_masked(planes: ptr<function, array<u32, 7>>, mask: u32, step: i32) {
     (*planes)[5] = r.x;
     r = ripple((*planes)[6], r.y, up);
     (*planes)[6] = r.x;
+    r = ripple((*planes)[7], r.y, up);
+    (*planes)[7] = r.x;
 }
 
 fn bits_of(hit: vec4<bool>) -> u32 {
@@ -421,7 +427,8 @@ fn receiver_at(id: vec2<u32>) -> Receiver {
     let pixel = vec2<i32>(id);
     let depth = textureLoad(depth_prepass, pixel, 0);
     let in_viewport = all(vec2<f32>(id) >= view.viewport.xy) && all(vec2<f32>(id) < view.viewport.xy + view.viewport.zw);
-    if (params.counts.w == 0u || depth <= 0.0 || !in_viewport) {
+    // No caster at all (no depth-list work and no edge): lit, as the fins' pass.
+    if ((params.counts.w == 0u && params.lists.w == 0.0) || depth <= 0.0 || !in_viewport) {
         return r;
     }
     let uv = (vec2<f32>(id) + 0.5 - view.viewport.xy) / view.viewport.zw;
@@ -460,7 +467,7 @@ fn coverage_reference(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let range = cell_of(map_point(r.p));
-    reference[at] = u32(min(reference_count(r.p, r.normal, range), 63));
+    reference[at] = u32(min(reference_count(r.p, r.normal, range), MAX_REFERENCE));
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -482,8 +489,8 @@ fn coverage_samples(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     // Every sample starts at D(c): plane i holds bit i of the count.
-    var planes: array<u32, 7>;
-    for (var i = 0u; i < 7u; i++) {
+    var planes: array<u32, 8>;
+    for (var i = 0u; i < 8u; i++) {
         planes[i] = select(0u, 0xffffffffu, ((d_c >> i) & 1u) != 0u);
     }
     let range = cell_of(map_point(p));
@@ -512,7 +519,7 @@ fn coverage_samples(@builtin(global_invocation_id) id: vec3<u32>) {
             add_masked(&planes, mask, select(sigma, -sigma, r_side));
         }
     }
-    let any = planes[0] | planes[1] | planes[2] | planes[3] | planes[4] | planes[5] | planes[6];
+    let any = planes[0] | planes[1] | planes[2] | planes[3] | planes[4] | planes[5] | planes[6] | planes[7];
     atomicAdd(&tally[at], countOneBits(~any & above) | (countOneBits(above) << 16u));
 }
 

@@ -50,7 +50,7 @@ const WORKGROUP: u32 = 64u;
 // Samples a u32 word counts; words per pixel (N ≤ 256); bit planes of a count.
 const CHUNK: u32 = 32u;
 const MAX_CHUNKS: u32 = 8u;
-const PLANES: u32 = 7u;
+const PLANES: u32 = 8u;
 
 
 fn list_stride(params: CoverageParams) -> u32 {

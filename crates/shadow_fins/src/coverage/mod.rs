@@ -63,7 +63,7 @@ use crate::{
 
 pub use edges::{CoverageEdge, potential_silhouette_edges};
 pub use index::EdgeIndex;
-pub use reference::{DepthLists, ReferenceCount};
+pub use reference::{DEPTH_LIST_LENGTH, DepthLists, ReferenceCount, far_list_length};
 
 /// Settings of the coverage method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -85,6 +85,12 @@ impl Default for CoverageSettings {
 /// near the centre, so that its ray does not run along a modelled edge (an
 /// axis-aligned scene's edges are often exactly below the centre).
 pub const REFERENCE: Vec2 = Vec2::new(1.234e-3, 0.7731e-3);
+
+/// The most casters `D(c)` counts through depth lists: the GPU keeps each
+/// sample's count in 8 bit planes (modulo 256), so the reference count
+/// saturates here on both sides (a receiver behind more than 127 casters
+/// along the centre ray; none in our scenes comes near).
+pub const MAX_REFERENCE_COUNT: i32 = 127;
 
 /// What one receiver cost: edges of its cell, and those that reached the
 /// sample loop (silhouettes seen from it, in front of it).
@@ -338,7 +344,7 @@ impl<'a> CoverageModel<'a> {
                     let sigma: i32 = e.third[..e.faces as usize].iter().map(|v| if side(*v) { 1 } else { -1 }).sum();
                     count += if to { sigma } else { -sigma };
                 }
-                count.max(0)
+                count.clamp(0, MAX_REFERENCE_COUNT)
             })
             .min()
             .unwrap_or(0)

@@ -6,8 +6,9 @@
 //! k-buffer), counted below the receiver's depth, then corrected by the edges
 //! crossed when the centre ray moves from the texel centre to the receiver —
 //! (C1) again, with the light's centre as apex and silhouettes seen from it.
-//! The correction makes the raster answer exact up to `K` and to the
-//! receiver's one-texel lift.
+//! The correction makes the raster answer exact for every ray crossing at
+//! most `K + K/4` casters (the near and far lists), up to
+//! [`super::MAX_REFERENCE_COUNT`].
 
 use glam::{Vec2, Vec3};
 
@@ -27,12 +28,27 @@ pub enum ReferenceCount {
     Raster { resolution: u32, depths: u32 },
 }
 
+/// The near list's length the GPU and the lab use: 24 near and 6 far depths
+/// count exactly through 30 crossings, enough for the greeble tower's lit
+/// faces (16 + 8 left 0.12% umbra over there); 31 words per texel keep a
+/// 1024² map within a 128 MiB storage binding.
+pub const DEPTH_LIST_LENGTH: u32 = 24;
+
+/// The far list's length for a near list of `depths`: a quarter. The far
+/// list only has to reach past the last caster for receivers under a dense
+/// object (their count is the total); lit faces inside one are near-list
+/// receivers, so the words go there.
+pub const fn far_list_length(depths: u32) -> u32 {
+    if depths >= 8 { depths / 4 } else { 1 }
+}
+
 /// Map coordinates beyond this (about 83° off axis) are not mapped, as the
 /// fins' maps.
 const MAP_LIMIT: f32 = 8.0;
 
 /// Per texel, the nearest `depths` caster depths along the centre ray
-/// through its centre (ascending, `+∞` padded), the farthest `depths / 2`
+/// through its centre (ascending, `+∞` padded), the farthest
+/// [`far_list_length`]`(depths)`
 /// (descending, `−∞` padded), and how many casters the ray crosses in all.
 #[derive(Debug, Clone)]
 pub struct DepthLists {
@@ -52,7 +68,7 @@ impl DepthLists {
         let triangles = map_triangles(casters, frame, near);
         let region = covering_region(&triangles, resolution);
         let resolution = region.resolution;
-        let far_depths = (depths / 2).max(1);
+        let far_depths = far_list_length(depths as u32) as usize;
         let mut lists = vec![f32::INFINITY; (resolution * resolution) as usize * depths];
         let mut far = vec![f32::NEG_INFINITY; (resolution * resolution) as usize * far_depths];
         let mut totals = vec![0u32; (resolution * resolution) as usize];
@@ -91,7 +107,7 @@ impl DepthLists {
     /// How many casters texel `(x, y)`'s centre ray crosses before depth `z`.
     /// Exact when `z` falls within the near list, or within or beyond the far
     /// list (the total less what lies behind `z`): every ray crossing no more
-    /// than `1.5 depths` casters, and every receiver in front of the near
+    /// than `depths + far_list_length(depths)` casters, and every receiver in front of the near
     /// ones or behind the far ones (the ground under a dense object). Between
     /// the two lists the count is unknown: the upper bound is taken (such a
     /// receiver is deep inside a dense object, where erring towards shadow is
@@ -198,6 +214,34 @@ mod tests {
         for q in points {
             let owners = fan.iter().filter(|t| owns(t, q)).count();
             assert_eq!(owners, 1, "{q:?} has {owners} owners");
+        }
+    }
+
+    /// 35 stacked squares over the light's axis, at depths 0.25..=8.75, against
+    /// lists of 24 near and 6 far depths: the count before `z` is exact in
+    /// the near list, in the far list and beyond it, and the upper bound
+    /// (the total less the far list) in the gap between them.
+    #[test]
+    fn counts_are_exact_in_both_lists_and_bounded_between_them() {
+        use crate::light::{DiskLight, LightFrame};
+        let frame = LightFrame::disk(&DiskLight::new(Vec3::ZERO, Vec3::NEG_Y, 0.5).unwrap());
+        let square = |z: f32| {
+            let (a, b, c, d) = (Vec3::new(-z, -z, z), Vec3::new(z, -z, z), Vec3::new(z, z, z), Vec3::new(-z, z, z));
+            [[a, b, c], [a, c, d]]
+        };
+        let casters: Vec<[Vec3; 3]> = (1..=35).flat_map(|k| square(k as f32 * 0.25)).collect();
+        let lists = DepthLists::new(&casters, &frame, 0.01, 16, DEPTH_LIST_LENGTH);
+        assert_eq!((lists.depths, far_list_length(DEPTH_LIST_LENGTH)), (24, 6));
+        let texel = lists.texel_of(Vec2::new(0.013, 0.007)).unwrap();
+        for k in 0..=36u32 {
+            // Just behind the k-th square (depth 0.25 k), in front of the next.
+            let z = k as f32 * 0.25 + 0.1;
+            let expected = match k {
+                0..=23 => k,       // the near list (a 24th could hide more behind it)
+                24..=28 => 35 - 6, // between the lists: the upper bound
+                _ => k.min(35),    // the far list and beyond it
+            };
+            assert_eq!(lists.count_before(texel, z), expected, "behind square {k}");
         }
     }
 

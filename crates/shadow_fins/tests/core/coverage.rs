@@ -144,20 +144,20 @@ proptest! {
 /// dense stack, behind more casters than the lists hold, may differ.
 #[test]
 fn the_depth_lists_count_what_the_ray_counts() {
-    use shadow_fins::coverage::ReferenceCount;
+    use shadow_fins::coverage::{DEPTH_LIST_LENGTH, ReferenceCount};
     for id in
         [SceneId::NearContact, SceneId::LargeLight, SceneId::Figure, SceneId::GreebleTower, SceneId::TiltedReceiver]
     {
         let s = id.build();
         let (ls, receivers) = view_receivers(&s.scene, s.light, &s.camera, 60, 45);
         let settings = CoverageSettings {
-            reference: ReferenceCount::Raster { resolution: 1024, depths: 16 },
+            reference: ReferenceCount::Raster { resolution: 1024, depths: DEPTH_LIST_LENGTH },
             ..Default::default()
         };
         let model = CoverageModel::new(&s.scene, &ls, settings);
         let differ = receivers.iter().filter(|r| {
             let (exact, raster) = model.reference_counts(**r).unwrap();
-            exact != raster && exact < 16
+            exact != raster && exact < DEPTH_LIST_LENGTH as i32
         });
         let n = differ.count();
         println!("{}: {n} of {} receivers differ", id.name(), receivers.len());
