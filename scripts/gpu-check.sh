@@ -108,8 +108,9 @@ run)
     --methods fins,bevy-hard,bevy-pcss --frames 20 --warmup 3 --out "$out/static"
   step "light moving every frame, 1k–1M triangles" 100 "${lab[@]}" --blob-triangles 1000,10000,100000,1000000 \
     --no-truth --methods fins,bevy-hard,bevy-pcss --moving-light --frames 20 --warmup 3 --out "$out/moving"
-  step "speed against accuracy (large-light, near-contact)" 80 "${lab[@]}" --scenes large-light,near-contact \
-    --methods fins,outer-fins,bevy-hard,bevy-pcss --frames 20 --warmup 3 --out "$out/accuracy"
+  step "speed against accuracy (large-light, near-contact, kitbash, greeble-tower)" 80 "${lab[@]}" \
+    --scenes large-light,near-contact,kitbash,greeble-tower --methods fins,coverage,outer-fins,bevy-hard,bevy-pcss \
+    --frames 20 --warmup 3 --out "$out/accuracy"
   echo "gpu-check: report in $report"
   ;;
 *)

@@ -68,8 +68,8 @@ struct MeasureArgs {
     /// Instead of scenes: the bumpy blob over a plane at these triangle counts (GPU scaling run).
     #[arg(long)]
     blob_triangles: Option<String>,
-    /// Techniques: fins, single-layer, outer-fins, hard, bevy-hard, bevy-pcss, cpu-oracle.
-    #[arg(long, default_value = "fins,single-layer,outer-fins,hard,bevy-hard,bevy-pcss,cpu-oracle")]
+    /// Techniques: fins, coverage, single-layer, outer-fins, hard, bevy-hard, bevy-pcss, cpu-oracle.
+    #[arg(long, default_value = "fins,coverage,single-layer,outer-fins,hard,bevy-hard,bevy-pcss,cpu-oracle")]
     methods: String,
     /// Layer counts swept for multi-layer fins (1..=32; more is clamped).
     #[arg(long, default_value = "1,2,4,8,16,32")]

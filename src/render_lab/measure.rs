@@ -3,7 +3,7 @@
 //! and timed in the same run.
 //!
 //! How each technique's visibility is read:
-//! - fins: the plugin's visibility buffer;
+//! - fins and coverage: the plugin's visibility buffer;
 //! - Bevy's hard shadows and PCSS: the colour ratio shadowed / unshadowed of
 //!   the same Bevy point light, read back as linear floats with ambient light,
 //!   tonemapping and dithering off — Bevy multiplies its light's whole
@@ -219,7 +219,7 @@ pub fn measure(
                         if den > 0.0 { energy(&shot.linear[*i]) / den } else { 1.0 }
                     })
                     .collect();
-                if let Technique::Fins(_) = config.technique {
+                if matches!(config.technique, Technique::Fins(_) | Technique::Coverage) {
                     row.modelled = Some((shot.stats.silhouettes, shot.stats.fins, shot.stats.layers));
                     row.non_finite = shot.visibility.iter().filter(|v| !v.is_finite()).count();
                     row.out_of_range = shot.visibility.iter().filter(|v| **v < -1e-3 || **v > 1.0 + 1e-3).count();
@@ -267,6 +267,7 @@ fn fin_settings(c: &Config) -> FinShadowSettings {
             Technique::Fins(Method::Hard) => FinMethod::Hard,
             Technique::Fins(Method::OuterFins) => FinMethod::OuterFins,
             Technique::Fins(Method::SingleLayer) => FinMethod::SingleLayer,
+            Technique::Coverage => FinMethod::Coverage,
             _ => FinMethod::MultiLayer,
         },
         layers: c.layers.unwrap_or(defaults.layers),

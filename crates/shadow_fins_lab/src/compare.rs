@@ -52,7 +52,7 @@ impl Config {
 /// The methods the paper compares, with `base` settings for the fin ones.
 /// The paper's own combination rule is used for its methods (hard, outer fins,
 /// single layer, and the paper's 16 layers); the last row is ours.
-pub fn standard_configs(base: FinSettings) -> Vec<Config> {
+pub fn standard_configs(base: FinSettings, coverage_samples: u32) -> Vec<Config> {
     let paper = FinSettings { overlap: Overlap::MinMax, ..base };
     vec![
         Config::new(Method::Hard, paper),
@@ -61,7 +61,7 @@ pub fn standard_configs(base: FinSettings) -> Vec<Config> {
         Config::new(Method::MultiLayer, FinSettings { refinement: false, ..paper }),
         Config::new(Method::MultiLayer, paper),
         Config::new(Method::MultiLayer, base),
-        Config::coverage(CoverageSettings::default().samples),
+        Config::coverage(coverage_samples),
     ]
 }
 

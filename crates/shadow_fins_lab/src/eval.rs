@@ -6,7 +6,7 @@ use rayon::prelude::*;
 use shadow_fins::{
     bvh::Bvh,
     camera::{Camera, pixel_receiver},
-    coverage::{CoverageModel, ReferenceCount},
+    coverage::{CoverageModel, CoverageWork, ReferenceCount},
     ground_truth::GroundTruth,
     oracle::{FinSettings, FinShadowModel, Receiver},
     scene::{LightSpaceScene, Scene},
@@ -25,6 +25,39 @@ pub struct Evaluation {
     pub silhouettes: usize,
     pub fins: usize,
     pub layers: usize,
+    /// The coverage method's per-receiver work (`None` for the others).
+    pub work: Option<WorkPercentiles>,
+}
+
+/// Per-receiver work of the coverage method over the receivers evaluated:
+/// the edges listed in the receiver's cell, and those that reached the
+/// sample loop (potential silhouettes of the receiver, in front of it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WorkPercentiles {
+    pub cell_edges: [u32; 2],
+    pub counted_edges: [u32; 2],
+    /// Means, for the cost of a whole frame.
+    pub mean_cell_edges: f64,
+    pub mean_counted_edges: f64,
+}
+
+impl WorkPercentiles {
+    /// p50 and p99 (nearest rank) of each count.
+    pub fn of(work: &[CoverageWork]) -> Option<Self> {
+        if work.is_empty() {
+            return None;
+        }
+        let spread = |f: fn(&CoverageWork) -> u32| {
+            let mut v: Vec<u32> = work.iter().map(f).collect();
+            v.sort_unstable();
+            let at = |q: f64| v[((q * (v.len() - 1) as f64).round() as usize).min(v.len() - 1)];
+            let mean = v.iter().map(|x| *x as f64).sum::<f64>() / v.len() as f64;
+            ([at(0.5), at(0.99)], mean)
+        };
+        let (cell_edges, mean_cell_edges) = spread(|w| w.cell_edges);
+        let (counted_edges, mean_counted_edges) = spread(|w| w.counted_edges);
+        Some(Self { cell_edges, counted_edges, mean_cell_edges, mean_counted_edges })
+    }
 }
 
 impl Evaluation {
@@ -33,8 +66,9 @@ impl Evaluation {
     }
 }
 
-/// Caster depths per texel of the coverage method's depth lists through maps.
-pub const DEPTH_LIST_LENGTH: u32 = 16;
+/// Caster depths per texel of the coverage method's depth lists through maps
+/// (the plugin's).
+pub use shadow_fins::coverage::DEPTH_LIST_LENGTH;
 
 /// Evaluates `measured` at every receiver (light frame). With
 /// `map_resolution`, fins are looked up in raster maps and the coverage
@@ -55,7 +89,7 @@ pub fn evaluate(
             let prepare_ms = ms(start);
             let t = Instant::now();
             let values = receivers.par_iter().map(|r| gt.visibility(*r)).collect();
-            Evaluation { values, prepare_ms, evaluate_ms: ms(t), silhouettes: 0, fins: 0, layers: 0 }
+            Evaluation { values, prepare_ms, evaluate_ms: ms(t), silhouettes: 0, fins: 0, layers: 0, work: None }
         }
         Measured::Coverage(mut cs) => {
             // Through maps: the reference count from depth lists, as a GPU finds it.
@@ -65,8 +99,11 @@ pub fn evaluate(
             let model = CoverageModel::new(scene, light_space, cs);
             let prepare_ms = ms(start);
             let t = Instant::now();
-            let values = receivers.par_iter().map(|r| model.visibility(*r)).collect();
-            Evaluation { values, prepare_ms, evaluate_ms: ms(t), silhouettes: model.edges.len(), fins: 0, layers: 0 }
+            let (values, work): (Vec<f32>, Vec<CoverageWork>) =
+                receivers.par_iter().map(|r| model.visibility_and_work(*r)).unzip();
+            let evaluate_ms = ms(t);
+            let work = WorkPercentiles::of(&work);
+            Evaluation { values, prepare_ms, evaluate_ms, silhouettes: model.edges.len(), fins: 0, layers: 0, work }
         }
         Measured::Method(method) => {
             let model = FinShadowModel::new(scene, light_space, method, settings);
@@ -87,7 +124,7 @@ pub fn evaluate(
                     (v, prepare_ms, ms(t))
                 }
             };
-            Evaluation { values, prepare_ms, evaluate_ms, silhouettes, fins, layers }
+            Evaluation { values, prepare_ms, evaluate_ms, silhouettes, fins, layers, work: None }
         }
     }
 }

@@ -15,10 +15,12 @@ pub enum Technique {
     BevyPcss,
     /// The core crate's raster oracle on the CPU (multi-layer fins).
     CpuOracle,
+    /// The plugin's coverage method (`FinMethod::Coverage`, 256 light samples).
+    Coverage,
 }
 
 impl Technique {
-    pub const ALL: [Technique; 7] = [
+    pub const ALL: [Technique; 8] = [
         Technique::Fins(Method::MultiLayer),
         Technique::Fins(Method::SingleLayer),
         Technique::Fins(Method::OuterFins),
@@ -26,6 +28,7 @@ impl Technique {
         Technique::BevyHard,
         Technique::BevyPcss,
         Technique::CpuOracle,
+        Technique::Coverage,
     ];
 
     /// The name on the command line, in tables and in plots.
@@ -38,6 +41,7 @@ impl Technique {
             Technique::BevyHard => "bevy-hard",
             Technique::BevyPcss => "bevy-pcss",
             Technique::CpuOracle => "cpu-oracle",
+            Technique::Coverage => "coverage",
         }
     }
 
@@ -180,8 +184,10 @@ impl Axes {
                 push(Config::new(fins, bl, true, f, bm, br));
             }
         }
-        for &t in
-            self.techniques.iter().filter(|t| matches!(t, Technique::BevyHard | Technique::BevyPcss) || **t == fins)
+        for &t in self
+            .techniques
+            .iter()
+            .filter(|t| matches!(t, Technique::BevyHard | Technique::BevyPcss | Technique::Coverage) || **t == fins)
         {
             for &m in &self.map_resolutions {
                 push(Config::new(t, bl, true, base_falloff, m, br));

@@ -21,7 +21,7 @@ use shadow_fins_lab::{
     compare::{Comparison, Config, compare, markdown_table, standard_configs},
     eval::evaluate,
     picture::{Column, Picture, strip as strip_picture},
-    setup::{FinArgs, SceneArgs, parse_measured, parse_vec3},
+    setup::{FinArgs, SceneArgs, parse_measured_with, parse_vec3},
 };
 
 #[derive(Parser)]
@@ -110,7 +110,7 @@ fn run(command: Command) -> Result<(), LabError> {
         Command::Visibility { scene, fins, points, method, out } => {
             let loaded = scene.load()?;
             let settings = fins.settings()?;
-            let measured = parse_measured(&method)?;
+            let measured = parse_measured_with(&method, fins.coverage_samples)?;
             let pts = read_points(&points)?;
             let mut ls = LightSpaceScene::new(&loaded.scene, loaded.light);
             let receivers: Vec<Receiver> = pts
@@ -139,7 +139,7 @@ fn run(command: Command) -> Result<(), LabError> {
                 loaded.camera.target = t;
             }
             let settings = fins.settings()?;
-            let configs = standard_configs(settings);
+            let configs = standard_configs(settings, fins.coverage_samples);
             let c = compare(
                 &loaded,
                 width.clamp(8, 4096),
@@ -163,7 +163,7 @@ fn run(command: Command) -> Result<(), LabError> {
                     .map(|s| SceneId::parse(s).ok_or_else(|| LabError::Usage(format!("unknown scene '{s}'"))))
                     .collect::<Result<_, _>>()?
             };
-            let mut configs = standard_configs(settings);
+            let mut configs = standard_configs(settings, fins.coverage_samples);
             for f in shadow_fins::refine::Falloff::ALL {
                 if f != settings.falloff {
                     let s = FinSettings { falloff: f, ..settings };
@@ -174,6 +174,13 @@ fn run(command: Command) -> Result<(), LabError> {
                     )));
                 }
             }
+            let coverage_label = Config::coverage(fins.coverage_samples).label;
+            let mut accuracy = String::from(
+                "| scene | coverage MAE | p99 | umbra over | outer-fins ÷ coverage MAE | MAE ≤ 0.01 | p99 ≤ 0.08 | umbra over ≤ 0.1% | ≥ 3× outer-fins |\n|---|---|---|---|---|---|---|---|---|\n",
+            );
+            let mut cost = String::from(
+                "| scene | potential silhouettes | edges per pixel's cell p50 / p99 | edges counted per pixel p50 / p99 (mean) | coverage prepare + evaluate ms | fins 16L prepare + evaluate ms |\n|---|---|---|---|---|---|\n",
+            );
             let mut targets = String::from(
                 "| scene | hard MAE | outer-fins MAE | fins 16L paper MAE | fins 16L MAE | beats hard & outer (paper / ours) | umbra over (paper / ours) |\n|---|---|---|---|---|---|---|\n",
             );
@@ -195,7 +202,41 @@ fn run(command: Command) -> Result<(), LabError> {
                 if let Some(dir) = &images {
                     strip(&c).save_png(&dir.join(format!("{}.png", id.name())))?;
                 }
-                let mae = |label: &str| c.rows.iter().find(|r| r.config.label == label).map(|r| r.metrics);
+                let row = |label: &str| c.rows.iter().find(|r| r.config.label == label);
+                let mae = |label: &str| row(label).map(|r| r.metrics);
+                if let (Some(cov), Some(o)) = (row(&coverage_label), mae("outer-fins")) {
+                    let m = cov.metrics;
+                    let yes = |ok: bool| if ok { "yes" } else { "**no**" };
+                    let ratio = o.mae / m.mae.max(1e-6);
+                    accuracy += &format!(
+                        "| {} | {:.4} | {:.3} | {:.2}% | {:.1}× | {} | {} | {} | {} |\n",
+                        id.name(),
+                        m.mae,
+                        m.p99,
+                        m.umbra_over * 100.0,
+                        ratio,
+                        yes(m.mae <= 0.01),
+                        yes(m.p99 <= 0.08),
+                        yes(m.umbra_over <= 0.001),
+                        yes(ratio >= 3.0)
+                    );
+                    if let Some(w) = cov.evaluation.work {
+                        let fins_ms =
+                            row(&format!("fins {}L", settings.layers)).map_or(f64::NAN, |r| r.evaluation.total_ms());
+                        cost += &format!(
+                            "| {} | {} | {} / {} | {} / {} ({:.1}) | {:.1} | {:.1} |\n",
+                            id.name(),
+                            cov.evaluation.silhouettes,
+                            w.cell_edges[0],
+                            w.cell_edges[1],
+                            w.counted_edges[0],
+                            w.counted_edges[1],
+                            w.mean_counted_edges,
+                            cov.evaluation.total_ms(),
+                            fins_ms
+                        );
+                    }
+                }
                 let fins_label = format!("fins {}L", settings.layers);
                 let paper_label = format!("fins {}L paper", settings.layers);
                 if let (Some(h), Some(o), Some(p), Some(f)) =
@@ -217,6 +258,14 @@ fn run(command: Command) -> Result<(), LabError> {
                 }
             }
             println!("### Targets\n\n{targets}");
+            println!(
+                "### Accuracy targets of the coverage method ({coverage_label}, against {} ground-truth samples)\n\n{accuracy}",
+                fins.samples
+            );
+            println!(
+                "### Cost of the coverage method per pixel ({width}×{height} view, {} threads)\n\n{cost}",
+                rayon::current_num_threads()
+            );
         }
         Command::ExportGltf { scene, out } => {
             let id = SceneId::parse(&scene).ok_or_else(|| LabError::Usage(format!("unknown scene '{scene}'")))?;

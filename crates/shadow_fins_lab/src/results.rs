@@ -221,8 +221,10 @@ pub fn markdown(rows: &[Row]) -> String {
 }
 
 /// The issue's targets on one scene's baselines: fins 16L frame time ≤ 3×
-/// Bevy's hard shadows', fins 16L MAE ≤ ½ of Bevy PCSS's and of outer fins'.
-/// One markdown line per check, with the measured ratio.
+/// Bevy's hard shadows', fins 16L MAE ≤ ½ of Bevy PCSS's and of outer fins';
+/// the coverage method's (issue 13): MAE ≥ 3× better than Bevy PCSS's and
+/// outer fins', MAE ≤ 0.01, p99 ≤ 0.08, umbra over ≤ 0.1%, and its frame time
+/// beside fins'. One markdown line per check, with the measured ratio.
 pub fn targets(scene: &str, rows: &[Row]) -> Vec<String> {
     let base = |t: Technique| rows.iter().find(|r| r.scene == scene && r.config.baseline && r.config.technique == t);
     let fins = base(Technique::Fins(shadow_fins::oracle::Method::MultiLayer));
@@ -248,6 +250,35 @@ pub fn targets(scene: &str, rows: &[Row]) -> Vec<String> {
                 fm.mae,
                 pm.mae,
                 verdict(ratio <= 0.5)
+            ));
+        }
+    }
+    if let Some(coverage) = base(Technique::Coverage) {
+        out.push(format!(
+            "| {scene} | coverage frame (its cost; no target) | {:.1} ms vs fins {:.1} ms = {:.2}× | — |",
+            coverage.frame_ms.median,
+            fins.frame_ms.median,
+            coverage.frame_ms.median / fins.frame_ms.median
+        ));
+        for peer in [Technique::BevyPcss, Technique::Fins(shadow_fins::oracle::Method::OuterFins)] {
+            if let (Some(p), Some(cm), Some(pm)) = (base(peer), coverage.metrics, base(peer).and_then(|p| p.metrics)) {
+                let ratio = pm.mae / cm.mae.max(1e-6);
+                out.push(format!(
+                    "| {scene} | coverage MAE ≤ ⅓ {} | {:.4} vs {:.4}: {ratio:.1}× better | {} |",
+                    p.config.technique.name(),
+                    cm.mae,
+                    pm.mae,
+                    verdict(ratio >= 3.0)
+                ));
+            }
+        }
+        if let Some(cm) = coverage.metrics {
+            out.push(format!(
+                "| {scene} | coverage MAE ≤ 0.01, p99 ≤ 0.08, umbra over ≤ 0.1% | {:.4}, {:.3}, {:.2}% | {} |",
+                cm.mae,
+                cm.p99,
+                cm.umbra_over * 100.0,
+                verdict(cm.mae <= 0.01 && cm.p99 <= 0.08 && cm.umbra_over <= 0.001)
             ));
         }
     }
@@ -328,10 +359,15 @@ mod tests {
     fn targets_compare_the_baselines_with_their_ratios() {
         let rows = rows();
         let t = targets("s", &rows);
-        assert_eq!(t.len(), 3, "{t:?}");
+        assert_eq!(t.len(), 7, "{t:?}");
         // Frame times 10 (fins) vs 14 (bevy-hard, fifth technique): met.
         assert!(t[0].contains("0.71×") && t[0].ends_with("met |"), "{}", t[0]);
         // fins MAE 0 vs PCSS's > 0: met.
         assert!(t[1].contains("bevy-pcss") && t[1].ends_with("met |"), "{}", t[1]);
+        // Coverage (eighth technique) takes 17 ms against fins' 10.
+        assert!(t[3].contains("17.0 ms vs fins 10.0 ms = 1.70×"), "{}", t[3]);
+        // Its MAE (0.35) against PCSS's (sixth: 0.25) is not 3× better.
+        assert!(t[4].contains("bevy-pcss") && t[4].ends_with("**missed** |"), "{}", t[4]);
+        assert!(t[6].contains("umbra over ≤ 0.1%") && t[6].ends_with("**missed** |"), "{}", t[6]);
     }
 }

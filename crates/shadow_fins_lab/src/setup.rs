@@ -67,6 +67,9 @@ pub struct FinArgs {
     /// Ground-truth samples on the disk.
     #[arg(long, default_value_t = 1024)]
     pub samples: u32,
+    /// Light samples of the coverage method (1..=4096).
+    #[arg(long, default_value_t = CoverageSettings::default().samples)]
+    pub coverage_samples: u32,
 }
 
 impl FinArgs {
@@ -81,6 +84,9 @@ impl FinArgs {
         }
         if !(1..=1 << 20).contains(&self.samples) {
             return Err(shadow_fins::SettingsError::Samples(self.samples).into());
+        }
+        if !(1..=4096).contains(&self.coverage_samples) {
+            return Err(LabError::Usage(format!("--coverage-samples {} is not in 1..=4096", self.coverage_samples)));
         }
         let overlap = Overlap::parse(&self.overlap)
             .ok_or_else(|| LabError::Usage(format!("unknown overlap rule '{}': use union or min-max", self.overlap)))?;

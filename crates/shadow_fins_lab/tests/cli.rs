@@ -17,7 +17,7 @@ fn visibility_writes_one_row_per_point_and_methods_agree_where_they_must() {
     let points = temp("points.csv");
     // Under the box's shadow centre (umbra), and far away (lit).
     std::fs::write(&points, "x,y,z,nx,ny,nz\n-0.24,0,-0.16,0,1,0\n4,0,4,0,1,0\n").unwrap();
-    for method in ["ground-truth", "fins", "hard", "outer-fins", "single-layer"] {
+    for method in ["ground-truth", "fins", "hard", "outer-fins", "single-layer", "coverage"] {
         let out =
             lab(&["visibility", "--scene", "box-over-plane", "--points", points.to_str().unwrap(), "--method", method]);
         assert!(out.status.success(), "{method}: {}", String::from_utf8_lossy(&out.stderr));
@@ -63,10 +63,11 @@ fn bad_input_gets_a_clear_error_and_a_non_zero_exit() {
     let points = temp("points3.csv");
     std::fs::write(&points, "0,0,0\n").unwrap();
     let p = points.to_str().unwrap();
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 6] = [
         (&["visibility", "--points", p, "--radius", "-1"], "radius -1"),
         (&["visibility", "--points", p, "--layers", "0"], "layer count 0"),
         (&["visibility", "--points", p, "--method", "magic"], "unknown method"),
+        (&["visibility", "--points", p, "--method", "coverage", "--coverage-samples", "0"], "--coverage-samples 0"),
         (&["visibility", "--points", p, "--scene", "nowhere"], "unknown scene"),
         (&["visibility", "--points", "/nonexistent.csv"], "/nonexistent.csv"),
     ];
