@@ -63,7 +63,7 @@
 //! iterations; GPU watchdogs stop long ones). The same visibility buffer and
 //! compositing follow. It is within 0.001 MAE of its CPU oracle and meets MAE
 //! ≤ 0.01 against ground truth where fins cannot (assets of many overlapping
-//! parts), at a cost that grows with the edges per pixel (2.1–71× the fins'
+//! parts), at a cost that grows with the edges per pixel (2–81× the fins'
 //! frame on lavapipe, `BENCHMARKS.md`): fins stay the default.
 //!
 //! With no caster at all, neither extraction nor map passes run, and the

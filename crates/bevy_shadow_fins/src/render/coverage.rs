@@ -4,7 +4,6 @@
 //! word, resolve) writing the same visibility buffer the fins write, so
 //! compositing is unchanged.
 
-use std::borrow::Cow;
 
 use bevy::{
     asset::{embedded_asset, load_embedded_asset},
@@ -138,15 +137,7 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
     let lists_shader = load_embedded_asset!(asset_server.as_ref(), "coverage_lists.wgsl");
     let visibility_shader = load_embedded_asset!(asset_server.as_ref(), "coverage.wgsl");
     let compute =
-        |label: &'static str, layout: &BindGroupLayoutDescriptor, shader: &Handle<Shader>, entry: &'static str| {
-            pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
-                label: Some(label.into()),
-                layout: vec![layout.clone()],
-                shader: shader.clone(),
-                entry_point: Some(Cow::from(entry)),
-                ..default()
-            })
-        };
+        |label, layout: &_, shader: &_, entry| super::queue_compute(&pipeline_cache, label, layout, shader, entry);
     commands.insert_resource(CoveragePipelines {
         clear: compute("fin_coverage_clear_lists", &lists_layout, &lists_shader, "clear_lists"),
         raster: compute("fin_coverage_raster_lists", &lists_layout, &lists_shader, "raster_lists"),

@@ -2,7 +2,8 @@
 // per caster triangle (both sides), at every texel centre it owns (top-left
 // rule), its depth into the texel's near and far k-buffers and the texel's total.
 // One workgroup per (caster, block of LIST_BLOCK texels of its bounding box).
-#import bevy_shadow_fins::coverage_types::{CoverageParams, Caster, INF_BITS, WORKGROUP, list_stride, texel_center, owns}
+#import bevy_shadow_fins::coverage_types::{CoverageParams, INF_BITS, WORKGROUP, list_stride, texel_center, owns}
+#import bevy_shadow_fins::fin_types::Caster
 
 @group(0) @binding(0) var<uniform> params: CoverageParams;
 @group(0) @binding(1) var<storage, read_write> lists_rw: array<atomic<u32>>;

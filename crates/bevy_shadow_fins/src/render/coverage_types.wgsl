@@ -17,16 +17,6 @@ struct CoverageParams {
     axis_n: vec4<f32>,
 }
 
-// A caster triangle in map space (`GpuCaster`): corners, plane, depth range.
-struct Caster {
-    corners: array<f32, 6>,
-    normal: array<f32, 3>,
-    offset: f32,
-    min_depth: f32,
-    max_depth: f32,
-    layer: u32,
-    pad: u32,
-}
 
 // A potential silhouette edge (`GpuCoverageEdge`): ends (a.w = faces), the
 // third vertex of each face, the map segment of its near-clipped ends.

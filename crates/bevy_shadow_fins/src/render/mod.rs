@@ -143,6 +143,23 @@ struct FinPipelines {
     extract: extract_gpu::ExtractPipelines,
 }
 
+/// Queues a compute pipeline of one bind group (every pass of the plugin).
+pub(super) fn queue_compute(
+    pipeline_cache: &PipelineCache,
+    label: &'static str,
+    layout: &BindGroupLayoutDescriptor,
+    shader: &Handle<Shader>,
+    entry: &'static str,
+) -> CachedComputePipelineId {
+    pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
+        label: Some(label.into()),
+        layout: vec![layout.clone()],
+        shader: shader.clone(),
+        entry_point: Some(Cow::from(entry)),
+        ..default()
+    })
+}
+
 fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, asset_server: Res<AssetServer>) {
     let maps_layout = BindGroupLayoutDescriptor::new(
         "fin_maps_layout",
@@ -173,16 +190,7 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
     );
     let maps_shader = load_embedded_asset!(asset_server.as_ref(), "maps.wgsl");
     let visibility_shader = load_embedded_asset!(asset_server.as_ref(), "visibility.wgsl");
-    let compute =
-        |label: &'static str, layout: &BindGroupLayoutDescriptor, shader: &Handle<Shader>, entry: &'static str| {
-            pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
-                label: Some(label.into()),
-                layout: vec![layout.clone()],
-                shader: shader.clone(),
-                entry_point: Some(Cow::from(entry)),
-                ..default()
-            })
-        };
+    let compute = |label, layout: &_, shader: &_, entry| queue_compute(&pipeline_cache, label, layout, shader, entry);
     commands.insert_resource(FinPipelines {
         clear: compute("fin_clear_maps", &maps_layout, &maps_shader, "clear_maps"),
         casters: compute("fin_raster_casters", &maps_layout, &maps_shader, "raster_casters"),
