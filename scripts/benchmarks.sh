@@ -80,6 +80,14 @@ coverage_section() {
   $render_lab measure --scenes $scenes --methods fins,coverage,outer-fins,bevy-hard,bevy-pcss --layers 16 --refinement on \
     --falloff disk-segment --map-resolution 1024 --samples 4096 --out docs/lab/coverage | sed 's/^### /#### /'
   echo
+  echo "### Numerical extremes with the coverage method (rendered)"
+  echo
+  echo '```'
+  echo "$render_lab stability --method coverage"
+  echo '```'
+  echo
+  $render_lab stability --method coverage
+  echo
   # Hand-written reading of the coverage targets: update it when the numbers move.
   cat docs/lab/coverage-reading.md
   echo

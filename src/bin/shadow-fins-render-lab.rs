@@ -51,6 +51,9 @@ enum Command {
         /// Ground-truth samples on the disk (0: no error column).
         #[arg(long, default_value_t = 1024)]
         samples: u32,
+        /// The plugin's method: fins (16-layer, the cases' own settings) or coverage.
+        #[arg(long, default_value = "fins")]
+        method: String,
         /// Also write the report table here.
         #[arg(long)]
         out: Option<PathBuf>,
@@ -130,7 +133,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Measure(args) => run_measure(args).map(|()| ExitCode::SUCCESS),
-        Command::Stability { cases, samples, out } => run_stability(&cases, samples, out),
+        Command::Stability { cases, samples, method, out } => run_stability(&cases, samples, &method, out),
     };
     result.unwrap_or_else(|e| {
         eprintln!("error: {e}");
@@ -317,7 +320,12 @@ fn run_measure(args: MeasureArgs) -> Result<(), LabError> {
     Ok(())
 }
 
-fn run_stability(cases: &str, samples: u32, out: Option<PathBuf>) -> Result<ExitCode, LabError> {
+fn run_stability(cases: &str, samples: u32, method: &str, out: Option<PathBuf>) -> Result<ExitCode, LabError> {
+    let coverage = match method {
+        "fins" => false,
+        "coverage" => true,
+        m => return Err(usage(format!("unknown method '{m}': use fins or coverage"))),
+    };
     let wanted: Vec<&str> = cases.split(',').map(str::trim).filter(|s| !s.is_empty()).collect();
     let all = stability::cases();
     for w in &wanted {
@@ -331,7 +339,7 @@ fn run_stability(cases: &str, samples: u32, out: Option<PathBuf>) -> Result<Exit
     for (i, case) in selected.iter().enumerate() {
         eprint!("\r[{}/{}] {:<40}", i + 1, selected.len(), case.name);
         std::io::stderr().flush().ok();
-        outcomes.push(stability::run(case, samples));
+        outcomes.push(stability::run(case, samples, coverage));
     }
     eprintln!();
     let table = stability::markdown(&outcomes);

@@ -1,5 +1,6 @@
 //! `stability`: the numerical extremes, each rendered by Bevy with the plugin
-//! (16-layer fins unless the case says otherwise) and read back. Per case:
+//! (16-layer fins unless the case says otherwise, or the coverage method) and
+//! read back. Per case:
 //! NaN/Inf and out-of-range counts over the whole visibility buffer, and the
 //! error against the ground truth over the scored pixels (hit surfaces the
 //! light's centre faces).
@@ -9,9 +10,10 @@ use bevy::{
     mesh::{Indices, Mesh as BevyMesh, PrimitiveTopology},
     prelude::Vec3,
 };
-use bevy_shadow_fins::FinShadowSettings;
+use bevy_shadow_fins::{FinMethod, FinShadowSettings};
 use shadow_fins::{
     camera::Camera as CoreCamera,
+    coverage::{CoverageModel, CoverageSettings, DEPTH_LIST_LENGTH, ReferenceCount},
     glam::Affine3A,
     light::{DiskLight, Light},
     mesh::Mesh,
@@ -229,7 +231,9 @@ pub fn cases() -> Vec<Case> {
 }
 
 /// Runs one case; `samples` ground-truth samples (0: no truth).
-pub fn run(case: &Case, samples: u32) -> Outcome {
+/// Runs one case with the fins (its own settings) or, with `coverage`, the
+/// coverage method (256 light samples, depth lists at the case's map size).
+pub fn run(case: &Case, samples: u32, coverage: bool) -> Outcome {
     let mut outcome = Outcome {
         name: case.name,
         what: case.what.clone(),
@@ -247,6 +251,11 @@ pub fn run(case: &Case, samples: u32) -> Outcome {
     };
     match &case.kind {
         CaseKind::Rendered(setup) => {
+            let mut setup = setup.clone();
+            if coverage {
+                setup.settings.method = FinMethod::Coverage;
+            }
+            let setup = &setup;
             let shot = match Session::new(setup).settle(6) {
                 Ok(s) => s,
                 Err(e) => {
@@ -282,11 +291,18 @@ pub fn run(case: &Case, samples: u32) -> Outcome {
             let mut ls = LightSpaceScene::new(scene, *light);
             // The plugin's L0 covers every surface it draws; given points must be covered too.
             ls.cover_receivers(receivers.iter().map(|r| r.position));
-            let model = FinShadowModel::new(scene, &ls, Method::MultiLayer, FinSettings::default());
-            let maps = model.raster(512);
-            let values: Vec<f32> = receivers.iter().map(|r| maps.visibility(*r)).collect();
+            let values: Vec<f32> = if coverage {
+                let reference = ReferenceCount::Raster { resolution: 512, depths: DEPTH_LIST_LENGTH };
+                let model = CoverageModel::new(scene, &ls, CoverageSettings { reference, ..Default::default() });
+                outcome.modelled = Some((model.edges.len(), 0, 0));
+                receivers.iter().map(|r| model.visibility(*r)).collect()
+            } else {
+                let model = FinShadowModel::new(scene, &ls, Method::MultiLayer, FinSettings::default());
+                let maps = model.raster(512);
+                outcome.modelled = Some((model.silhouettes.len(), model.fins.len(), model.plan.len()));
+                receivers.iter().map(|r| maps.visibility(*r)).collect()
+            };
             count(&values, &mut outcome);
-            outcome.modelled = Some((model.silhouettes.len(), model.fins.len(), model.plan.len()));
             if samples > 0 {
                 let gt = shadow_fins::ground_truth::GroundTruth::new(&ls, samples);
                 let truth: Vec<f32> = receivers.iter().map(|r| gt.visibility(*r)).collect();

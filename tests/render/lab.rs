@@ -84,9 +84,9 @@ fn stability_extremes_put_no_nan_in_the_visibility_buffer() {
     let wanted = ["radius-0", "touching", "nan-and-empty-meshes", "scale-1e-4", "receiver-beyond-reference"];
     let cases: Vec<_> = stability::cases().into_iter().filter(|c| wanted.contains(&c.name)).collect();
     assert_eq!(cases.len(), wanted.len());
-    for case in &cases {
-        let o = stability::run(case, 64);
-        assert!(o.error.is_none(), "{}: {:?}", o.name, o.error);
+    for (case, coverage) in cases.iter().flat_map(|c| [(c, false), (c, true)]) {
+        let o = stability::run(case, 64, coverage);
+        assert!(o.error.is_none(), "{} (coverage {coverage}): {:?}", o.name, o.error);
         assert!(o.values > 0, "{}: nothing checked", o.name);
         assert_eq!((o.non_finite, o.out_of_range), (0, 0), "{}", o.name);
         let m = o.metrics.expect("ground truth was on");

@@ -4,7 +4,6 @@
 //! word, resolve) writing the same visibility buffer the fins write, so
 //! compositing is unchanged.
 
-
 use bevy::{
     asset::{embedded_asset, load_embedded_asset},
     core_pipeline::{

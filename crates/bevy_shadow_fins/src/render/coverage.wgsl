@@ -435,7 +435,11 @@ fn receiver_at(id: vec2<u32>) -> Receiver {
     let in_view = view.view_from_clip * vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
     let position = view_to_frame(in_view.xyz / in_view.w);
     r.normal = dir_to_frame(normalize(textureLoad(normal_prepass, pixel, 0).xyz * 2.0 - 1.0));
-    let eps = max(params.light.w * length(position), params.light.z);
+    // The core's lift (`surface_epsilon`), and at least the rasteriser's own
+    // f32 error in world space (FinView's w): far from the origin a receiver
+    // rebuilt from the depth buffer can lie below the surface the depth lists
+    // hold exactly, and would count itself as a caster.
+    let eps = max(max(params.light.w * length(position), params.light.z), fin_view.translation.w);
     r.p = position + r.normal * eps;
     r.kind = select(2u, 1u, perspective() && !(r.p.z > params.light.y));
     return r;
