@@ -230,9 +230,10 @@ pub fn cases() -> Vec<Case> {
     out
 }
 
-/// Runs one case; `samples` ground-truth samples (0: no truth).
-/// Runs one case with the fins (its own settings) or, with `coverage`, the
-/// coverage method (256 light samples, depth lists at the case's map size).
+/// Runs one case with `samples` ground-truth samples (0: no truth), by the
+/// fins (the case's own settings) or, with `coverage`, the coverage method
+/// (256 light samples, depth lists at the case's map size; its row shows
+/// potential silhouette edges / 0 / 0).
 pub fn run(case: &Case, samples: u32, coverage: bool) -> Outcome {
     let mut outcome = Outcome {
         name: case.name,

@@ -100,7 +100,7 @@ fn gpu_coverage_meets_the_ground_truth_on_a_dense_stack() {
 }
 
 /// Far from the origin the rasteriser's receivers carry its f32 world error
-/// (≈ 2e-3 at 1e4): without a lift at least that large, half the ground
+/// (2ε·|world| ≈ 4e-3 at 1e4): without a lift at least that large, half the ground
 /// counted itself as a caster and went dark (GPU MAE 0.94 at 1e5).
 #[test]
 fn gpu_coverage_far_from_the_origin_matches_the_oracle() {

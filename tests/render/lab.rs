@@ -81,7 +81,8 @@ fn measure_ranks_fins_above_bevy_hard_shadows_and_reads_bevy_visibility_from_col
 
 #[test]
 fn stability_extremes_put_no_nan_in_the_visibility_buffer() {
-    let wanted = ["radius-0", "touching", "nan-and-empty-meshes", "scale-1e-4", "receiver-beyond-reference"];
+    let wanted =
+        ["radius-0", "touching", "nan-and-empty-meshes", "scale-1e-4", "receiver-beyond-reference", "far-plane-1e6"];
     let cases: Vec<_> = stability::cases().into_iter().filter(|c| wanted.contains(&c.name)).collect();
     assert_eq!(cases.len(), wanted.len());
     for (case, coverage) in cases.iter().flat_map(|c| [(c, false), (c, true)]) {
@@ -94,6 +95,11 @@ fn stability_extremes_put_no_nan_in_the_visibility_buffer() {
         if o.name == "radius-0" || o.name == "touching" {
             // Both are (nearly) hard shadows, which the method reproduces.
             assert!(m.mae < 0.1, "{}: MAE {}", o.name, m.mae);
+        }
+        if coverage && o.name != "receiver-beyond-reference" {
+            // Exact up to its samples at every extreme (a 2e6-wide ground: the
+            // lift must follow the pixel, not the scene's diagonal).
+            assert!(m.mae < 0.02, "{} (coverage): MAE {}", o.name, m.mae);
         }
     }
 }

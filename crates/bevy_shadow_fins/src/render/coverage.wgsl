@@ -436,10 +436,12 @@ fn receiver_at(id: vec2<u32>) -> Receiver {
     let position = view_to_frame(in_view.xyz / in_view.w);
     r.normal = dir_to_frame(normalize(textureLoad(normal_prepass, pixel, 0).xyz * 2.0 - 1.0));
     // The core's lift (`surface_epsilon`), and at least the rasteriser's own
-    // f32 error in world space (FinView's w): far from the origin a receiver
-    // rebuilt from the depth buffer can lie below the surface the depth lists
-    // hold exactly, and would count itself as a caster.
-    let eps = max(max(params.light.w * length(position), params.light.z), fin_view.translation.w);
+    // f32 error in world space, 2ε·(|camera| + |p_view|) (FinView's w is the
+    // camera's part): far from the origin a receiver rebuilt from the depth
+    // buffer can lie below the surface the depth lists hold exactly, and
+    // would count itself as a caster.
+    let raster_error = fin_view.translation.w + 2.0 * 1.1920929e-7 * length(in_view.xyz / in_view.w);
+    let eps = max(max(params.light.w * length(position), params.light.z), raster_error);
     r.p = position + r.normal * eps;
     r.kind = select(2u, 1u, perspective() && !(r.p.z > params.light.y));
     return r;

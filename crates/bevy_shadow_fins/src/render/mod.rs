@@ -506,15 +506,35 @@ impl FinViewUniform {
         let linear = rows * Mat3::from(a.matrix3).as_dmat3();
         let translation = rows * (Vec3::from(a.translation).as_dvec3() - frame.origin);
         let v4 = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
-        // w: the rasteriser's f32 error at the view's world coordinates
-        // (`clip_from_world · p` with |p| ≈ the camera's distance from the
-        // origin plus the scene): the least lift the coverage method gives a
-        // receiver rebuilt from the depth buffer: 0.004 at 1e4, 0.04 at 1e5.
-        let world = a.translation.length() + frame.scene_extent;
-        let lift = 2.0 * f32::EPSILON * world;
         let mut translation = v4(translation);
-        translation[3] = if lift.is_finite() { lift } else { 0.0 };
+        translation[3] = camera_raster_error(Vec3::from(a.translation));
         Self { linear: [v4(linear.x_axis), v4(linear.y_axis), v4(linear.z_axis)], translation }
+    }
+}
+
+/// FinView's w: the camera's part of the rasteriser's f32 error in world
+/// space, 2ε·|camera| (|p_world| ≤ |camera| + |p_view|; `coverage.wgsl` adds
+/// the view part per pixel) — the least lift the coverage method gives a
+/// receiver rebuilt from the depth buffer: 0.004 at 1e4, 0.04 at 1e5, 0 for a
+/// non-finite camera. `visibility.wgsl` ignores it.
+fn camera_raster_error(camera: Vec3) -> f32 {
+    let e = 2.0 * f32::EPSILON * camera.length();
+    if e.is_finite() { e } else { 0.0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_view_lift_is_the_cameras_f32_error_and_never_nan() {
+        // 2ε·|camera|: 1.2e-6 five units from the origin (far below the core's
+        // 1e-5-relative lift), 0.041 at (1e5, 1e5, 1e5).
+        assert!((camera_raster_error(Vec3::new(3.0, 4.0, 0.0)) - 10.0 * f32::EPSILON).abs() < 1e-12);
+        let far = camera_raster_error(Vec3::splat(1e5));
+        assert!((far - 2.0 * f32::EPSILON * 1.732_050_8e5).abs() < 1e-6, "{far}");
+        assert_eq!(camera_raster_error(Vec3::splat(f32::INFINITY)), 0.0);
+        assert_eq!(camera_raster_error(Vec3::NAN), 0.0);
     }
 }
 

@@ -16,6 +16,7 @@ struct FinView {
     linear0: vec4<f32>,
     linear1: vec4<f32>,
     linear2: vec4<f32>,
+    // w: the coverage pass's least receiver lift (`camera_raster_error`), unused here.
     translation: vec4<f32>,
 }
 
