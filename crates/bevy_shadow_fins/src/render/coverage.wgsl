@@ -217,7 +217,10 @@ fn face_crossing(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, start: vec3<f32>, sto
     return Crossing(true, (fa >= 0.0) == (light_side >= 0.0), vec2<u32>(ha + hb + hc, ha ^ hb ^ hc));
 }
 
-// Faces already counted by `faces_passed` (a face is shared by its edges).
+// Faces already counted by `faces_passed` (a face is shared by its edges);
+// at most 32, as the core's `MAX_SEEN_FACES`. Keys are a 64-bit hash of the
+// corners (the core compares the corners' bits: a collision is the only way
+// the two can differ).
 struct Seen {
     keys: array<vec2<u32>, 32>,
     n: u32,

@@ -92,6 +92,13 @@ pub const REFERENCE: Vec2 = Vec2::new(1.234e-3, 0.7731e-3);
 /// along the centre ray; none in our scenes comes near).
 pub const MAX_REFERENCE_COUNT: i32 = 127;
 
+/// Distinct faces `faces_passed` remembers per correction, as the GPU's fixed
+/// array (`Seen` in `coverage.wgsl`): past it a face shared by two of the
+/// cell's edges counts again, on both sides alike. A move of at most a texel
+/// and a half passing through more than 32 faces is a texel deep inside a
+/// dense mesh.
+pub const MAX_SEEN_FACES: usize = 32;
+
 /// What one receiver cost: edges of its cell, and those that reached the
 /// sample loop (silhouettes seen from it, in front of it).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -380,7 +387,9 @@ impl<'a> CoverageModel<'a> {
                 if seen.contains(&key) {
                     continue;
                 }
-                seen.push(key);
+                if seen.len() < MAX_SEEN_FACES {
+                    seen.push(key);
+                }
                 // Leaving the light's side puts the face between light and point.
                 let s = light_side(n, a);
                 let leaves = (fa >= 0.0) == (s >= 0.0);
