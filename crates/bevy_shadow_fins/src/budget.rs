@@ -75,6 +75,11 @@ pub enum FinDegradation {
     /// The device cannot run fin shadows at all (no compute shaders, WebGL2,
     /// too few storage bindings); the fin lights stay dark.
     Unsupported(&'static str),
+    /// A coverage cell lists more edges than one shader invocation should
+    /// walk: nothing is dropped, but a GPU watchdog may stop the pass and
+    /// llvmpipe stops any invocation after 65535 loop iterations, so shadows
+    /// there may be wrong on such devices.
+    LongCoverageCell { edges: u32, limit: u32 },
 }
 
 impl std::fmt::Display for FinDegradation {
@@ -99,6 +104,11 @@ impl std::fmt::Display for FinDegradation {
                 mib(limit_bytes)
             ),
             FinDegradation::Unsupported(why) => write!(f, "fin shadows are off: {why}"),
+            FinDegradation::LongCoverageCell { edges, limit } => write!(
+                f,
+                "a coverage cell lists {edges} potential silhouette edges (over {limit}): a GPU watchdog or \
+                 llvmpipe's 65535-iteration limit may cut its pixels short"
+            ),
         }
     }
 }

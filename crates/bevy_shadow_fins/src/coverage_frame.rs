@@ -32,6 +32,18 @@ pub(crate) const LIST_WORDS: u64 = (NEAR_DEPTHS + FAR_DEPTHS + 1) as u64;
 /// GPU's watchdog; llvmpipe stops a shader after 65535 loop iterations).
 pub(crate) const LIST_BLOCK_TEXELS: u32 = 4096;
 
+/// Edges one coverage cell may list before the frame reports it: the
+/// reference pass walks a cell about twice (faces, then edges), and llvmpipe
+/// stops an invocation after 65535 loop iterations in all.
+pub(crate) const LONG_CELL_EDGES: u32 = 16_384;
+
+/// The longest cell of `starts` (cell `i` is `starts[i]..starts[i + 1]`), as
+/// a report when it is over `limit`.
+fn long_cell(starts: &[u32], limit: u32) -> Option<FinDegradation> {
+    let longest = starts.windows(2).map(|w| w[1].saturating_sub(w[0])).max()?;
+    (longest > limit).then_some(FinDegradation::LongCoverageCell { edges: longest, limit })
+}
+
 /// One potential silhouette edge (`Edge` in `coverage.wgsl`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -184,6 +196,9 @@ pub(crate) fn coverage_frame(
     // Blocks past the buffer limit are dropped (their texels miss casters).
     let n_work = keep("depth-list raster work", raster_work.len(), size_of::<[u32; 2]>() as u64);
     raster_work.truncate(n_work);
+    if degraded.is_none() {
+        degraded = long_cell(&cell_starts, LONG_CELL_EDGES);
+    }
     let frame = CoverageFrame {
         edges: gpu_edges,
         cell_starts,
@@ -198,4 +213,23 @@ pub(crate) fn coverage_frame(
         extent: ls.extent,
     };
     (frame, degraded, edges.len())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_cell_over_the_limit_is_reported_with_its_length() {
+        // Cells of 3, 0 and 40 000 edges.
+        let starts = [0, 3, 3, 40_003];
+        assert_eq!(
+            long_cell(&starts, LONG_CELL_EDGES),
+            Some(FinDegradation::LongCoverageCell { edges: 40_000, limit: 16_384 })
+        );
+        assert_eq!(long_cell(&starts[..3], LONG_CELL_EDGES), None);
+        assert_eq!(long_cell(&[], LONG_CELL_EDGES), None);
+        let text = long_cell(&starts, 100).unwrap().to_string();
+        assert!(text.contains("40000") && text.contains("65535"), "{text}");
+    }
 }
