@@ -49,8 +49,30 @@ impl Bvh {
 
     /// True when the segment `origin + t·dir`, `t ∈ (t_min, t_max)`, hits any triangle.
     pub fn any_hit(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> bool {
+        let mut hit = false;
+        self.for_each_hit(origin, dir, t_min, t_max, || {
+            hit = true;
+            true
+        });
+        hit
+    }
+
+    /// How many triangles the segment `origin + t·dir`, `t ∈ (t_min, t_max)`,
+    /// crosses: the depth complexity along it (Laine et al. 2005), which the
+    /// coverage method needs at one reference point of the light.
+    pub fn count_hits(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> u32 {
+        let mut hits = 0;
+        self.for_each_hit(origin, dir, t_min, t_max, || {
+            hits += 1;
+            false
+        });
+        hits
+    }
+
+    /// Calls `on_hit` for every triangle the segment crosses, until it says stop.
+    fn for_each_hit(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32, mut on_hit: impl FnMut() -> bool) {
         if self.nodes.is_empty() {
-            return false;
+            return;
         }
         let inv = dir.recip();
         let mut stack = [0u32; 64];
@@ -65,10 +87,8 @@ impl Bvh {
             if node.count > 0 {
                 let s = node.index as usize;
                 for tri in &self.triangles[s..s + node.count as usize] {
-                    if let Some(t) = intersect(tri, origin, dir) {
-                        if t > t_min && t < t_max {
-                            return true;
-                        }
+                    if intersect(tri, origin, dir).is_some_and(|t| t > t_min && t < t_max) && on_hit() {
+                        return;
                     }
                 }
             } else if sp + 2 <= stack.len() {
@@ -77,40 +97,6 @@ impl Bvh {
                 sp += 2;
             }
         }
-        false
-    }
-
-    /// How many triangles the segment `origin + t·dir`, `t ∈ (t_min, t_max)`,
-    /// crosses: the depth complexity along it (Laine et al. 2005), which the
-    /// coverage method needs at one reference point of the light.
-    pub fn count_hits(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> u32 {
-        if self.nodes.is_empty() {
-            return 0;
-        }
-        let inv = dir.recip();
-        let mut stack = [0u32; 64];
-        let (mut sp, mut hits) = (1, 0);
-        while sp > 0 {
-            sp -= 1;
-            let idx = stack[sp] as usize;
-            let node = &self.nodes[idx];
-            if !slab_hit(node, origin, inv, t_min, t_max) {
-                continue;
-            }
-            if node.count > 0 {
-                let s = node.index as usize;
-                for tri in &self.triangles[s..s + node.count as usize] {
-                    if intersect(tri, origin, dir).is_some_and(|t| t > t_min && t < t_max) {
-                        hits += 1;
-                    }
-                }
-            } else if sp + 2 <= stack.len() {
-                stack[sp] = node.index;
-                stack[sp + 1] = idx as u32 + 1;
-                sp += 2;
-            }
-        }
-        hits
     }
 
     /// Nearest hit with `t > t_min`.

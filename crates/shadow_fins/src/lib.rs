@@ -33,6 +33,7 @@
 
 pub mod bvh;
 pub mod camera;
+pub mod cell_grid;
 pub mod coverage;
 pub mod error;
 pub mod fins;

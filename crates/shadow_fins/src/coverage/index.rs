@@ -10,6 +10,7 @@
 use glam::{Vec2, Vec3};
 
 use super::CoverageEdge;
+use crate::cell_grid::{CellGrid, cell_range};
 use crate::light::{LightFrame, Projection};
 
 /// Map coordinates beyond this (about 89° off the light axis) are clamped.
@@ -21,11 +22,7 @@ pub const MAX_ENTRIES: usize = 4 << 20;
 /// Per cell, the edges whose footprint touches it (CSR).
 #[derive(Debug, Clone)]
 pub struct EdgeIndex {
-    min: Vec2,
-    inv_cell: Vec2,
-    dims: [usize; 2],
-    starts: Vec<u32>,
-    items: Vec<u32>,
+    grid: CellGrid,
     /// Per edge: its map-space segment (clipped endpoints' projections).
     segments: Vec<(Vec2, Vec2)>,
 }
@@ -82,12 +79,6 @@ impl EdgeIndex {
         let n = (edges.len() as f32).sqrt().clamp(1.0, 256.0);
         let aspect = (size.x / size.y).clamp(1e-3, 1e3).sqrt();
         let mut dims = [((n * aspect).ceil() as usize).clamp(1, 512), ((n / aspect).ceil() as usize).clamp(1, 512)];
-        let range_in = |dims: [usize; 2], lo: Vec2, hi: Vec2| {
-            let inv_cell = Vec2::new(dims[0] as f32, dims[1] as f32) / size;
-            let (a, b) = (((lo - min) * inv_cell).floor(), ((hi - min) * inv_cell).floor());
-            let c = |v: f32, d: usize| (v.max(0.0) as usize).min(d - 1);
-            (c(a.x, dims[0]), c(b.x, dims[0]), c(a.y, dims[1]), c(b.y, dims[1]))
-        };
         // Edges of a large light reach far: coarser cells, until the lists
         // hold at most `MAX_ENTRIES` (what a GPU buffer of them can take).
         loop {
@@ -95,7 +86,7 @@ impl EdgeIndex {
                 .iter()
                 .flatten()
                 .map(|(lo, hi)| {
-                    let (x0, x1, y0, y1) = range_in(dims, *lo, *hi);
+                    let (x0, x1, y0, y1) = cell_range(min, size, dims, *lo, *hi);
                     (x1 - x0 + 1) * (y1 - y0 + 1)
                 })
                 .sum();
@@ -104,46 +95,14 @@ impl EdgeIndex {
             }
             dims = [(dims[0] / 2).max(1), (dims[1] / 2).max(1)];
         }
-        let inv_cell = Vec2::new(dims[0] as f32, dims[1] as f32) / size;
-        let range = |lo: Vec2, hi: Vec2| range_in(dims, lo, hi);
-        let mut counts = vec![0u32; dims[0] * dims[1] + 1];
-        for (lo, hi) in bounds.iter().flatten() {
-            let (x0, x1, y0, y1) = range(*lo, *hi);
-            for y in y0..=y1 {
-                for x in x0..=x1 {
-                    counts[y * dims[0] + x + 1] += 1;
-                }
-            }
-        }
-        for i in 1..counts.len() {
-            counts[i] += counts[i - 1];
-        }
-        let starts = counts.clone();
-        let mut fill = counts;
-        let mut items = vec![0u32; *starts.last().unwrap_or(&0) as usize];
-        for (id, b) in bounds.iter().enumerate() {
-            let Some((lo, hi)) = b else { continue };
-            let (x0, x1, y0, y1) = range(*lo, *hi);
-            for y in y0..=y1 {
-                for x in x0..=x1 {
-                    let c = y * dims[0] + x;
-                    items[fill[c] as usize] = id as u32;
-                    fill[c] += 1;
-                }
-            }
-        }
+        let grid = CellGrid::build(min, size, dims, &bounds);
         let segments = feet.iter().map(|f| f.map_or((Vec2::NAN, Vec2::NAN), |(a, b, _)| (a, b))).collect();
-        Self { min, inv_cell, dims, starts, items, segments }
+        Self { grid, segments }
     }
 
     /// The edges binned in the cell of map point `q` (none outside the grid).
     pub fn cell(&self, q: Vec2) -> &[u32] {
-        let c = (q - self.min) * self.inv_cell;
-        if !(c.x >= 0.0 && c.y >= 0.0 && (c.x as usize) < self.dims[0] && (c.y as usize) < self.dims[1]) {
-            return &[];
-        }
-        let cell = c.y as usize * self.dims[0] + c.x as usize;
-        &self.items[self.starts[cell] as usize..self.starts[cell + 1] as usize]
+        self.grid.cell(q)
     }
 
     /// Whether edge `id` (`e`) can cross the cone from the receiver `p`
@@ -168,17 +127,17 @@ impl EdgeIndex {
 
     /// The grid's origin, cells per map unit and size in cells (for a GPU copy).
     pub fn grid(&self) -> (Vec2, Vec2, [usize; 2]) {
-        (self.min, self.inv_cell, self.dims)
+        self.grid.grid()
     }
 
     /// The CSR arrays: where each cell's edges start in `items`, and the edge ids.
     pub fn lists(&self) -> (&[u32], &[u32]) {
-        (&self.starts, &self.items)
+        self.grid.lists()
     }
 
     /// Total cell entries (the index's size).
     pub fn entries(&self) -> usize {
-        self.items.len()
+        self.grid.lists().1.len()
     }
 
     /// The map segment of edge `id`.

@@ -42,14 +42,10 @@ pub const fn far_list_length(depths: u32) -> u32 {
     if depths >= 8 { depths / 4 } else { 1 }
 }
 
-/// Map coordinates beyond this (about 83° off axis) are not mapped, as the
-/// fins' maps.
-const MAP_LIMIT: f32 = 8.0;
-
 /// Per texel, the nearest `depths` caster depths along the centre ray
 /// through its centre (ascending, `+∞` padded), the farthest
-/// [`far_list_length`]`(depths)`
-/// (descending, `−∞` padded), and how many casters the ray crosses in all.
+/// [`far_list_length`]`(depths)` (descending, `−∞` padded), and how many
+/// casters the ray crosses in all.
 #[derive(Debug, Clone)]
 pub struct DepthLists {
     pub region: MapRegion,
@@ -141,21 +137,7 @@ pub fn map_triangles(casters: &[[Vec3; 3]], frame: &LightFrame, near: f32) -> Ve
 /// The square of map space the depth lists cover: every caster, clamped to
 /// ±83° off the light's axis.
 pub fn covering_region(triangles: &[MapTriangle], resolution: u32) -> MapRegion {
-    let resolution = resolution.clamp(1, 8192);
-    let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
-    for t in triangles {
-        let (a, b) = t.bounds();
-        lo = lo.min(a);
-        hi = hi.max(b);
-    }
-    lo = lo.max(Vec2::splat(-MAP_LIMIT));
-    hi = hi.min(Vec2::splat(MAP_LIMIT));
-    if !(lo.x <= hi.x && lo.y <= hi.y) {
-        (lo, hi) = (Vec2::ZERO, Vec2::ONE);
-    }
-    let size = (hi - lo).max_element().max(1e-9) * 1.001;
-    let center = (lo + hi) * 0.5;
-    MapRegion { min: center - Vec2::splat(size * 0.5), texel: size / resolution as f32, resolution }
+    MapRegion::covering(triangles.iter().map(MapTriangle::bounds), resolution.clamp(1, 8192))
 }
 
 /// Whether the map triangle `c` owns point `q`: inside, or on an edge by the

@@ -23,6 +23,25 @@ pub struct MapRegion {
 }
 
 impl MapRegion {
+    /// The square of `resolution²` texels covering the union of `bounds`
+    /// (map space), clamped to ±`RASTER_MAP_LIMIT` (about 83° off the light's
+    /// axis); the unit square when there is nothing to cover.
+    pub fn covering(bounds: impl Iterator<Item = (Vec2, Vec2)>, resolution: u32) -> Self {
+        let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+        for (a, b) in bounds {
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+        lo = lo.max(Vec2::splat(-RASTER_MAP_LIMIT));
+        hi = hi.min(Vec2::splat(RASTER_MAP_LIMIT));
+        if !(lo.x <= hi.x && lo.y <= hi.y) {
+            (lo, hi) = (Vec2::ZERO, Vec2::ONE);
+        }
+        let size = (hi - lo).max_element().max(1e-9) * 1.001;
+        let center = (lo + hi) * 0.5;
+        Self { min: center - Vec2::splat(size * 0.5), texel: size / resolution as f32, resolution }
+    }
+
     /// Map coordinate of a texel centre.
     #[inline]
     pub fn texel_center(&self, x: u32, y: u32) -> Vec2 {
@@ -100,19 +119,8 @@ impl<'m, 'a> RasterMaps<'m, 'a> {
 
     /// The square covering every caster and fin, clamped to ±83° off axis.
     pub fn covering_region(model: &FinShadowModel, resolution: u32) -> MapRegion {
-        let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
-        for (a, b) in model.casters.iter().map(|c| c.bounds()).chain(model.fins.iter().map(|f| f.bounds())) {
-            lo = lo.min(a);
-            hi = hi.max(b);
-        }
-        lo = lo.max(Vec2::splat(-RASTER_MAP_LIMIT));
-        hi = hi.min(Vec2::splat(RASTER_MAP_LIMIT));
-        if !(lo.x <= hi.x && lo.y <= hi.y) {
-            (lo, hi) = (Vec2::ZERO, Vec2::ONE);
-        }
-        let size = (hi - lo).max_element().max(1e-9) * 1.001;
-        let center = (lo + hi) * 0.5;
-        MapRegion { min: center - Vec2::splat(size * 0.5), texel: size / resolution as f32, resolution }
+        let bounds = model.casters.iter().map(|c| c.bounds()).chain(model.fins.iter().map(|f| f.bounds()));
+        MapRegion::covering(bounds, resolution)
     }
 
     /// World size of one texel at depth `z`.
