@@ -21,7 +21,7 @@ use shadow_fins_lab::{
     compare::{Comparison, Config, compare, markdown_table, standard_configs},
     eval::evaluate,
     picture::{Column, Picture, strip as strip_picture},
-    setup::{FinArgs, SceneArgs, parse_measured_with, parse_vec3},
+    setup::{FinArgs, SceneArgs, parse_measured, parse_vec3},
 };
 
 #[derive(Parser)]
@@ -110,7 +110,7 @@ fn run(command: Command) -> Result<(), LabError> {
         Command::Visibility { scene, fins, points, method, out } => {
             let loaded = scene.load()?;
             let settings = fins.settings()?;
-            let measured = parse_measured_with(&method, fins.coverage_samples)?;
+            let measured = parse_measured(&method, fins.coverage_samples)?;
             let pts = read_points(&points)?;
             let mut ls = LightSpaceScene::new(&loaded.scene, loaded.light);
             let receivers: Vec<Receiver> = pts

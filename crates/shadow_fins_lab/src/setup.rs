@@ -112,7 +112,7 @@ pub enum Measured {
 
 /// A method name: `ground-truth`, `coverage` (with `samples` light samples)
 /// or a fin method.
-pub fn parse_measured_with(s: &str, coverage_samples: u32) -> Result<Measured, LabError> {
+pub fn parse_measured(s: &str, coverage_samples: u32) -> Result<Measured, LabError> {
     match s {
         "ground-truth" => return Ok(Measured::GroundTruth),
         "coverage" => {
@@ -125,10 +125,6 @@ pub fn parse_measured_with(s: &str, coverage_samples: u32) -> Result<Measured, L
             "unknown method '{s}': use ground-truth, coverage, fins, hard, outer-fins or single-layer"
         ))
     })
-}
-
-pub fn parse_measured(s: &str) -> Result<Measured, LabError> {
-    parse_measured_with(s, CoverageSettings::default().samples)
 }
 
 /// A loaded scene with its light and camera.
