@@ -39,11 +39,21 @@ pub fn oracle_for(setup: &Setup, camera: &shadow_fins::camera::Camera, method: M
     let ls = LightSpaceScene::new(&setup.scene, setup.light);
     let model = FinShadowModel::new(&setup.scene, &ls, method, setup.settings.core());
     let maps = model.raster(setup.settings.clamped().map_resolution);
+    per_pixel(setup, camera, &ls, |r| maps.visibility(r))
+}
+
+/// `visibility` at every pixel's receiver seen from `camera` (1 for background).
+pub fn per_pixel(
+    setup: &Setup,
+    camera: &shadow_fins::camera::Camera,
+    ls: &LightSpaceScene,
+    visibility: impl Fn(shadow_fins::oracle::Receiver) -> f32,
+) -> Vec<f32> {
     let bvh = Bvh::new(&ls.casters);
     (0..setup.width * setup.height)
         .map(|i| {
             let pixel = (i % setup.width, i / setup.width, setup.width, setup.height);
-            pixel_receiver(camera, pixel, &ls, &bvh).map_or(1.0, |r| maps.visibility(r))
+            pixel_receiver(camera, pixel, ls, &bvh).map_or(1.0, &visibility)
         })
         .collect()
 }

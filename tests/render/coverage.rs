@@ -29,13 +29,7 @@ fn coverage_oracle(setup: &Setup) -> Vec<f32> {
     let s = setup.settings.clamped();
     let reference = ReferenceCount::Raster { resolution: s.map_resolution, depths: DEPTH_LIST_LENGTH };
     let model = CoverageModel::new(&setup.scene, &ls, CoverageSettings { samples: s.coverage_samples, reference });
-    let bvh = Bvh::new(&ls.casters);
-    (0..setup.width * setup.height)
-        .map(|i| {
-            let pixel = (i % setup.width, i / setup.width, setup.width, setup.height);
-            pixel_receiver(&setup.camera, pixel, &ls, &bvh).map_or(1.0, |r| model.visibility(r))
-        })
-        .collect()
+    per_pixel(setup, &setup.camera, &ls, |r| model.visibility(r))
 }
 
 #[test]

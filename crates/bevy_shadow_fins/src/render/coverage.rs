@@ -306,11 +306,7 @@ fn prepare_view_bind_groups(
             commands.entity(entity).remove::<CoverageViewBindGroup>();
             continue;
         };
-        if prepass.depth.as_ref().is_some_and(|d| d.texture.texture.sample_count() > 1) {
-            commands.entity(entity).remove::<CoverageViewBindGroup>();
-            continue;
-        }
-        let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else {
+        let Some((depth, normal)) = super::prepass_inputs(prepass) else {
             commands.entity(entity).remove::<CoverageViewBindGroup>();
             continue;
         };

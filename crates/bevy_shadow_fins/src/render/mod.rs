@@ -575,6 +575,22 @@ fn prepare_view_textures(
 }
 
 #[allow(clippy::too_many_arguments)]
+/// The depth and normal prepass views a visibility pass reads (fins' and
+/// coverage's), or `None`, said once, when the camera cannot give them:
+/// multisampled prepass textures cannot be bound as single-sample inputs
+/// (skip the view with a clear message, not a crash), or a prepass is off.
+pub(super) fn prepass_inputs(prepass: &ViewPrepassTextures) -> Option<(&TextureView, &TextureView)> {
+    if prepass.depth.as_ref().is_some_and(|d| d.texture.texture.sample_count() > 1) {
+        warn_once!("fin shadows: the camera uses MSAA; add `Msaa::Off` to it for fin shadows");
+        return None;
+    }
+    let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else {
+        warn_once!("fin shadows: the camera needs DepthPrepass and NormalPrepass (FinShadowView adds them)");
+        return None;
+    };
+    Some((depth, normal))
+}
+
 fn prepare_view_bind_groups(
     mut commands: Commands,
     device: Res<RenderDevice>,
@@ -600,15 +616,7 @@ fn prepare_view_bind_groups(
             commands.entity(entity).remove::<FinViewBindGroup>();
             continue;
         };
-        // Multisampled prepass textures cannot be bound as the pass's
-        // single-sample inputs: skip the view with a clear message, not a crash.
-        if prepass.depth.as_ref().is_some_and(|d| d.texture.texture.sample_count() > 1) {
-            warn_once!("fin shadows: the camera uses MSAA; add `Msaa::Off` to it for fin shadows");
-            commands.entity(entity).remove::<FinViewBindGroup>();
-            continue;
-        }
-        let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else {
-            warn_once!("fin shadows: the camera needs DepthPrepass and NormalPrepass (FinShadowView adds them)");
+        let Some((depth, normal)) = prepass_inputs(prepass) else {
             commands.entity(entity).remove::<FinViewBindGroup>();
             continue;
         };
