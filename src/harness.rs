@@ -18,7 +18,8 @@ use bevy::{
     window::ExitCondition,
 };
 use bevy_shadow_fins::{
-    FinFrame, FinLight, FinShadowSettings, FinShadowView, NotFinShadowCaster, NotFinShadowReceiver, ShadowFinsPlugin,
+    FinFrame, FinLight, FinLightStats, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster,
+    NotFinShadowReceiver, ShadowFinsPlugin,
 };
 use shadow_fins::{camera::Camera as CoreCamera, light::Light, scene::Scene};
 use shadow_fins_lab::picture::srgb;
@@ -67,7 +68,22 @@ pub struct Setup {
     /// The first camera draws only into this part of the target
     /// (`Camera::viewport`: pixel position and size); the whole target when `None`.
     pub viewport: Option<(UVec2, UVec2)>,
+    /// The light is a Bevy `SpotLight` with `FinShadows` (same colour,
+    /// intensity, range, radius; cone [`SPOT_OUTER_ANGLE`]) instead of a
+    /// `FinLight`.
+    pub spot: bool,
+    /// More fin-shadowed lights: Bevy `SpotLight`s with `FinShadows` (and the
+    /// setup's settings), each one's visibility read back from the first
+    /// camera into [`Shot::light_visibility`].
+    pub extra_spots: Vec<shadow_fins::light::DiskLight>,
 }
+
+/// Marks `Setup::extra_spots` (kept when the main light is replaced).
+#[derive(Component)]
+struct ExtraSpot;
+
+/// The outer cone angle of the harness's spot lights (their inner angle is 0).
+pub const SPOT_OUTER_ANGLE: f32 = 1.2;
 
 /// How Bevy's own point light casts shadows (the lab's peers).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -103,6 +119,8 @@ impl Setup {
             near: None,
             far: None,
             viewport: None,
+            spot: false,
+            extra_spots: vec![],
         }
     }
 }
@@ -129,6 +147,10 @@ pub struct Shot {
     pub linear: Vec<[f32; 3]>,
     /// The cameras of `Setup::extra_cameras`, in order.
     pub extra_views: Vec<ViewShot>,
+    /// The first camera's visibility of each fin-shadowed light spawned with
+    /// the app: the setup's light first (unless it is Bevy's point light),
+    /// then `Setup::extra_spots` in order.
+    pub light_visibility: Vec<Vec<f32>>,
     /// Silhouettes, fins and layers the frame modelled.
     pub stats: bevy_shadow_fins::FinFrameStats,
     /// Every `render/fin_shadows/…` diagnostic (per-pass GPU and CPU times,
@@ -147,6 +169,8 @@ pub type Slot = Arc<Mutex<Option<Vec<u8>>>>;
 pub struct ViewSlots {
     pub visibility: Slot,
     pub color: Slot,
+    /// One per fin-shadowed light (first camera only), as [`Shot::light_visibility`].
+    pub lights: Vec<Slot>,
 }
 
 /// Builds the headless app for `setup`; returns it with every camera's
@@ -182,12 +206,34 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
         let mesh = world.resource_mut::<Assets<Mesh>>().add(mesh.clone());
         world.spawn((Mesh3d(mesh), MeshMaterial3d(material.clone()), Transform::from_translation(*at)));
     }
-    replace_light(world, setup);
+    let main = replace_light(world, setup);
+    let extras: Vec<Entity> = setup
+        .extra_spots
+        .iter()
+        .map(|d| {
+            let transform = light_transform(d.center, d.normal);
+            world.spawn((spot_light(setup, d.radius), setup.settings, transform, ExtraSpot)).id()
+        })
+        .collect();
+    let spots: Vec<Entity> = main.into_iter().chain(extras).collect();
     let cameras = std::iter::once(&setup.camera).chain(&setup.extra_cameras);
     let mut slots = vec![];
     let color_format = if setup.linear_color { TextureFormat::Rgba16Float } else { TextureFormat::Rgba8UnormSrgb };
     for (order, camera) in cameras.enumerate() {
-        let view = ViewSlots::default();
+        let mut view = ViewSlots::default();
+        let visibility_image = |world: &mut World| {
+            let mut vis = Image::new_fill(
+                Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+                TextureDimension::D2,
+                &0f32.to_le_bytes(),
+                TextureFormat::R32Float,
+                RenderAssetUsages::RENDER_WORLD,
+            );
+            vis.texture_descriptor.usage |= TextureUsages::COPY_DST | TextureUsages::COPY_SRC;
+            world.resource_mut::<Assets<Image>>().add(vis)
+        };
+        let light_targets: Vec<(Entity, Handle<Image>)> =
+            if order == 0 { spots.iter().map(|&e| (e, visibility_image(world))).collect() } else { vec![] };
         let (color, visibility) = {
             let mut images = world.resource_mut::<Assets<Image>>();
             let mut color = Image::new_target_texture(w, h, color_format, None);
@@ -224,7 +270,10 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
                 ..default()
             }),
             Transform::from_translation(camera.position).looking_at(camera.target, camera.up),
-            FinShadowView { visibility_target: Some(visibility.clone()) },
+            FinShadowView {
+                visibility_target: Some(visibility.clone()),
+                light_visibility_targets: light_targets.clone(),
+            },
         ));
         if setup.hdr || setup.linear_color {
             e.insert(bevy::camera::Hdr);
@@ -232,7 +281,11 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
         if setup.linear_color {
             e.insert((Tonemapping::None, DebandDither::Disabled));
         }
-        for (image, slot) in [(visibility, view.visibility.clone()), (color, view.color.clone())] {
+        view.lights = light_targets.iter().map(|_| Slot::default()).collect();
+        let lights = light_targets.into_iter().map(|(_, image)| image).zip(view.lights.clone());
+        for (image, slot) in
+            [(visibility, view.visibility.clone()), (color, view.color.clone())].into_iter().chain(lights)
+        {
             world.spawn(Readback::texture(image)).observe(move |e: On<ReadbackComplete>| {
                 *slot.lock().unwrap() = Some(e.data.clone());
             });
@@ -245,9 +298,12 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
 /// Despawns every fin light and Bevy point light, then spawns the light
 /// `setup` asks for (and its ambient and cube-map settings): the lab swaps
 /// methods in one app this way, so pipelines compile once per scene.
-pub fn replace_light(world: &mut World, setup: &Setup) {
-    let old: Vec<Entity> =
-        world.query_filtered::<Entity, Or<(With<FinLight>, With<PointLight>)>>().iter(world).collect();
+/// Returns the fin-shadowed light spawned (`None` for Bevy's point light).
+pub fn replace_light(world: &mut World, setup: &Setup) -> Option<Entity> {
+    let old: Vec<Entity> = world
+        .query_filtered::<Entity, Or<(With<FinLight>, With<PointLight>, (With<SpotLight>, Without<ExtraSpot>))>>()
+        .iter(world)
+        .collect();
     for e in old {
         world.despawn(e);
     }
@@ -255,14 +311,11 @@ pub fn replace_light(world: &mut World, setup: &Setup) {
         world.resource_mut::<GlobalAmbientLight>().brightness = brightness;
     }
     world.insert_resource(PointLightShadowMap { size: setup.settings.clamped().map_resolution as usize });
-    let Light::Disk(d) = setup.light else { return };
-    let target = d.center + d.normal;
-    let up = if d.normal.cross(Vec3::Z).length() > 1e-3 { Vec3::Z } else { Vec3::X };
-    let transform = Transform::from_translation(d.center).looking_at(target, up);
-    // The range covers the whole scene, whatever its scale.
-    let reach =
-        setup.scene.bounds().map_or(20.0, |(lo, hi)| (hi - lo).length() + (d.center - (lo + hi) * 0.5).length());
-    let fin = FinLight { radius: d.radius, intensity: setup.intensity, range: reach.max(20.0), ..default() };
+    let Light::Disk(d) = setup.light else { return None };
+    let transform = light_transform(d.center, d.normal);
+    let fin =
+        FinLight { radius: d.radius, intensity: setup.intensity, range: light_range(setup, d.center), ..default() };
+    let reach = fin.range;
     if setup.bevy_point_light {
         // Bevy's cube maps need a near plane inside the scene's scale.
         let near = (reach * 1e-3).clamp(1e-6, 0.1);
@@ -279,9 +332,43 @@ pub fn replace_light(world: &mut World, setup: &Setup) {
             },
             transform,
         ));
+        None
+    } else if setup.spot {
+        Some(world.spawn((spot_light(setup, d.radius), setup.settings, transform)).id())
     } else {
-        world.spawn((fin, setup.settings, transform));
+        Some(world.spawn((fin, setup.settings, transform)).id())
     }
+}
+
+/// A light at `center` facing along `normal`.
+fn light_transform(center: Vec3, normal: Vec3) -> Transform {
+    let up = if normal.cross(Vec3::Z).length() > 1e-3 { Vec3::Z } else { Vec3::X };
+    Transform::from_translation(center).looking_at(center + normal, up)
+}
+
+/// A range that covers the whole scene from `center`, whatever its scale.
+fn light_range(setup: &Setup, center: Vec3) -> f32 {
+    let reach = setup.scene.bounds().map_or(20.0, |(lo, hi)| (hi - lo).length() + (center - (lo + hi) * 0.5).length());
+    reach.max(20.0)
+}
+
+/// A fin-shadowed Bevy spot light of the setup's intensity and this radius
+/// (its range covers the scene from the first light).
+fn spot_light(setup: &Setup, radius: f32) -> (SpotLight, FinShadows) {
+    let center = match setup.light {
+        Light::Disk(d) => d.center,
+        Light::Sun(_) => Vec3::ZERO,
+    };
+    let spot = SpotLight {
+        intensity: setup.intensity,
+        range: light_range(setup, center) * 2.0,
+        radius,
+        outer_angle: SPOT_OUTER_ANGLE,
+        inner_angle: 0.0,
+        shadow_maps_enabled: true,
+        ..default()
+    };
+    (spot, FinShadows)
 }
 
 /// A headless app kept alive across measurements: settle it, read it back,
@@ -290,6 +377,8 @@ pub struct Session {
     pub app: App,
     slots: Vec<ViewSlots>,
     latest: Vec<(Option<Vec<u8>>, Option<Vec<u8>>)>,
+    /// The first camera's per-light visibility read-backs.
+    latest_lights: Vec<Option<Vec<u8>>>,
     width: u32,
     height: u32,
     linear_color: bool,
@@ -311,10 +400,20 @@ impl Session {
         app.finish();
         app.cleanup();
         let latest = vec![(None, None); slots.len()];
-        Self { app, slots, latest, width: setup.width, height: setup.height, linear_color: setup.linear_color }
+        let latest_lights = vec![None; slots[0].lights.len()];
+        Self {
+            app,
+            slots,
+            latest,
+            latest_lights,
+            width: setup.width,
+            height: setup.height,
+            linear_color: setup.linear_color,
+        }
     }
 
-    fn update(&mut self) {
+    /// One frame; the read-backs that arrived are kept for [`Session::shot`].
+    pub fn update(&mut self) {
         self.app.update();
         let take = |slot: &Slot| slot.lock().unwrap().take();
         for (view, latest) in self.slots.iter().zip(&mut self.latest) {
@@ -323,6 +422,11 @@ impl Session {
             }
             if let Some(c) = take(&view.color) {
                 latest.1 = Some(c);
+            }
+        }
+        for (slot, latest) in self.slots[0].lights.iter().zip(&mut self.latest_lights) {
+            if let Some(v) = take(slot) {
+                *latest = Some(v);
             }
         }
     }
@@ -337,16 +441,24 @@ impl Session {
         for slot in &mut self.latest {
             *slot = (None, None);
         }
+        for slot in &mut self.latest_lights {
+            *slot = None;
+        }
         for frame in 0..MAX_FRAMES {
             self.update();
             let color = self.latest[0].1.clone();
             // GPU extraction: its counts come back a few frames late, and a
             // frame that overflowed a buffer is redone once they do.
-            let extracted = self.app.world().resource::<bevy_shadow_fins::FinShadowStats>().0.up_to_date
-                || self.app.world().resource::<FinFrame>().0.is_none();
+            let world = self.app.world_mut();
+            let extracted = world.query::<&FinLightStats>().iter(world).all(|s| s.0.up_to_date)
+                || world.resource::<FinFrame>().0.is_none();
             stable = if color.is_some() && color == previous_color && extracted { stable + 1 } else { 0 };
             previous_color = color;
-            if frame + 1 >= frames.max(3) && stable >= 2 {
+            // Three equal frames in a row: Bevy's own lights take a few frames
+            // to appear (clustering warm-up; seen as two equal ambient-only
+            // frames on lavapipe), which two equal frames could mistake for
+            // the settled image.
+            if frame + 1 >= frames.max(3) && stable >= 3 {
                 break;
             }
         }
@@ -373,6 +485,11 @@ impl Session {
             views.push(ViewShot { visibility, color, linear });
         }
         let stats = self.app.world().resource::<bevy_shadow_fins::FinShadowStats>().0;
+        let light_visibility = self
+            .latest_lights
+            .iter()
+            .map(|l| Ok(unpad(w, h, l.as_ref().ok_or("no per-light read-back")?).map(f32::from_le_bytes).collect()))
+            .collect::<Result<Vec<Vec<f32>>, String>>()?;
         let pass_times = pass_times(self.app.world());
         let first = views.remove(0);
         Ok(Shot {
@@ -382,6 +499,7 @@ impl Session {
             color: first.color,
             linear: first.linear,
             extra_views: views,
+            light_visibility,
             stats,
             pass_times,
         })
@@ -414,6 +532,7 @@ impl Session {
 
     /// Swaps the light for the one `setup` describes (see [`replace_light`]).
     pub fn replace_light(&mut self, setup: &Setup) {
+        // Per-light read-backs follow the lights spawned with the app only.
         replace_light(self.app.world_mut(), setup);
     }
 }

@@ -9,6 +9,7 @@ mod render {
     mod editor;
     mod gpu_extraction;
     mod lab;
+    mod lights;
     mod oracle_agreement;
     mod reliability;
     mod robustness;

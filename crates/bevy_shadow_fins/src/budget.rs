@@ -22,7 +22,8 @@ use bevy::prelude::*;
 #[derive(Resource, Debug, Clone, Copy, PartialEq, Eq, Hash, Reflect)]
 #[reflect(Resource, Default, Debug, Clone)]
 pub struct FinShadowBudget {
-    /// Bytes all penumbra-map layers may take together.
+    /// Bytes all penumbra-map layers may take together, shared equally by the
+    /// fin-shadowed lights (each light's maps get `map_bytes / lights`).
     pub map_bytes: u64,
     /// The largest single GPU buffer, bytes: `None` is the device's
     /// `max_storage_buffer_binding_size`; a value above it is lowered to it.
@@ -80,6 +81,9 @@ pub enum FinDegradation {
     /// llvmpipe stops any invocation after 65535 loop iterations, so shadows
     /// there may be wrong on such devices.
     LongCoverageCell { edges: u32, limit: u32 },
+    /// More lights ask for fin shadows than [`MAX_FIN_LIGHTS`](crate::MAX_FIN_LIGHTS):
+    /// this one (later by entity order) keeps Bevy's own shadow map.
+    TooManyLights { max: u32 },
 }
 
 impl std::fmt::Display for FinDegradation {
@@ -89,7 +93,7 @@ impl std::fmt::Display for FinDegradation {
             FinDegradation::Maps { resolution, wanted_resolution, layers, wanted_layers, limit_bytes } => write!(
                 f,
                 "penumbra maps {layers} layers at {resolution}² instead of {wanted_layers} at {wanted_resolution}²: \
-                 over the {:.1} MiB allowed (FinShadowBudget or the GPU's buffer limit)",
+                 over the {:.1} MiB allowed (the light's share of FinShadowBudget::map_bytes, or the GPU's buffer limit)",
                 mib(limit_bytes)
             ),
             FinDegradation::Capacity { buffer, kept, wanted, limit_bytes } => write!(
@@ -109,6 +113,9 @@ impl std::fmt::Display for FinDegradation {
                 "a coverage cell lists {edges} potential silhouette edges (over {limit}): a GPU watchdog or \
                  llvmpipe's 65535-iteration limit may cut its pixels short"
             ),
+            FinDegradation::TooManyLights { max } => {
+                write!(f, "more than {max} fin-shadowed lights: this one keeps Bevy's own shadow map")
+            }
         }
     }
 }

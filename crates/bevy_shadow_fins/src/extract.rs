@@ -1,5 +1,6 @@
-//! Main world: the fin light and its casters, turned into one [`FinFrame`],
-//! rebuilt only when a caster, the light or a setting changed.
+//! Main world: the fin-shadowed lights and their casters, turned into one
+//! [`FinLightFrame`] per light, each rebuilt only when a caster, that light or
+//! its settings changed.
 //!
 //! With [`FinExtraction::Gpu`] (the default) the frame holds the packed caster
 //! geometry (built once per mesh) and one transform per caster instance; the
@@ -19,7 +20,7 @@ use bevy::{
     math::DVec3,
     mesh::{Indices, Mesh, PrimitiveTopology, VertexAttributeValues},
     prelude::*,
-    render::extract_resource::ExtractResource,
+    render::{extract_resource::ExtractResource, sync_world::RenderEntity},
 };
 use shadow_fins::{
     fins::{Fin, FinShape, FinSide},
@@ -33,7 +34,7 @@ use crate::{
     budget::{FinDegradation, FinDeviceLimits, FinShadowBudget, FinShadowsUnsupported, allocate_maps},
     coverage_frame::{CoverageFrame, coverage_frame},
     gpu_scene::{GpuCapacity, GpuMeshGeometry, GpuScene, GpuSceneBuilder},
-    light::{FinExtraction, FinLight, FinMethod, FinShadowSettings, NotFinShadowCaster},
+    light::{FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadows, NotFinShadowCaster},
 };
 
 /// Why a mesh could not be used as a caster (logged once per mesh).
@@ -74,7 +75,8 @@ pub struct FinFrameStats {
     pub extraction: FinExtraction,
 }
 
-/// What the fin light's shadows currently model (see [`FinFrameStats`]).
+/// What the first fin-shadowed light's shadows currently model (see
+/// [`FinFrameStats`]); every light's are in its [`FinLightStats`].
 #[derive(Resource, Debug, Clone, Copy, Default, PartialEq)]
 pub struct FinShadowStats(pub FinFrameStats);
 
@@ -132,17 +134,56 @@ pub struct FinFrameData {
     pub(crate) coverage: Option<CoverageFrame>,
 }
 
-/// The current fin frame (`None` without a fin light). Read `stats` for counts.
+/// The first fin-shadowed light's frame (`None` without one), by entity order:
+/// what the editor's map views show. Every light's frame is in [`FinFrames`].
 #[derive(Resource, Clone, Default, ExtractResource)]
 pub struct FinFrame(pub Option<Arc<FinFrameData>>);
 
+/// The most lights with fin shadows at once. Lights past it (by entity
+/// order) keep Bevy's own shadow map, with [`FinDegradation::TooManyLights`]
+/// in their [`FinLightStats`].
+pub const MAX_FIN_LIGHTS: usize = 16;
+
+/// How a fin-shadowed light is shaded by the compositing pass.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum LightShading {
+    /// The plugin's own [`FinLight`]: shaded by the compositing pass (Bevy's
+    /// point-light BRDF in the half-space the disk faces), times `V`.
+    Own { light: FinLight, transform: GlobalTransform },
+    /// A Bevy light: Bevy shades it (its shadow map is off, see
+    /// `render/bevy_lights.rs`); the compositing pass takes `(1 − V)` of
+    /// Bevy's own contribution of it away again. The render-world entity
+    /// finds its index in Bevy's clustered light list.
+    Bevy { render_entity: Entity },
+}
+
+/// One fin-shadowed light and its frame.
+#[derive(Debug, Clone)]
+pub struct FinLightFrame {
+    /// The light's (main-world) entity.
+    pub light: Entity,
+    pub(crate) shading: LightShading,
+    pub data: Arc<FinFrameData>,
+}
+
+/// Every fin-shadowed light's frame, by entity order (at most
+/// [`MAX_FIN_LIGHTS`]). Each light has its own maps, layers and visibility
+/// layer; the penumbra-map budget is shared equally.
+#[derive(Resource, Clone, Default, ExtractResource)]
+pub struct FinFrames(pub Vec<FinLightFrame>);
+
+/// What one light's fin shadows currently model: on every light with
+/// [`FinShadowSettings`] (the first light's is also the [`FinShadowStats`]
+/// resource).
+#[derive(Component, Debug, Clone, Copy, Default, PartialEq)]
+pub struct FinLightStats(pub FinFrameStats);
+
 type CachedMesh = Result<(Arc<CoreMesh>, Arc<Topology>, Arc<GpuMeshGeometry>), FinSceneError>;
 
-#[derive(Resource, Default)]
-pub(crate) struct MeshCache {
-    meshes: HashMap<AssetId<Mesh>, CachedMesh>,
+/// Per light: what its frame was built from and the GPU extraction's state.
+#[derive(Default)]
+pub(crate) struct LightState {
     signature: u64,
-    generation: u64,
     gpu: GpuSceneBuilder,
     /// GPU buffer sizes, grown when a read-back says a frame overflowed them.
     pub(crate) capacity: Option<GpuCapacity>,
@@ -153,53 +194,137 @@ pub(crate) struct MeshCache {
     pub(crate) warned: Option<FinDegradation>,
 }
 
-pub(crate) fn build(app: &mut App) {
-    app.init_resource::<FinFrame>()
-        .init_resource::<MeshCache>()
-        .init_resource::<FinShadowStats>()
-        .add_systems(PostUpdate, update_fin_frame.after(TransformSystems::Propagate));
+#[derive(Resource, Default)]
+pub(crate) struct MeshCache {
+    meshes: HashMap<AssetId<Mesh>, CachedMesh>,
+    /// Bumped for every frame built, for every light: a read-back's
+    /// generation names one light's one frame.
+    generation: u64,
+    pub(crate) lights: HashMap<Entity, LightState>,
 }
 
-/// Rebuilds the fin frame when the light, a setting or a caster changed.
+pub(crate) fn build(app: &mut App) {
+    app.init_resource::<FinFrame>()
+        .init_resource::<FinFrames>()
+        .init_resource::<MeshCache>()
+        .init_resource::<FinShadowStats>()
+        .add_systems(PostUpdate, update_fin_frames.after(TransformSystems::Propagate));
+}
+
+/// A light asking for fin shadows, as the frame builder sees it.
+struct LightSource {
+    entity: Entity,
+    disk: Result<DiskLight, ()>,
+    range: f32,
+    settings: FinShadowSettings,
+    shading: LightShading,
+}
+
+/// The lights with fin shadows: `FinLight`s and Bevy `SpotLight`s with
+/// [`FinShadows`], by entity order. Other Bevy lights with `FinShadows` are
+/// not modelled yet: said once, they keep Bevy's shadows.
 #[allow(clippy::type_complexity)]
-fn update_fin_frame(
-    lights: Query<(&FinLight, &FinShadowSettings, &GlobalTransform)>,
+fn light_sources(
+    fin_lights: &Query<(Entity, &FinLight, &FinShadowSettings, &GlobalTransform)>,
+    spot_lights: &SpotLights,
+) -> Vec<LightSource> {
+    let disk = |t: &GlobalTransform, radius: f32| {
+        DiskLight::new(t.translation(), t.forward().as_vec3(), radius).map_err(|_| ())
+    };
+    let finite = |x: f32| if x.is_finite() && x > 0.0 { x } else { 0.0 };
+    let own = fin_lights.iter().map(|(entity, light, settings, transform)| LightSource {
+        entity,
+        disk: disk(transform, light.effective_radius()),
+        range: finite(light.range),
+        settings: settings.clamped(),
+        shading: LightShading::Own { light: *light, transform: *transform },
+    });
+    let bevy = spot_lights.iter().filter(|l| l.5).filter_map(|(entity, spot, settings, transform, render, _)| {
+        Some(LightSource {
+            entity,
+            disk: disk(transform, finite(spot.radius)),
+            range: finite(spot.range),
+            settings: settings?.clamped(),
+            shading: LightShading::Bevy { render_entity: render.id() },
+        })
+    });
+    let mut sources: Vec<LightSource> = own.chain(bevy).collect();
+    sources.sort_by_key(|s| s.entity);
+    sources
+}
+
+/// Every `SpotLight`, fin-shadowed (`FinShadows`) or not: mutable, so that
+/// one that stops being fin-shadowed can be marked changed.
+type SpotLights<'w, 's> = Query<
+    'w,
+    's,
+    (
+        Entity,
+        &'static mut SpotLight,
+        Option<&'static FinShadowSettings>,
+        &'static GlobalTransform,
+        &'static RenderEntity,
+        Has<FinShadows>,
+    ),
+>;
+
+/// Rebuilds each light's frame when it, a setting or a caster changed.
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
+fn update_fin_frames(
+    fin_lights: Query<(Entity, &FinLight, &FinShadowSettings, &GlobalTransform)>,
+    mut spot_lights: SpotLights,
+    other_lights: Query<(), (With<FinShadows>, Without<SpotLight>)>,
     casters: Query<(Entity, &Mesh3d, &GlobalTransform, Has<NotFinShadowCaster>, Option<&Aabb>)>,
+    mut light_stats: Query<&mut FinLightStats>,
     meshes: Res<Assets<Mesh>>,
     budget: Res<FinShadowBudget>,
     device: Res<FinDeviceLimits>,
     unsupported: Option<Res<FinShadowsUnsupported>>,
     mut mesh_events: MessageReader<AssetEvent<Mesh>>,
     mut cache: ResMut<MeshCache>,
-    mut frame: ResMut<FinFrame>,
+    mut frames: ResMut<FinFrames>,
+    mut first: ResMut<FinFrame>,
     mut stats: ResMut<FinShadowStats>,
 ) {
+    let mut meshes_changed = false;
     for event in mesh_events.read() {
         if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
             cache.meshes.remove(id);
-            cache.signature = 0;
+            meshes_changed = true;
         }
     }
-    let Some((light, settings, light_transform)) = lights.iter().next() else {
-        if frame.0.is_some() {
-            frame.0 = None;
-            stats.0 = FinFrameStats::default();
-        }
-        return;
-    };
+    if !other_lights.is_empty() {
+        warn_once!(
+            "fin shadows: FinShadows on a DirectionalLight, PointLight or RectLight is not modelled yet; \
+             those lights keep Bevy's shadows (SpotLight and FinLight have fin shadows)"
+        );
+    }
+    let mut sources = light_sources(&fin_lights, &spot_lights);
+    for cut in sources.drain(sources.len().min(MAX_FIN_LIGHTS)..) {
+        warn_once!("fin shadows: more than {MAX_FIN_LIGHTS} fin-shadowed lights; the rest keep Bevy's shadows");
+        let over = FinFrameStats {
+            degraded: Some(FinDegradation::TooManyLights { max: MAX_FIN_LIGHTS as u32 }),
+            up_to_date: true,
+            ..default()
+        };
+        set_stats(&mut light_stats, cut.entity, over);
+    }
     if let Some(why) = unsupported {
         let off = FinFrameStats { degraded: Some(FinDegradation::Unsupported(why.0)), up_to_date: true, ..default() };
-        if stats.0 != off {
+        for s in &sources {
+            set_stats(&mut light_stats, s.entity, off);
+        }
+        if stats.0 != off && !sources.is_empty() {
             stats.0 = off;
         }
         return;
     }
-    // Signature of everything the frame depends on: skip all work when unchanged.
+    // What every light's frame depends on: the casters, the budget and how
+    // many lights share it. Hashed once; each light adds its own part.
     let mut hasher = std::collections::hash_map::DefaultHasher::new();
-    hash_floats(&mut hasher, &light_transform.to_matrix().to_cols_array());
-    hash_floats(&mut hasher, &[light.effective_radius(), light.range]);
-    settings.clamped().hash(&mut hasher);
     budget.hash(&mut hasher);
+    sources.len().hash(&mut hasher);
+    meshes_changed.hash(&mut hasher);
     for (entity, mesh, transform, not_caster, _) in &casters {
         entity.hash(&mut hasher);
         not_caster.hash(&mut hasher);
@@ -208,67 +333,187 @@ fn update_fin_frame(
         meshes.contains(mesh.id()).hash(&mut hasher);
         hash_floats(&mut hasher, &transform.to_matrix().to_cols_array());
     }
-    // A read-back that grew the GPU buffers asks for the frame again.
-    cache.capacity_epoch.hash(&mut hasher);
-    let signature = hasher.finish();
-    if signature == cache.signature && frame.0.is_some() {
+    let scene_signature = hasher.finish();
+    cache.lights.retain(|e, _| sources.iter().any(|s| s.entity == *e));
+
+    let mut scene: Option<CasterScene> = None;
+    let mut next = Vec::with_capacity(sources.len());
+    let mut changed = frames.0.len() != sources.len();
+    for source in &sources {
+        let mut hasher = std::collections::hash_map::DefaultHasher::new();
+        scene_signature.hash(&mut hasher);
+        let state = cache.lights.entry(source.entity).or_default();
+        state.capacity_epoch.hash(&mut hasher);
+        source.settings.hash(&mut hasher);
+        match &source.disk {
+            Ok(d) => hash_floats(
+                &mut hasher,
+                &[d.center.x, d.center.y, d.center.z, d.normal.x, d.normal.y, d.normal.z, d.radius],
+            ),
+            Err(()) => 0u8.hash(&mut hasher),
+        }
+        hash_floats(&mut hasher, &[source.range]);
+        let signature = hasher.finish();
+        let previous = frames.0.iter().find(|f| f.light == source.entity);
+        if let Some(previous) = previous
+            && state.signature == signature
+        {
+            // Only the shading may have moved (colour, intensity): keep the maps.
+            next.push(FinLightFrame { shading: source.shading, ..previous.clone() });
+            changed |= previous.shading != source.shading;
+            continue;
+        }
+        state.signature = signature;
+        changed = true;
+        // A light with no finite position or direction shadows nothing.
+        let Ok(disk) = source.disk else {
+            set_stats(&mut light_stats, source.entity, FinFrameStats::default());
+            continue;
+        };
+        let scene = scene.get_or_insert_with(|| CasterScene::collect(&casters, &meshes, &mut cache.meshes));
+        let max_buffer = device.max_buffer(&budget);
+        // The maps' budget is shared equally between the lights.
+        let map_bytes = (budget.map_bytes / sources.len().max(1) as u64).min(max_buffer);
+        let limits = FrameLimits { max_buffer, map_bytes };
+        cache.generation += 1;
+        let generation = cache.generation;
+        let state = cache.lights.get_mut(&source.entity).expect("inserted above");
+        let data = light_frame(scene, disk, source.range, source.settings, generation, limits, state);
+        set_stats(&mut light_stats, source.entity, data.stats);
+        next.push(FinLightFrame { light: source.entity, shading: source.shading, data: Arc::new(data) });
+    }
+    if !changed {
         return;
     }
-    cache.signature = signature;
-
-    let start = std::time::Instant::now();
-    let (mut objects, mut gpu_meshes) = (Vec::new(), Vec::new());
-    // World bounds of meshes drawn but unreadable here (render-world only,
-    // invalid): receivers all the same, so the reference plane must cover them.
-    let mut unread_bounds = Vec::new();
-    for (_, mesh3d, transform, not_caster, aabb) in &casters {
-        let Some(mesh) = meshes.get(mesh3d.id()) else {
-            unread_bounds.extend(aabb.map(|b| world_corners(b, transform)));
-            continue;
-        };
-        let entry = cache.meshes.entry(mesh3d.id()).or_insert_with(|| {
-            let converted = core_mesh(mesh);
-            if let Err(e) = &converted {
-                warn!("fin shadows: mesh {:?} casts no fin shadow: {e:?}", mesh3d.id());
-            }
-            converted
-        });
-        let Ok((core, topology, geometry)) = entry else {
-            unread_bounds.extend(aabb.map(|b| world_corners(b, transform)));
-            continue;
-        };
-        let affine = transform.affine();
-        if let Ok(mut o) = SceneObject::shared("mesh", core.clone(), topology.clone(), affine) {
-            // Meshes that do not cast still receive: they count for the reference plane.
-            o.casts_shadows = !not_caster;
-            objects.push(o);
-            gpu_meshes.push(geometry.clone());
+    // A Bevy light no longer fin-shadowed gets its own shadow map back: marked
+    // changed, Bevy extracts it again with the user's `shadow_maps_enabled`
+    // (`render/bevy_lights.rs` turned it off in the render world).
+    for gone in frames.0.iter().filter(|f| matches!(f.shading, LightShading::Bevy { .. })) {
+        if !next.iter().any(|f| f.light == gone.light)
+            && let Ok((_, mut spot, ..)) = spot_lights.get_mut(gone.light)
+        {
+            spot.set_changed();
         }
     }
-    let center = light_transform.translation();
-    let normal = light_transform.forward().as_vec3();
-    let radius = light.effective_radius();
-    let Ok(disk) = DiskLight::new(center, normal, radius) else {
-        frame.0 = None;
-        stats.0 = FinFrameStats::default();
-        return;
-    };
-    let settings = settings.clamped();
-    let max_buffer = device.max_buffer(&budget);
-    let limits = FrameLimits { max_buffer, map_bytes: budget.map_bytes.min(max_buffer) };
-    cache.generation += 1;
+    frames.0 = next;
+    first.0 = frames.0.first().map(|f| f.data.clone());
+    let first_stats = frames.0.first().map(|f| f.data.stats).unwrap_or_default();
+    if stats.0 != first_stats {
+        stats.0 = first_stats;
+    }
+}
+
+/// Sets a light's [`FinLightStats`] when they changed.
+pub(crate) fn set_stats(light_stats: &mut Query<&mut FinLightStats>, light: Entity, now: FinFrameStats) {
+    if let Ok(mut s) = light_stats.get_mut(light)
+        && s.0 != now
+    {
+        s.0 = now;
+    }
+}
+
+/// Every mesh that casts or receives, as the core's scene objects, once per
+/// frame in which some light needs a new frame.
+struct CasterScene {
+    objects: Vec<SceneObject>,
+    gpu_meshes: Vec<Arc<GpuMeshGeometry>>,
+    /// Each object's world bounding box corners (from Bevy's `Aabb`), for
+    /// the lights' range culling; `None` is never culled.
+    bounds: Vec<Option<[Vec3; 8]>>,
+    /// World bounds of meshes drawn but unreadable here (render-world only,
+    /// invalid): receivers all the same, so the reference plane must cover them.
+    unread_bounds: Vec<[Vec3; 8]>,
+}
+
+impl CasterScene {
+    #[allow(clippy::type_complexity)]
+    fn collect(
+        casters: &Query<(Entity, &Mesh3d, &GlobalTransform, Has<NotFinShadowCaster>, Option<&Aabb>)>,
+        meshes: &Assets<Mesh>,
+        cache: &mut HashMap<AssetId<Mesh>, CachedMesh>,
+    ) -> Self {
+        let mut scene = Self { objects: vec![], gpu_meshes: vec![], bounds: vec![], unread_bounds: vec![] };
+        for (_, mesh3d, transform, not_caster, aabb) in casters {
+            let corners = aabb.map(|b| world_corners(b, transform));
+            let Some(mesh) = meshes.get(mesh3d.id()) else {
+                scene.unread_bounds.extend(corners);
+                continue;
+            };
+            let entry = cache.entry(mesh3d.id()).or_insert_with(|| {
+                let converted = core_mesh(mesh);
+                if let Err(e) = &converted {
+                    warn!("fin shadows: mesh {:?} casts no fin shadow: {e:?}", mesh3d.id());
+                }
+                converted
+            });
+            let Ok((core, topology, geometry)) = entry else {
+                scene.unread_bounds.extend(corners);
+                continue;
+            };
+            if let Ok(mut o) = SceneObject::shared("mesh", core.clone(), topology.clone(), transform.affine()) {
+                // Meshes that do not cast still receive: they count for the reference plane.
+                o.casts_shadows = !not_caster;
+                scene.objects.push(o);
+                scene.gpu_meshes.push(geometry.clone());
+                scene.bounds.push(corners);
+            }
+        }
+        scene
+    }
+
+    /// The objects as one light sees them: casters out of its reach (beyond
+    /// its range, or wholly behind its disk) cast nothing for it, but still
+    /// receive.
+    fn seen_by(&self, disk: &DiskLight, range: f32) -> Vec<SceneObject> {
+        self.objects
+            .iter()
+            .zip(&self.bounds)
+            .map(|(o, bounds)| {
+                let mut o = o.clone();
+                if o.casts_shadows && bounds.is_some_and(|b| out_of_reach(&b, disk, range)) {
+                    o.casts_shadows = false;
+                }
+                o
+            })
+            .collect()
+    }
+}
+
+/// True when a box (its world corners) cannot shadow anything this light
+/// lights: all of it behind the disk's plane, or all of it beyond `range`
+/// from the centre (a range of 0 or less culls nothing).
+fn out_of_reach(corners: &[Vec3; 8], disk: &DiskLight, range: f32) -> bool {
+    let behind = corners.iter().all(|p| (*p - disk.center).dot(disk.normal) < 0.0);
+    let (lo, hi) = corners.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    let nearest = disk.center.clamp(lo, hi);
+    behind || (range > 0.0 && nearest.distance(disk.center) > range + disk.radius)
+}
+
+/// One light's frame from the scene's objects.
+fn light_frame(
+    scene: &CasterScene,
+    disk: DiskLight,
+    range: f32,
+    settings: FinShadowSettings,
+    generation: u64,
+    limits: FrameLimits,
+    state: &mut LightState,
+) -> FinFrameData {
+    let start = std::time::Instant::now();
+    let objects = scene.seen_by(&disk, range);
+    let unread_bounds = scene.unread_bounds.clone();
+    let radius = disk.radius;
     if settings.method == FinMethod::Coverage {
-        let data = coverage_data(&objects, disk, settings, cache.generation, start, unread_bounds, limits);
-        warn_degradation(&mut cache.warned, data.stats.degraded);
-        stats.0 = data.stats;
-        frame.0 = Some(Arc::new(data));
-        return;
+        let data = coverage_data(&objects, disk, settings, generation, start, unread_bounds, limits);
+        warn_degradation(&mut state.warned, data.stats.degraded);
+        return data;
     }
     let mut extraction = settings.extraction;
     let mut gpu_scene = None;
+    let max_buffer = limits.max_buffer;
     if extraction == FinExtraction::Gpu {
-        let MeshCache { gpu, capacity, .. } = &mut *cache;
-        let scene = gpu.build(&objects, &gpu_meshes, &disk, capacity, GpuCapacity::max_for(max_buffer));
+        let LightState { gpu, capacity, .. } = &mut *state;
+        let scene = gpu.build(&objects, &scene.gpu_meshes, &disk, capacity, GpuCapacity::max_for(max_buffer));
         // Buffers sized by the scene itself cannot shrink: past the limit the
         // core crate extracts on the CPU instead.
         match scene.input_bytes().into_iter().find(|(_, bytes)| *bytes > max_buffer) {
@@ -308,7 +553,7 @@ fn update_fin_frame(
                 ..default()
             };
             FinFrameData {
-                generation: cache.generation,
+                generation,
                 stats,
                 casters: Vec::new(),
                 fins: Vec::new(),
@@ -328,8 +573,7 @@ fn update_fin_frame(
             }
         }
         (_, fallback) => {
-            let mut data =
-                cpu_frame(Scene::new(objects), disk, settings, cache.generation, start, receiver_bound, limits);
+            let mut data = cpu_frame(Scene::new(objects), disk, settings, generation, start, receiver_bound, limits);
             if let Some(Err(why)) = fallback {
                 // What the CPU path had to cut (maps, dropped casters) shows first.
                 data.stats.degraded = data.stats.degraded.or(Some(why));
@@ -341,10 +585,9 @@ fn update_fin_frame(
     data.stats.extraction = if data.gpu.is_some() { FinExtraction::Gpu } else { FinExtraction::Cpu };
     // What the last read-back said the GPU had to drop still holds until a
     // read-back says otherwise (no flicker between re-extractions).
-    data.stats.degraded = data.stats.degraded.or(cache.shortfall);
-    warn_degradation(&mut cache.warned, data.stats.degraded);
-    stats.0 = data.stats;
-    frame.0 = Some(Arc::new(data));
+    data.stats.degraded = data.stats.degraded.or(state.shortfall);
+    warn_degradation(&mut state.warned, data.stats.degraded);
+    data
 }
 
 /// The coverage method's frame: edges and lists from the core crate.

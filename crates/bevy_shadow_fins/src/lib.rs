@@ -5,17 +5,57 @@
 //!
 //! ```no_run
 //! use bevy::prelude::*;
-//! use bevy_shadow_fins::{FinLight, FinShadowView, ShadowFinsPlugin};
+//! use bevy_shadow_fins::{FinShadowView, FinShadows, ShadowFinsPlugin};
 //!
 //! fn main() {
 //!     App::new().add_plugins((DefaultPlugins, ShadowFinsPlugin)).add_systems(Startup, setup).run();
 //! }
 //!
 //! fn setup(mut commands: Commands) {
-//!     commands.spawn((FinLight { radius: 0.5, ..default() }, Transform::from_xyz(0.0, 5.0, 0.0).looking_at(Vec3::ZERO, Vec3::Z)));
+//!     // Bevy's own spot light; `FinShadows` gives it soft shadows sized by its radius.
+//!     commands.spawn((
+//!         SpotLight { radius: 0.5, outer_angle: 1.0, ..default() },
+//!         FinShadows,
+//!         Transform::from_xyz(0.0, 5.0, 0.0).looking_at(Vec3::ZERO, Vec3::Z),
+//!     ));
 //!     commands.spawn((Camera3d::default(), FinShadowView::default()));
 //! }
 //! ```
+//!
+//! ## Lights
+//!
+//! [`FinShadows`] on a Bevy `SpotLight` (a disk of the spot's `radius` facing
+//! along its axis) or the plugin's own [`FinLight`] (a disk lighting the
+//! half-space it faces). Up to [`MAX_FIN_LIGHTS`] at once, any mix, each with
+//! its own [`FinShadowSettings`] (method, layers, maps), its own frame
+//! rebuilt only when it or a caster changed, its own visibility layer per
+//! camera and its own [`FinLightStats`]. A light only sees the casters in its
+//! range and in front of its disk: a light that sees none runs no pass. The
+//! penumbra-map budget ([`FinShadowBudget::map_bytes`]) is shared equally;
+//! past it a light's maps lose resolution, then layers, with the reason in its
+//! stats. `DirectionalLight`, `PointLight` and `RectLight` are not modelled
+//! yet (they keep Bevy's shadows; said once).
+//!
+//! ## Where fin shadows enter Bevy's lighting, and why there
+//!
+//! A fin-shadowed Bevy light stays in Bevy's light lists — Bevy shades it,
+//! with its own colour, intensity, range, cone and BRDF — with its shadow
+//! map turned off in the render world only (`render/bevy_lights.rs`; the
+//! user's `shadow_maps_enabled` is untouched and comes back with the map
+//! when `FinShadows` goes). The compositing pass then takes `(1 − V)` of the
+//! light's contribution away per pixel, evaluated by *Bevy's own* per-light
+//! function (`bevy_pbr::lighting::spot_light`, found by the light's index in
+//! Bevy's clustered list): the shading is Bevy's by construction and follows
+//! Bevy upgrades. The alternatives were weighed: overriding Bevy's shadow
+//! lookup (`fetch_spot_shadow`) would reach forward materials too, but Bevy
+//! 0.19 gives a plugin no binding in the mesh view group to feed a per-light
+//! screen-space term to it (its layout is Bevy's; a fourth bind group is
+//! taken by materials), and naga_oil overrides need `override_any` plus a
+//! patched Bevy shader asset — a fork by another name; shading the light
+//! ourselves (as [`FinLight`] still is) drifts from Bevy's BRDF with every
+//! upgrade. The price of the G-buffer route: only deferred materials are
+//! shadowed, which is why the plugin still sets `DefaultOpaqueRendererMethod`
+//! to deferred (see below) — lifting that needs the forward path, still open.
 //!
 //! Every mesh with a `Mesh3d` casts and receives (opt out with
 //! [`NotFinShadowCaster`] and [`NotFinShadowReceiver`]); materials are
@@ -25,7 +65,7 @@
 //! which adds the deferred prepass. Materials forced to
 //! `OpaqueRendererMethod::Forward` are not lit by the fin light.
 //!
-//! Stages, per frame and only when something moved or a setting changed:
+//! Stages, per light, per frame and only when something moved or a setting changed:
 //! 1. **fin extraction and layer assignment** in compute passes
 //!    (`render/extract.wgsl`): per-face facing test, patches (connected
 //!    light-facing regions) by a lock-free union-find, per-edge silhouette test
@@ -42,13 +82,15 @@
 //! 2. **penumbra maps** on the GPU: compute passes rasterise every layer's slab
 //!    depth and its inner and outer fin extremes into one storage buffer, texel
 //!    for texel the core's raster oracle;
-//! 3. **visibility** per camera: a compute pass reads the depth and normal
-//!    prepass and combines the layers (refinement, overlap rule, falloff) into
-//!    the illuminance buffer, which [`FinShadowView::visibility_target`] can copy
-//!    into an image (tests, the editor);
-//! 4. **compositing** per camera: Bevy's deferred lighting of the G-buffer
-//!    plus the fin light's direct light (Bevy's point-light BRDF) times the
-//!    visibility, in one pass that replaces Bevy's deferred lighting pass.
+//! 3. **visibility** per camera and light: a compute pass reads the depth and
+//!    normal prepass and combines the layers (refinement, overlap rule,
+//!    falloff) into that light's layer of the camera's illuminance buffer,
+//!    which [`FinShadowView::visibility_target`] (first light) and
+//!    [`FinShadowView::light_visibility_targets`] (any light) copy into images
+//!    (tests, the editor);
+//! 4. **compositing** per camera: Bevy's deferred lighting of the G-buffer,
+//!    then per light `V` applied to its direct light (see above), in one pass
+//!    that replaces Bevy's deferred lighting pass.
 //!
 //! [`FinMethod::Coverage`] replaces stages 1–3 by exact coverage with occluder
 //! fusion (`shadow_fins::coverage`): on the CPU, when something moved, the
@@ -84,9 +126,12 @@ mod light;
 mod render;
 
 pub use budget::{FinDegradation, FinShadowBudget};
-pub use extract::{FinFrame, FinFrameStats, FinSceneError, FinShadowStats};
+pub use extract::{
+    FinFrame, FinFrameStats, FinFrames, FinLightFrame, FinLightStats, FinSceneError, FinShadowStats, MAX_FIN_LIGHTS,
+};
 pub use light::{
-    FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, NotFinShadowCaster, NotFinShadowReceiver,
+    FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster,
+    NotFinShadowReceiver,
 };
 pub use shadow_fins;
 
@@ -117,6 +162,7 @@ pub struct ShadowFinsPlugin;
 impl Plugin for ShadowFinsPlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<FinLight>()
+            .register_type::<FinShadows>()
             .register_type::<FinShadowSettings>()
             .register_type::<FinShadowView>()
             .register_type::<NotFinShadowCaster>()

@@ -14,7 +14,7 @@ use shadow_fins::{
 ///
 /// Values outside their range are clamped, never a panic: a negative or
 /// non-finite radius is 0 (hard shadows), a non-finite intensity is 0.
-#[derive(Component, Debug, Clone, Copy, Reflect)]
+#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
 #[reflect(Component, Default, Debug, Clone)]
 #[require(Transform, Visibility, FinShadowSettings)]
 pub struct FinLight {
@@ -39,6 +39,28 @@ impl FinLight {
         if self.radius.is_finite() && self.radius > 0.0 { self.radius } else { 0.0 }
     }
 }
+
+/// Gives a Bevy light physically sized fin shadows, like `VolumetricLight`
+/// or `ContactShadows` add their effect: put it on the light's entity (it
+/// adds [`FinShadowSettings`], which tune it, and
+/// [`FinLightStats`](crate::FinLightStats), which report what it models).
+///
+/// The light keeps looking like the Bevy light it is — Bevy shades it, with
+/// its colour, intensity, range, cone and BRDF — and only its shadow changes:
+/// - `SpotLight { radius, .. }`: a disk of that radius facing along the spot
+///   axis (`radius: 0` gives exactly the hard shadow). The cone is Bevy's.
+/// - `DirectionalLight`, `PointLight`, `RectLight`: not modelled yet; said
+///   once at run time, and they keep Bevy's own shadows.
+///
+/// Bevy's own shadow map for the light is off while `FinShadows` is on (in
+/// the render world: the light's `shadow_maps_enabled` is left as the user
+/// set it, and comes back when `FinShadows` is removed). Fin shadows reach
+/// the pixels of cameras with [`FinShadowView`] whose materials are deferred;
+/// elsewhere the light shines unshadowed.
+#[derive(Component, Debug, Clone, Copy, Default, Reflect)]
+#[reflect(Component, Default, Debug, Clone)]
+#[require(FinShadowSettings)]
+pub struct FinShadows;
 
 /// Which shadow method renders the fin light.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Reflect)]
@@ -95,6 +117,7 @@ pub const MAX_LAYERS: u32 = 32;
 /// Out-of-range values are clamped (see [`FinShadowSettings::clamped`]).
 #[derive(Component, Debug, Clone, Copy, PartialEq, Eq, Hash, Reflect)]
 #[reflect(Component, Default, Debug, Clone)]
+#[require(crate::FinLightStats)]
 pub struct FinShadowSettings {
     pub method: FinMethod,
     /// Layers `N`, 1..=32 (default 16). Empty layers cost nothing.
@@ -179,10 +202,14 @@ impl FinShadowSettings {
     bevy::core_pipeline::prepass::DeferredPrepass
 )]
 pub struct FinShadowView {
-    /// When set, the camera's visibility (illuminance) buffer, `R32Float` at the
-    /// camera's size, is copied into this image every frame: read it back with
+    /// When set, the camera's visibility (illuminance) buffer of the first
+    /// fin-shadowed light (by entity order), `R32Float` at the camera's size,
+    /// is copied into this image every frame: read it back with
     /// `Readback::texture`, or show it.
     pub visibility_target: Option<Handle<Image>>,
+    /// The same for any light: (light entity, image), each light's own
+    /// visibility copied into its image.
+    pub light_visibility_targets: Vec<(Entity, Handle<Image>)>,
 }
 
 /// Keeps a mesh from casting fin shadows (like Bevy's `NotShadowCaster`).

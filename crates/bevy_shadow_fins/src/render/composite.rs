@@ -1,13 +1,20 @@
-//! Layered compositing: the fin light's direct light times the visibility
-//! buffer, on top of everything else Bevy lights.
+//! Layered compositing: each fin-shadowed light's direct light times its
+//! visibility layer, on top of everything else Bevy lights.
 //!
 //! On a fin-shadowed camera this pass takes the place of Bevy's deferred
 //! lighting pass: it runs Bevy's own `apply_pbr_lighting` on the G-buffer (so
-//! every Bevy light, probe, SSAO and fog is unchanged) and adds the fin light,
-//! shaded by Bevy's point-light BRDF functions, times `V`. Doing both in one
-//! pass keeps the sum exact before tonemapping, with HDR on or off. The
-//! pipeline is Bevy's deferred lighting pipeline, specialised for the same
-//! view key, with our shader and one more bind group.
+//! every Bevy light, probe, SSAO and fog is unchanged), then per fin light:
+//! - a Bevy light (`SpotLight` + `FinShadows`): Bevy has just shaded it, with
+//!   its shadow map off; the pass takes `(1 − V)` of it away again, evaluated
+//!   by Bevy's own per-light function (`lighting::spot_light` with the
+//!   light's index in Bevy's clustered list), so the light's colour, range,
+//!   cone and BRDF are Bevy's by construction, after any Bevy upgrade;
+//! - a [`FinLight`]: the pass adds it, shaded by Bevy's point-light BRDF
+//!   functions, times `V`.
+//!
+//! Doing it in one pass keeps the sum exact before tonemapping, with HDR on
+//! or off. The pipeline is Bevy's deferred lighting pipeline, specialised for
+//! the same view key, with our shader and one more bind group.
 
 use std::collections::{HashMap, HashSet};
 
@@ -20,7 +27,7 @@ use bevy::{
         schedule::{Core3d, Core3dSystems},
     },
     pbr::{
-        MeshPipelineKey, MeshViewBindGroup, ViewKeyCache,
+        GlobalClusterableObjectMeta, MeshPipelineKey, MeshViewBindGroup, ViewKeyCache,
         deferred::{
             DeferredLightingLayout, PbrDeferredLightingDepthId, SkipDeferredLighting, deferred_lighting,
             prepare_deferred_lighting_pipelines,
@@ -31,9 +38,8 @@ use bevy::{
         Render, RenderApp, RenderSystems,
         diagnostic::RecordDiagnostics,
         extract_component::ComponentUniforms,
-        extract_resource::{ExtractResource, ExtractResourcePlugin},
         render_resource::{
-            binding_types::{texture_2d, uniform_buffer_sized},
+            binding_types::{texture_2d_array, uniform_buffer_sized},
             *,
         },
         renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery},
@@ -42,8 +48,13 @@ use bevy::{
     shader::Shader,
 };
 
+use bytemuck::Zeroable;
+
 use super::FinViewTexture;
-use crate::light::{FinLight, FinShadowView};
+use crate::{
+    extract::{FinFrames, LightShading, MAX_FIN_LIGHTS},
+    light::{FinLight, FinShadowView},
+};
 
 /// The fin light as the compositing shader reads it (`FinLightUniform` in
 /// `composite.wgsl`); the same numbers Bevy's `GpuClusteredLight` holds.
@@ -84,15 +95,32 @@ impl FinLightUniform {
     }
 }
 
-/// The fin light's shading for this frame (`None` without a fin light).
-#[derive(Resource, Clone, Default, ExtractResource)]
-pub(crate) struct FinLightShading(pub Option<FinLightUniform>);
+/// What the compositing pass does with light slot `i` (`CompositeLight.info.x`).
+const KIND_OWN: u32 = 0;
+const KIND_BEVY: u32 = 1;
+const KIND_NONE: u32 = 2;
+
+/// One light slot as the compositing shader reads it (`CompositeLight` in
+/// `composite.wgsl`): the shading of a [`FinLight`], or the index of a Bevy
+/// light in Bevy's clustered light list.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+struct CompositeLight {
+    own: FinLightUniform,
+    /// x: kind, y: Bevy's light index, z: 1 when this view's layer was written.
+    info: [u32; 4],
+}
+
+/// Every light slot of one view (`CompositeLights` in `composite.wgsl`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+struct CompositeLights {
+    count: [u32; 4],
+    lights: [CompositeLight; MAX_FIN_LIGHTS],
+}
 
 pub(crate) fn build(app: &mut App) {
     embedded_asset!(app, "composite.wgsl");
-    app.init_resource::<FinLightShading>()
-        .add_plugins(ExtractResourcePlugin::<FinLightShading>::default())
-        .add_systems(PostUpdate, update_light_shading.after(TransformSystems::Propagate));
 }
 
 pub(crate) fn finish(app: &mut App) {
@@ -109,7 +137,6 @@ pub(crate) fn finish(app: &mut App) {
                     .in_set(RenderSystems::Prepare)
                     .before(prepare_deferred_lighting_pipelines)
                     .before(RenderSystems::PrepareResources),
-                prepare_light_uniform.in_set(RenderSystems::PrepareResources),
                 prepare_composite_bind_groups.in_set(RenderSystems::PrepareBindGroups),
             ),
         )
@@ -124,21 +151,12 @@ pub(crate) fn finish(app: &mut App) {
         );
 }
 
-/// The same light the fin frame uses: the first `FinLight`.
-fn update_light_shading(lights: Query<(&FinLight, &GlobalTransform)>, mut shading: ResMut<FinLightShading>) {
-    let next = lights.iter().next().and_then(|(light, transform)| FinLightUniform::new(light, transform));
-    if shading.0 != next {
-        shading.0 = next;
-    }
-}
-
-/// Compositing pipelines per view key, the light's uniform buffer.
+/// Compositing pipelines per view key.
 #[derive(Resource)]
 struct FinCompositePipelines {
     shader: Handle<Shader>,
     light_layout: BindGroupLayoutDescriptor,
     specialized: HashMap<MeshPipelineKey, (CachedRenderPipelineId, BindGroupLayoutDescriptor)>,
-    light: Option<Buffer>,
 }
 
 /// Loads the shader at startup, so the pipeline is ready as soon as a fin light appears.
@@ -147,7 +165,6 @@ fn init_composite(mut commands: Commands, asset_server: Res<AssetServer>) {
         shader: load_embedded_asset!(asset_server.as_ref(), "composite.wgsl"),
         light_layout: light_layout(),
         specialized: HashMap::new(),
-        light: None,
     });
 }
 
@@ -164,15 +181,21 @@ pub struct FinCompositePipeline {
     pass_id_layout: BindGroupLayoutDescriptor,
 }
 
+/// Per view: the compositing bind group, its light-slot uniform and what
+/// goes into it (the written flags are set when the pass runs).
 #[derive(Component)]
-pub struct FinCompositeBindGroup(BindGroup);
+pub struct FinCompositeBindGroup {
+    bind_group: BindGroup,
+    uniform: Buffer,
+    lights: Box<CompositeLights>,
+}
 
 fn light_layout() -> BindGroupLayoutDescriptor {
     BindGroupLayoutDescriptor::new(
         "fin_composite_layout",
         &BindGroupLayoutEntries::sequential(
             ShaderStages::FRAGMENT,
-            (texture_2d(TextureSampleType::Float { filterable: false }), uniform_buffer_sized(false, None)),
+            (texture_2d_array(TextureSampleType::Float { filterable: false }), uniform_buffer_sized(false, None)),
         ),
     )
 }
@@ -183,7 +206,7 @@ fn prepare_composite_pipelines(
     pipeline_cache: Res<PipelineCache>,
     view_key_cache: Res<ViewKeyCache>,
     deferred_layout: Option<Res<DeferredLightingLayout>>,
-    shading: Res<FinLightShading>,
+    frames: Res<FinFrames>,
     pipelines: Option<ResMut<FinCompositePipelines>>,
     mut composited: ResMut<CompositedViews>,
     views: Query<(Entity, &ExtractedView, Has<DeferredPrepass>), With<FinShadowView>>,
@@ -193,7 +216,7 @@ fn prepare_composite_pipelines(
     let ran_last_frame = std::mem::take(&mut composited.0);
     for (entity, view, deferred) in &views {
         let key = view_key_cache.get(&view.retained_view_entity).copied();
-        let (Some(layout), Some(key), true, true) = (deferred_layout.as_deref(), key, deferred, shading.0.is_some())
+        let (Some(layout), Some(key), true, true) = (deferred_layout.as_deref(), key, deferred, !frames.0.is_empty())
         else {
             if !deferred {
                 warn_once!("fin shadows: the camera needs DeferredPrepass (FinShadowView adds it)");
@@ -228,22 +251,25 @@ fn prepare_composite_pipelines(
     }
 }
 
-fn prepare_light_uniform(
-    shading: Res<FinLightShading>,
-    pipelines: Option<ResMut<FinCompositePipelines>>,
-    device: Res<RenderDevice>,
-    queue: Res<RenderQueue>,
-) {
-    let (Some(uniform), Some(mut pipelines)) = (shading.0, pipelines) else { return };
-    let buffer = pipelines.light.get_or_insert_with(|| {
-        device.create_buffer(&BufferDescriptor {
-            label: Some("fin_light_uniform"),
-            size: size_of::<FinLightUniform>() as u64,
-            usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        })
-    });
-    queue.write_buffer(buffer, 0, bytemuck::bytes_of(&uniform));
+/// The light slots' shading (the written flags are set per view when the
+/// pass runs). A Bevy light missing from Bevy's clustered list this frame is
+/// left out, not taken away from pixels Bevy never lit with it.
+fn composite_lights(frames: &FinFrames, clustered: Option<&GlobalClusterableObjectMeta>) -> CompositeLights {
+    let mut out = CompositeLights::zeroed();
+    out.count[0] = frames.0.len().min(MAX_FIN_LIGHTS) as u32;
+    for (slot, frame) in frames.0.iter().take(MAX_FIN_LIGHTS).enumerate() {
+        let none = (KIND_NONE, FinLightUniform::zeroed(), 0);
+        let (kind, own, id) = match frame.shading {
+            LightShading::Own { light, transform } => {
+                FinLightUniform::new(&light, &transform).map_or(none, |own| (KIND_OWN, own, 0))
+            }
+            LightShading::Bevy { render_entity } => clustered
+                .and_then(|c| c.entity_to_index.get(&render_entity))
+                .map_or(none, |&id| (KIND_BEVY, FinLightUniform::zeroed(), id as u32)),
+        };
+        out.lights[slot] = CompositeLight { own, info: [kind, id, 0, 0] };
+    }
+    out
 }
 
 fn prepare_composite_bind_groups(
@@ -251,17 +277,28 @@ fn prepare_composite_bind_groups(
     device: Res<RenderDevice>,
     pipeline_cache: Res<PipelineCache>,
     pipelines: Option<Res<FinCompositePipelines>>,
-    views: Query<(Entity, &FinViewTexture), With<FinCompositePipeline>>,
+    frames: Res<FinFrames>,
+    clustered: Option<Res<GlobalClusterableObjectMeta>>,
+    views: Query<(Entity, &FinViewTexture, Option<&FinCompositeBindGroup>), With<FinCompositePipeline>>,
 ) {
     let Some(pipelines) = pipelines else { return };
-    let (Some(light), layout) = (pipelines.light.as_ref(), &pipelines.light_layout) else { return };
-    for (entity, texture) in &views {
+    let lights = composite_lights(&frames, clustered.as_deref());
+    for (entity, texture, previous) in &views {
+        let uniform = match previous {
+            Some(p) => p.uniform.clone(),
+            None => device.create_buffer(&BufferDescriptor {
+                label: Some("fin_composite_lights"),
+                size: size_of::<CompositeLights>() as u64,
+                usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+        };
         let bind_group = device.create_bind_group(
             "fin_composite_bind_group",
-            &pipeline_cache.get_bind_group_layout(layout),
-            &BindGroupEntries::sequential((&texture.0.default_view, light.as_entire_binding())),
+            &pipeline_cache.get_bind_group_layout(&pipelines.light_layout),
+            &BindGroupEntries::sequential((&texture.array, uniform.as_entire_binding())),
         );
-        commands.entity(entity).insert(FinCompositeBindGroup(bind_group));
+        commands.entity(entity).insert(FinCompositeBindGroup { bind_group, uniform, lights: Box::new(lights) });
     }
 }
 
@@ -280,15 +317,23 @@ fn fin_composite(
     written: Res<super::ViewsWithVisibility>,
     pipeline_cache: Res<PipelineCache>,
     pass_ids: Res<ComponentUniforms<PbrDeferredLightingDepthId>>,
+    queue: Res<RenderQueue>,
     mut composited: ResMut<CompositedViews>,
     mut ctx: RenderContext,
 ) {
     let (entity, mesh_view_bind_group, target, pass_id_depth, pipeline, bind_group) = view.into_inner();
-    // Without this frame's visibility the buffer holds stale values: let
-    // Bevy's own lighting show instead.
-    if !written.0.contains(&entity) {
+    // A layer not written this frame holds stale values: that light is left
+    // as Bevy lit it (a FinLight: not at all). With none written, Bevy's own
+    // lighting pass shows.
+    let mut lights = *bind_group.lights;
+    for slot in 0..lights.count[0] as usize {
+        lights.lights[slot].info[2] = written.0.contains(&(entity, slot)) as u32;
+    }
+    if !lights.lights.iter().any(|l| l.info[2] == 1) {
         return;
     }
+    // Staged now, applied before this frame's command buffers run.
+    queue.write_buffer(&bind_group.uniform, 0, bytemuck::bytes_of(&lights));
     let Some(render_pipeline) = pipeline_cache.get_render_pipeline(pipeline.id) else { return };
     let Some(pass_id_binding) = pass_ids.uniforms().binding() else { return };
     let pass_id_bind_group = ctx.render_device().create_bind_group(
@@ -316,7 +361,7 @@ fn fin_composite(
     pass.set_bind_group(0, &mesh_view_bind_group.main, &mesh_view_bind_group.main_offsets);
     pass.set_bind_group(1, &mesh_view_bind_group.binding_array, &[]);
     pass.set_bind_group(2, &pass_id_bind_group, &[]);
-    pass.set_bind_group(3, &bind_group.0, &[]);
+    pass.set_bind_group(3, &bind_group.bind_group, &[]);
     pass.draw(0..3, 0..1);
     drop(pass);
     span.end(ctx.command_encoder());

@@ -1,9 +1,11 @@
 // Layered compositing (DESIGN §3 "Compositing"): Bevy's own deferred lighting
-// of the G-buffer, plus the fin light's direct contribution times the
-// visibility buffer. It replaces Bevy's deferred lighting pass on fin-shadowed
-// cameras, so the sum is exact before tonemapping, HDR or not.
+// of the G-buffer, then per fin-shadowed light its visibility layer V: a Bevy
+// light (which Bevy just shaded with its shadow map off) loses (1 − V) of its
+// own contribution, evaluated by Bevy's per-light function; a FinLight adds its
+// direct contribution times V. It replaces Bevy's deferred lighting pass on
+// fin-shadowed cameras, so the sum is exact before tonemapping, HDR or not.
 //
-// The fin light is shaded exactly as Bevy shades a point light
+// A FinLight is shaded exactly as Bevy shades a point light
 // (`bevy_pbr::lighting::point_light`: representative-point specular with the
 // light's radius, Burley diffuse, windowed inverse-square falloff), restricted
 // to the half-space the disk faces, i.e. a `SpotLight` with a 90° cone.
@@ -16,6 +18,7 @@
     mesh_types::MESH_FLAGS_SHADOW_RECEIVER_BIT,
     mesh_view_bindings::{deferred_prepass_texture, view},
 }
+#import bevy_pbr::{mesh_view_bindings, mesh_view_types}
 
 #ifdef SCREEN_SPACE_AMBIENT_OCCLUSION
 #import bevy_pbr::mesh_view_bindings::screen_space_ambient_occlusion_texture
@@ -48,8 +51,21 @@ struct FinLightUniform {
     // rgb: linear colour × luminous intensity (lm / 4π), as Bevy's lights.
     color: vec4<f32>,
 };
-@group(3) @binding(0) var fin_visibility: texture_2d<f32>;
-@group(3) @binding(1) var<uniform> fin_light: FinLightUniform;
+// Mirrors `CompositeLight(s)` in composite.rs.
+const KIND_OWN: u32 = 0u;
+const KIND_BEVY: u32 = 1u;
+const MAX_FIN_LIGHTS: u32 = 16u;
+struct CompositeLight {
+    own: FinLightUniform,
+    // x: kind, y: Bevy's clustered light index, z: 1 when the layer was written.
+    info: vec4<u32>,
+};
+struct CompositeLights {
+    count: vec4<u32>,
+    lights: array<CompositeLight, MAX_FIN_LIGHTS>,
+};
+@group(3) @binding(0) var fin_visibility: texture_2d_array<f32>;
+@group(3) @binding(1) var<uniform> fin_lights: CompositeLights;
 
 @vertex
 fn vertex(@builtin(vertex_index) vertex_index: u32) -> FullscreenVertexOutput {
@@ -95,9 +111,9 @@ fn lighting_input_of(in: PbrInput) -> lighting::LightingInput {
     return input;
 }
 
-// The fin light's unshadowed direct light at the surface (before exposure):
+// A FinLight's unshadowed direct light at the surface (before exposure):
 // `lighting::point_light` with the light's values from our uniform.
-fn fin_light_direct(input: ptr<function, lighting::LightingInput>) -> vec3<f32> {
+fn fin_light_direct(input: ptr<function, lighting::LightingInput>, fin_light: FinLightUniform) -> vec3<f32> {
     let P = (*input).P;
     let N = (*input).layers[lighting::LAYER_BASE].N;
     let V = (*input).V;
@@ -175,20 +191,42 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
 #endif
         output_color = pbr_functions::apply_pbr_lighting(pbr_input);
 
-        // V from the visibility pass; 1 on meshes that do not receive shadows.
-        var visibility = textureLoad(fin_visibility, vec2<i32>(in.position.xy), 0).r;
-        if ((pbr_input.flags & MESH_FLAGS_SHADOW_RECEIVER_BIT) == 0u) {
-            visibility = 1.0;
-        }
-        // A NaN must never reach the screen; compared by its bits, since WGSL
-        // lets implementations assume floats are never NaN.
-        if ((bitcast<u32>(visibility) & 0x7fffffffu) > 0x7f800000u) {
-            visibility = 0.0;
-        }
-        visibility = clamp(visibility, 0.0, 1.0);
+        let receiver = (pbr_input.flags & MESH_FLAGS_SHADOW_RECEIVER_BIT) != 0u;
         var input = lighting_input_of(pbr_input);
-        let fin = fin_light_direct(&input);
-        output_color = vec4(output_color.rgb + view.exposure * visibility * fin, output_color.a);
+        var change = vec3(0.0);
+        for (var i = 0u; i < min(fin_lights.count.x, MAX_FIN_LIGHTS); i += 1u) {
+            let light = fin_lights.lights[i];
+            if (light.info.z == 0u) {
+                continue;
+            }
+            // V from the visibility pass; 1 on meshes that do not receive shadows.
+            var visibility = textureLoad(fin_visibility, vec2<i32>(in.position.xy), i32(i), 0).r;
+            if (!receiver) {
+                visibility = 1.0;
+            }
+            // A NaN must never reach the screen; compared by its bits, since WGSL
+            // lets implementations assume floats are never NaN.
+            if ((bitcast<u32>(visibility) & 0x7fffffffu) > 0x7f800000u) {
+                visibility = 0.0;
+            }
+            visibility = clamp(visibility, 0.0, 1.0);
+            if (light.info.x == KIND_OWN) {
+                change += visibility * fin_light_direct(&input, light.own);
+            } else if (light.info.x == KIND_BEVY && visibility < 1.0) {
+                // Bevy added this light unshadowed; clustered lights past the
+                // point lights are spot lights (`first_spot_light_index_offset`).
+                let flags = mesh_view_bindings::clustered_lights.data[light.info.y].flags;
+                var bevy_light: vec3<f32>;
+                if ((flags & mesh_view_types::POINT_LIGHT_FLAGS_SPOT_LIGHT_BIT) != 0u) {
+                    bevy_light = lighting::spot_light(light.info.y, &input, true);
+                } else {
+                    bevy_light = lighting::point_light(light.info.y, &input, true, true);
+                }
+                change -= (1.0 - visibility) * bevy_light;
+            }
+        }
+        // Never below black: what is taken away is at most what Bevy added.
+        output_color = vec4(max(output_color.rgb + view.exposure * change, vec3(0.0)), output_color.a);
     } else {
         output_color = pbr_input.material.base_color;
     }

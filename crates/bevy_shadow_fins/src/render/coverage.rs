@@ -27,10 +27,10 @@ use bevy::{
     shader::load_shader_library,
 };
 
-use super::{FinViewBuffer, FinViewTexture, ViewsWithVisibility, extract_gpu::ensure, view_transform, workgroups};
+use super::{FinViewTexture, ViewsWithVisibility, extract_gpu::ensure, view_transform, workgroups};
 use crate::{
     coverage_frame::{FAR_DEPTHS, LIST_WORDS, NEAR_DEPTHS},
-    extract::{FinFrame, FinFrameData},
+    extract::{FinFrameData, FinFrames},
     light::FinShadowView,
 };
 
@@ -45,7 +45,7 @@ pub(super) fn build(app: &mut App) {
 pub(super) fn finish(app: &mut App) {
     let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
     render_app
-        .init_resource::<CoverageGpu>()
+        .init_resource::<CoverageLightsGpu>()
         .add_systems(bevy::render::RenderStartup, init_pipelines)
         .add_systems(
             Render,
@@ -148,8 +148,12 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
     });
 }
 
-/// GPU copies of the current coverage frame.
+/// Every coverage-method light's GPU lists, by main-world light entity.
 #[derive(Resource, Default)]
+struct CoverageLightsGpu(std::collections::HashMap<Entity, CoverageGpu>);
+
+/// GPU copies of one light's coverage frame.
+#[derive(Default)]
 struct CoverageGpu {
     generation: u64,
     /// The depth lists must be (re)built: new content, or pipelines were not ready.
@@ -174,18 +178,34 @@ impl CoverageGpu {
 }
 
 fn prepare_coverage(
-    frame: Res<FinFrame>,
-    mut gpu: ResMut<CoverageGpu>,
+    frames: Res<FinFrames>,
+    mut lights: ResMut<CoverageLightsGpu>,
     device: Res<RenderDevice>,
     queue: Res<RenderQueue>,
     pipelines: Option<Res<CoveragePipelines>>,
     pipeline_cache: Res<PipelineCache>,
 ) {
-    let (Some(f), Some(pipelines)) = (frame.0.as_ref(), pipelines) else {
-        gpu.lists_bind_group = None;
-        gpu.generation = 0;
+    let coverage = |f: &&crate::extract::FinLightFrame| f.data.coverage.is_some();
+    lights.0.retain(|light, _| frames.0.iter().filter(coverage).any(|f| f.light == *light));
+    let Some(pipelines) = pipelines else {
+        lights.0.clear();
         return;
     };
+    for frame in frames.0.iter().filter(coverage) {
+        let gpu = lights.0.entry(frame.light).or_default();
+        prepare_light(&frame.data, gpu, &device, &queue, &pipelines, &pipeline_cache);
+    }
+}
+
+/// One light's lists and inputs, uploaded when its frame changed.
+fn prepare_light(
+    f: &FinFrameData,
+    gpu: &mut CoverageGpu,
+    device: &RenderDevice,
+    queue: &RenderQueue,
+    pipelines: &CoveragePipelines,
+    pipeline_cache: &PipelineCache,
+) {
     let (Some(c), Some(params)) = (f.coverage.as_ref(), params_of(f)) else {
         gpu.lists_bind_group = None;
         gpu.generation = 0;
@@ -197,11 +217,11 @@ fn prepare_coverage(
     let storage = BufferUsages::STORAGE | BufferUsages::COPY_DST;
     let cap = f.limit_bytes;
     let texels = c.region.resolution as u64 * c.region.resolution as u64;
-    let g = &mut *gpu;
-    ensure(&mut g.params, &device, "fin_coverage_params", 128, BufferUsages::UNIFORM | BufferUsages::COPY_DST, cap);
-    ensure(&mut g.lists, &device, "fin_coverage_lists", texels * LIST_WORDS * 4, storage, cap.min(f.map_limit_bytes));
+    let g = gpu;
+    ensure(&mut g.params, device, "fin_coverage_params", 128, BufferUsages::UNIFORM | BufferUsages::COPY_DST, cap);
+    ensure(&mut g.lists, device, "fin_coverage_lists", texels * LIST_WORDS * 4, storage, cap.min(f.map_limit_bytes));
     let upload = |buf: &mut Option<Buffer>, label: &str, bytes: &[u8]| {
-        ensure(buf, &device, label, (bytes.len() as u64).max(64), storage, cap);
+        ensure(buf, device, label, (bytes.len() as u64).max(64), storage, cap);
         if !bytes.is_empty() {
             queue.write_buffer(buf.as_ref().unwrap(), 0, bytes);
         }
@@ -228,54 +248,60 @@ fn prepare_coverage(
     g.dirty = true;
 }
 
-/// Clears and fills the depth lists when the frame changed.
+/// Clears and fills each light's depth lists when its frame changed.
 fn render_lists(
-    mut gpu: ResMut<CoverageGpu>,
+    mut lights: ResMut<CoverageLightsGpu>,
     pipelines: Option<Res<CoveragePipelines>>,
     pipeline_cache: Res<PipelineCache>,
     mut ctx: RenderContext,
 ) {
-    if !gpu.dirty {
-        return;
-    }
-    let (Some(pipelines), Some(bind_group)) = (pipelines, gpu.lists_bind_group.clone()) else { return };
+    let Some(pipelines) = pipelines else { return };
     let (Some(clear), Some(raster)) =
         (pipeline_cache.get_compute_pipeline(pipelines.clear), pipeline_cache.get_compute_pipeline(pipelines.raster))
     else {
         return;
     };
-    let (work, texels, _) = gpu.counts;
-    let diagnostics = ctx.diagnostic_recorder();
-    let diagnostics = diagnostics.as_deref();
-    let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/coverage_lists");
-    {
-        let mut pass = ctx
-            .command_encoder()
-            .begin_compute_pass(&ComputePassDescriptor { label: Some("fin_coverage_lists"), timestamp_writes: None });
-        pass.set_bind_group(0, &bind_group, &[]);
-        pass.set_pipeline(clear);
-        let (x, y) = workgroups(texels.div_ceil(WORKGROUP));
-        pass.dispatch_workgroups(x, y, 1);
-        if work > 0 {
-            pass.set_pipeline(raster);
-            let (x, y) = workgroups(work);
+    for gpu in lights.0.values_mut().filter(|g| g.dirty) {
+        let Some(bind_group) = gpu.lists_bind_group.clone() else { continue };
+        let (work, texels, _) = gpu.counts;
+        let diagnostics = ctx.diagnostic_recorder();
+        let diagnostics = diagnostics.as_deref();
+        let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/coverage_lists");
+        {
+            let mut pass = ctx.command_encoder().begin_compute_pass(&ComputePassDescriptor {
+                label: Some("fin_coverage_lists"),
+                timestamp_writes: None,
+            });
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.set_pipeline(clear);
+            let (x, y) = workgroups(texels.div_ceil(WORKGROUP));
             pass.dispatch_workgroups(x, y, 1);
+            if work > 0 {
+                pass.set_pipeline(raster);
+                let (x, y) = workgroups(work);
+                pass.dispatch_workgroups(x, y, 1);
+            }
         }
+        span.end(ctx.command_encoder());
+        gpu.dirty = false;
     }
-    span.end(ctx.command_encoder());
-    gpu.dirty = false;
 }
 
-/// Per camera: the coverage visibility passes' bind group.
+/// Per camera and light slot: the coverage visibility passes' bind group
+/// (`None` for lights on a fin method, or that cannot run this frame) and
+/// the light's 32-sample word count.
 #[derive(Component)]
-pub struct CoverageViewBindGroup(BindGroup);
+pub struct CoverageViewBindGroup(Vec<Option<(BindGroup, u32)>>);
 
-/// Per camera: D(c) and the sample tally per pixel, kept while the size holds.
+/// Per camera: D(c) and the sample tally per pixel, kept while the size
+/// holds (the lights' passes run one after the other and share them), and
+/// each light slot's view → light-frame transform.
 #[derive(Component)]
 pub struct CoverageViewBuffers {
     pixels: u64,
     reference: Buffer,
     tally: Buffer,
+    transforms: Vec<Buffer>,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -283,25 +309,16 @@ fn prepare_view_bind_groups(
     mut commands: Commands,
     device: Res<RenderDevice>,
     queue: Res<RenderQueue>,
-    gpu: Res<CoverageGpu>,
-    frame: Res<FinFrame>,
+    lights: Res<CoverageLightsGpu>,
+    frames: Res<FinFrames>,
     pipelines: Option<Res<CoveragePipelines>>,
     pipeline_cache: Res<PipelineCache>,
     view_uniforms: Res<ViewUniforms>,
-    views: Query<(
-        Entity,
-        &FinViewTexture,
-        &ViewPrepassTextures,
-        &ExtractedView,
-        Option<&FinViewBuffer>,
-        Option<&CoverageViewBuffers>,
-    )>,
+    mut views: Query<(Entity, &FinViewTexture, &ViewPrepassTextures, &ExtractedView, Option<&mut CoverageViewBuffers>)>,
 ) {
-    let f = frame.0.as_ref().filter(|f| f.coverage.is_some());
     let binding = view_uniforms.uniforms.binding();
-    for (entity, texture, prepass, view, view_buffer, buffers) in &views {
-        let (Some(f), Some(pipelines), Some(view_binding), true) =
-            (f, pipelines.as_ref(), binding.clone(), gpu.ready())
+    for (entity, texture, prepass, view, buffers) in &mut views {
+        let (Some(pipelines), Some(view_binding), false) = (pipelines.as_ref(), binding.clone(), lights.0.is_empty())
         else {
             commands.entity(entity).remove::<CoverageViewBindGroup>();
             continue;
@@ -310,13 +327,15 @@ fn prepare_view_bind_groups(
             commands.entity(entity).remove::<CoverageViewBindGroup>();
             continue;
         };
-        let buffer = view_transform(&device, &queue, f, &view.world_from_view, view_buffer);
-        let size = texture.0.texture.size();
+        let size = texture.texture.texture.size();
         let pixels = size.width as u64 * size.height as u64;
-        let per_pixel = match buffers {
-            Some(b) if b.pixels == pixels => {
-                CoverageViewBuffers { pixels, reference: b.reference.clone(), tally: b.tally.clone() }
-            }
+        let mut per_pixel = match buffers {
+            Some(mut b) if b.pixels == pixels => CoverageViewBuffers {
+                pixels,
+                reference: b.reference.clone(),
+                tally: b.tally.clone(),
+                transforms: std::mem::take(&mut b.transforms),
+            },
             _ => {
                 let buffer = |label: &str| {
                     device.create_buffer(&BufferDescriptor {
@@ -330,42 +349,55 @@ fn prepare_view_bind_groups(
                     pixels,
                     reference: buffer("fin_coverage_reference"),
                     tally: buffer("fin_coverage_tally"),
+                    transforms: vec![],
                 }
             }
         };
-        let bind_group = device.create_bind_group(
-            "fin_coverage_view_bind_group",
-            &pipeline_cache.get_bind_group_layout(&pipelines.view_layout),
-            &BindGroupEntries::sequential((
-                gpu.params.as_ref().unwrap().as_entire_binding(),
-                gpu.lists.as_ref().unwrap().as_entire_binding(),
-                gpu.edges.as_ref().unwrap().as_entire_binding(),
-                gpu.starts.as_ref().unwrap().as_entire_binding(),
-                gpu.items.as_ref().unwrap().as_entire_binding(),
-                gpu.samples.as_ref().unwrap().as_entire_binding(),
-                depth,
-                normal,
-                &texture.0.default_view,
-                view_binding,
-                buffer.as_entire_binding(),
-                per_pixel.reference.as_entire_binding(),
-                per_pixel.tally.as_entire_binding(),
-            )),
-        );
-        commands.entity(entity).insert((CoverageViewBindGroup(bind_group), FinViewBuffer(buffer), per_pixel));
+        let groups = frames
+            .0
+            .iter()
+            .enumerate()
+            .map(|(slot, frame)| {
+                let gpu = lights.0.get(&frame.light).filter(|g| g.ready())?;
+                let layer = texture.layers.get(slot)?;
+                let f = &frame.data;
+                let buffer = view_transform(&device, &queue, f, &view.world_from_view, &mut per_pixel.transforms, slot);
+                let bind_group = device.create_bind_group(
+                    "fin_coverage_view_bind_group",
+                    &pipeline_cache.get_bind_group_layout(&pipelines.view_layout),
+                    &BindGroupEntries::sequential((
+                        gpu.params.as_ref().unwrap().as_entire_binding(),
+                        gpu.lists.as_ref().unwrap().as_entire_binding(),
+                        gpu.edges.as_ref().unwrap().as_entire_binding(),
+                        gpu.starts.as_ref().unwrap().as_entire_binding(),
+                        gpu.items.as_ref().unwrap().as_entire_binding(),
+                        gpu.samples.as_ref().unwrap().as_entire_binding(),
+                        depth,
+                        normal,
+                        layer,
+                        view_binding.clone(),
+                        buffer.as_entire_binding(),
+                        per_pixel.reference.as_entire_binding(),
+                        per_pixel.tally.as_entire_binding(),
+                    )),
+                );
+                Some((bind_group, gpu.counts.2.clamp(1, 8)))
+            })
+            .collect();
+        commands.entity(entity).insert((CoverageViewBindGroup(groups), per_pixel));
     }
 }
 
 fn coverage_visibility(
     view: ViewQuery<(Entity, &FinShadowView, &FinViewTexture, &CoverageViewBindGroup, &ViewUniformOffset)>,
+    frames: Res<FinFrames>,
     pipelines: Option<Res<CoveragePipelines>>,
     pipeline_cache: Res<PipelineCache>,
     images: Res<bevy::render::render_asset::RenderAssets<bevy::render::texture::GpuImage>>,
-    gpu: Res<CoverageGpu>,
     mut written: ResMut<ViewsWithVisibility>,
     mut ctx: RenderContext,
 ) {
-    let (entity, settings, texture, bind_group, offset) = view.into_inner();
+    let (entity, settings, texture, bind_groups, offset) = view.into_inner();
     let Some(pipelines) = pipelines else { return };
     let (Some(reference), Some(samples), Some(resolve)) = (
         pipeline_cache.get_compute_pipeline(pipelines.reference),
@@ -374,26 +406,28 @@ fn coverage_visibility(
     ) else {
         return;
     };
-    let words = gpu.counts.2.clamp(1, 8);
-    let size = texture.0.texture.size();
-    let diagnostics = ctx.diagnostic_recorder();
-    let diagnostics = diagnostics.as_deref();
-    let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/visibility");
-    {
-        let mut pass = ctx.command_encoder().begin_compute_pass(&ComputePassDescriptor {
-            label: Some("fin_coverage_visibility"),
-            timestamp_writes: None,
-        });
-        pass.set_bind_group(0, &bind_group.0, &[offset.offset]);
-        let (x, y) = (size.width.div_ceil(8), size.height.div_ceil(8));
-        pass.set_pipeline(reference);
-        pass.dispatch_workgroups(x, y, 1);
-        pass.set_pipeline(samples);
-        pass.dispatch_workgroups(x, y, words);
-        pass.set_pipeline(resolve);
-        pass.dispatch_workgroups(x, y, 1);
+    let size = texture.texture.texture.size();
+    for (slot, group) in bind_groups.0.iter().enumerate() {
+        let Some((bind_group, words)) = group else { continue };
+        let diagnostics = ctx.diagnostic_recorder();
+        let diagnostics = diagnostics.as_deref();
+        let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/visibility");
+        {
+            let mut pass = ctx.command_encoder().begin_compute_pass(&ComputePassDescriptor {
+                label: Some("fin_coverage_visibility"),
+                timestamp_writes: None,
+            });
+            pass.set_bind_group(0, bind_group, &[offset.offset]);
+            let (x, y) = (size.width.div_ceil(8), size.height.div_ceil(8));
+            pass.set_pipeline(reference);
+            pass.dispatch_workgroups(x, y, 1);
+            pass.set_pipeline(samples);
+            pass.dispatch_workgroups(x, y, *words);
+            pass.set_pipeline(resolve);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        span.end(ctx.command_encoder());
+        written.0.insert((entity, slot));
+        super::copy_to_targets(&mut ctx, settings, texture, &images, &frames, slot);
     }
-    span.end(ctx.command_encoder());
-    written.0.insert(entity);
-    super::copy_to_target(&mut ctx, settings, texture, &images, size);
 }

@@ -22,7 +22,7 @@ use bevy::{
 
 use crate::{
     budget::FinDegradation,
-    extract::{FinFrame, FinFrameData, FinFrameStats, FinShadowStats, MeshCache},
+    extract::{FinFrameData, FinFrameStats, FinFrames, FinLightStats, FinShadowStats, MAX_FIN_LIGHTS, MeshCache},
     gpu_scene::{GpuCapacity, GpuScene},
     light::FinMethod,
 };
@@ -66,38 +66,61 @@ pub(super) fn build(app: &mut App) {
     app.add_plugins(ExtractResourcePlugin::<FinStatsBuffer>::default()).add_systems(Startup, spawn_stats_readback);
 }
 
-/// The small buffer the extraction's counts are copied into, read back every
-/// frame into [`FinShadowStats`].
+/// The small buffer the extraction's counts are copied into, one slot of
+/// `STATS_WORDS` per light (in [`FinFrames`] order), read back every frame
+/// into each light's [`FinLightStats`].
 #[derive(Resource, Clone, ExtractResource)]
 pub(crate) struct FinStatsBuffer(Handle<ShaderBuffer>);
 
+/// Byte offset of light slot `slot` in the stats buffer.
+pub(super) fn stats_offset(slot: usize) -> u64 {
+    slot as u64 * STATS_WORDS * 4
+}
+
 fn spawn_stats_readback(mut commands: Commands, mut buffers: ResMut<Assets<ShaderBuffer>>) {
-    let handle =
-        buffers.add(ShaderBuffer::new(&[0u8; STATS_WORDS as usize * 4], bevy::asset::RenderAssetUsages::RENDER_WORLD));
+    let bytes = vec![0u8; stats_offset(MAX_FIN_LIGHTS) as usize];
+    let handle = buffers.add(ShaderBuffer::new(&bytes, bevy::asset::RenderAssetUsages::RENDER_WORLD));
     commands.insert_resource(FinStatsBuffer(handle.clone()));
     commands.spawn((Name::new("fin shadow stats read-back"), Readback::buffer(handle))).observe(on_stats_readback);
 }
 
-/// Counts of the latest GPU extraction: stats for the main world, and the
-/// buffers grown (and the frame redone) when it wanted more than they hold.
+/// Counts of the latest GPU extraction of every light: stats for the main
+/// world, and the buffers grown (and the frame redone) when it wanted more
+/// than they hold.
 fn on_stats_readback(
     readback: On<ReadbackComplete>,
-    frame: Res<FinFrame>,
+    frames: Res<FinFrames>,
     mut cache: ResMut<MeshCache>,
     mut stats: ResMut<FinShadowStats>,
+    mut light_stats: Query<&mut FinLightStats>,
 ) {
     let words: Vec<u32> = readback.data.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
-    let (Some(f), Some(w)) = (frame.0.as_ref(), words.get(..STATS_WORDS as usize)) else { return };
-    let Some(gpu) = f.gpu.as_ref() else { return };
-    // Counts of an older frame (or of none yet) say nothing about this one.
+    for (slot, frame) in frames.0.iter().enumerate() {
+        let at = slot * STATS_WORDS as usize;
+        let Some(w) = words.get(at..at + STATS_WORDS as usize) else { continue };
+        let Some(state) = cache.lights.get_mut(&frame.light) else { continue };
+        let Some(now) = stats_of_readback(&frame.data, w, state) else { continue };
+        crate::extract::set_stats(&mut light_stats, frame.light, now);
+        if slot == 0 && stats.0 != now {
+            stats.0 = now;
+        }
+    }
+}
+
+/// One light's counts from its read-back slot `w`, or `None` when the slot
+/// belongs to another frame (an older one, another light's, or none yet).
+fn stats_of_readback(f: &FinFrameData, w: &[u32], state: &mut crate::extract::LightState) -> Option<FinFrameStats> {
+    let gpu = f.gpu.as_ref()?;
+    // Generations are unique over all lights' frames: a slot that another
+    // light used last frame cannot pass for this one's.
     if w[11] != f.generation as u32 || gpu.totals[1] == 0 {
-        return;
+        return None;
     }
     let wanted = GpuCapacity { silhouettes: w[0], fins: w[1], casters: w[2], layers: w[10] };
     let grown = gpu.capacity.grown_for(wanted, gpu.max_capacity);
     if let Some(next) = grown {
-        cache.capacity = Some(next);
-        cache.capacity_epoch += 1;
+        state.capacity = Some(next);
+        state.capacity_epoch += 1;
     }
     // Past the limit the GPU kept what fit and dropped the rest: say so.
     let layers_cut = (wanted.layers > gpu.max_capacity.layers).then_some(FinDegradation::Maps {
@@ -105,7 +128,7 @@ fn on_stats_readback(
         wanted_resolution: f.settings.map_resolution,
         layers: gpu.max_capacity.layers,
         wanted_layers: wanted.layers,
-        limit_bytes: f.limit_bytes,
+        limit_bytes: f.map_limit_bytes,
     });
     let shortfall = gpu
         .capacity
@@ -114,9 +137,9 @@ fn on_stats_readback(
         .map(|(buffer, kept, wanted)| FinDegradation::Capacity { buffer, kept, wanted, limit_bytes: f.limit_bytes })
         .or(layers_cut);
     if grown.is_none() {
-        cache.shortfall = shortfall;
+        state.shortfall = shortfall;
     }
-    let stats_now = FinFrameStats {
+    let now = FinFrameStats {
         silhouettes: w[0].min(gpu.capacity.silhouettes) as usize,
         fins: w[1].min(gpu.capacity.fins) as usize,
         layers: w[12] as usize,
@@ -124,10 +147,8 @@ fn on_stats_readback(
         degraded: if grown.is_none() { shortfall.or(f.stats.degraded) } else { f.stats.degraded },
         ..f.stats
     };
-    crate::extract::warn_degradation(&mut cache.warned, stats_now.degraded);
-    if stats.0 != stats_now {
-        stats.0 = stats_now;
-    }
+    crate::extract::warn_degradation(&mut state.warned, now.degraded);
+    Some(now)
 }
 
 /// `ExtractParams` in `extract.wgsl`.
@@ -341,7 +362,7 @@ pub(super) fn record(
     pipelines: &ExtractPipelines,
     pipeline_cache: &PipelineCache,
     maps_params: &Buffer,
-    stats: Option<&Buffer>,
+    stats: Option<(&Buffer, u64)>,
     encoder: &mut CommandEncoder,
 ) -> bool {
     let (Some(ready), Some(bind_group), Some(control)) =
@@ -401,8 +422,8 @@ pub(super) fn record(
         indirect(pass, ready[12], args, C_ARGS_CASTER_THREADS);
     });
     encoder.copy_buffer_to_buffer(control, C_PARAMS * 4, maps_params, 0, 128);
-    if let Some(stats) = stats {
-        encoder.copy_buffer_to_buffer(control, 0, stats, 0, STATS_WORDS * 4);
+    if let Some((stats, offset)) = stats {
+        encoder.copy_buffer_to_buffer(control, 0, stats, offset, STATS_WORDS * 4);
     }
     true
 }

@@ -32,10 +32,11 @@ use bevy::{
 };
 
 use crate::{
-    extract::{FinFrame, FinFrameData},
+    extract::{FinFrameData, FinFrames},
     light::FinShadowView,
 };
 
+mod bevy_lights;
 mod composite;
 mod coverage;
 mod extract_gpu;
@@ -44,7 +45,10 @@ pub(crate) fn build(app: &mut App) {
     load_shader_library!(app, "fin_types.wgsl");
     embedded_asset!(app, "maps.wgsl");
     embedded_asset!(app, "visibility.wgsl");
-    app.add_plugins((ExtractResourcePlugin::<FinFrame>::default(), ExtractComponentPlugin::<FinShadowView>::default()));
+    app.add_plugins((
+        ExtractResourcePlugin::<FinFrames>::default(),
+        ExtractComponentPlugin::<FinShadowView>::default(),
+    ));
     composite::build(app);
     coverage::build(app);
     extract_gpu::build(app);
@@ -72,7 +76,7 @@ pub(crate) fn finish(app: &mut App) {
     }
     let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
     render_app
-        .init_resource::<FinMapsGpu>()
+        .init_resource::<FinLightsGpu>()
         .init_resource::<ViewsWithVisibility>()
         .add_systems(bevy::render::RenderStartup, init_pipelines)
         .add_systems(
@@ -88,6 +92,7 @@ pub(crate) fn finish(app: &mut App) {
         .add_systems(Core3d, fin_visibility.after(Core3dSystems::Prepass).before(Core3dSystems::MainPass));
     coverage::finish(app);
     composite::finish(app);
+    bevy_lights::finish(app);
 }
 
 impl ExtractComponent for FinShadowView {
@@ -203,8 +208,13 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
     });
 }
 
-/// GPU copies of the current fin frame and its maps.
+/// Every fin-shadowed light's GPU maps (fin methods; the coverage method's
+/// are in `coverage.rs`), by main-world light entity.
 #[derive(Resource, Default)]
+struct FinLightsGpu(std::collections::HashMap<Entity, FinMapsGpu>);
+
+/// GPU copies of one light's fin frame and its maps.
+#[derive(Default)]
 struct FinMapsGpu {
     generation: u64,
     /// The maps must be (re)rendered: new content, or pipelines were not ready.
@@ -255,21 +265,37 @@ fn params_of(f: &FinFrameData) -> FinParams {
     }
 }
 
-/// Uploads a changed fin frame; buffers grow on demand and are reused otherwise.
+/// Uploads each light's changed fin frame; buffers grow on demand and are
+/// reused otherwise. Lights gone (or now on the coverage method) free theirs.
 fn prepare_maps(
-    frame: Res<FinFrame>,
-    mut gpu: ResMut<FinMapsGpu>,
+    frames: Res<FinFrames>,
+    mut lights: ResMut<FinLightsGpu>,
     device: Res<RenderDevice>,
     queue: Res<RenderQueue>,
     pipelines: Option<Res<FinPipelines>>,
     pipeline_cache: Res<PipelineCache>,
 ) {
-    // No fin frame, or the coverage method's (`coverage.rs` renders that).
-    let (Some(f), Some(pipelines)) = (frame.0.as_ref().filter(|f| f.coverage.is_none()), pipelines) else {
-        gpu.bind_group = None;
-        gpu.generation = 0;
+    let fins = |f: &&crate::extract::FinLightFrame| f.data.coverage.is_none();
+    lights.0.retain(|light, _| frames.0.iter().filter(fins).any(|f| f.light == *light));
+    let Some(pipelines) = pipelines else {
+        lights.0.clear();
         return;
     };
+    for frame in frames.0.iter().filter(fins) {
+        let gpu = lights.0.entry(frame.light).or_default();
+        prepare_light_maps(&frame.data, gpu, &device, &queue, &pipelines, &pipeline_cache);
+    }
+}
+
+/// One light's maps: uploaded when its frame changed.
+fn prepare_light_maps(
+    f: &FinFrameData,
+    gpu: &mut FinMapsGpu,
+    device: &RenderDevice,
+    queue: &RenderQueue,
+    pipelines: &FinPipelines,
+    pipeline_cache: &PipelineCache,
+) {
     if f.generation == gpu.generation && gpu.bind_group.is_some() {
         return;
     }
@@ -287,9 +313,9 @@ fn prepare_maps(
     let storage = BufferUsages::STORAGE | BufferUsages::COPY_DST;
     use extract_gpu::ensure;
     let cap = f.limit_bytes;
-    ensure(&mut gpu.params, &device, "fin_params", 128, BufferUsages::UNIFORM | BufferUsages::COPY_DST, cap);
+    ensure(&mut gpu.params, device, "fin_params", 128, BufferUsages::UNIFORM | BufferUsages::COPY_DST, cap);
     // The maps grow to their budget at most (their size is already within it).
-    ensure(&mut gpu.maps, &device, "fin_maps", maps_size, storage | BufferUsages::COPY_SRC, cap.min(f.map_limit_bytes));
+    ensure(&mut gpu.maps, device, "fin_maps", maps_size, storage | BufferUsages::COPY_SRC, cap.min(f.map_limit_bytes));
     let (caster_bytes, fin_bytes) = match &f.gpu {
         Some(scene) => (
             scene.capacity.casters as u64 * extract_gpu::CASTER_BYTES,
@@ -297,8 +323,8 @@ fn prepare_maps(
         ),
         None => (size_of_val(f.casters.as_slice()) as u64, size_of_val(f.fins.as_slice()) as u64),
     };
-    ensure(&mut gpu.casters, &device, "fin_casters", caster_bytes.max(64), storage, cap);
-    ensure(&mut gpu.fins, &device, "fin_fins", fin_bytes.max(64), storage, cap);
+    ensure(&mut gpu.casters, device, "fin_casters", caster_bytes.max(64), storage, cap);
+    ensure(&mut gpu.fins, device, "fin_fins", fin_bytes.max(64), storage, cap);
     gpu.mode = match &f.gpu {
         None => MapsSource::Cpu,
         Some(scene) if scene.totals[1] == 0 => MapsSource::Nothing,
@@ -306,7 +332,7 @@ fn prepare_maps(
     };
     match (&f.gpu, gpu.mode) {
         (Some(scene), MapsSource::Gpu) => {
-            let FinMapsGpu { extraction, fins, casters, .. } = &mut *gpu;
+            let FinMapsGpu { extraction, fins, casters, .. } = gpu;
             extract_gpu::prepare(
                 extraction,
                 f,
@@ -315,9 +341,9 @@ fn prepare_maps(
                 fins.as_ref().unwrap(),
                 casters.as_ref().unwrap(),
                 &pipelines.extract,
-                &pipeline_cache,
-                &device,
-                &queue,
+                pipeline_cache,
+                device,
+                queue,
             );
         }
         _ => {
@@ -354,20 +380,39 @@ pub(super) fn workgroups(n: u32) -> (u32, u32) {
     if n <= 65535 { (n, 1) } else { (65535, n.div_ceil(65535)) }
 }
 
-/// Extracts fins on the GPU when that is the source, then renders every
-/// layer's maps: clear, casters (slab depths), fins (keys).
+/// Per light whose frame changed: extracts fins on the GPU when that is the
+/// source, then renders every layer's maps: clear, casters (slab depths),
+/// fins (keys). The extraction's counts go to the light's read-back slot.
 fn render_maps(
-    mut gpu: ResMut<FinMapsGpu>,
+    frames: Res<FinFrames>,
+    mut lights: ResMut<FinLightsGpu>,
     pipelines: Option<Res<FinPipelines>>,
     pipeline_cache: Res<PipelineCache>,
     stats_handle: Option<Res<extract_gpu::FinStatsBuffer>>,
     shader_buffers: Res<RenderAssets<bevy::render::storage::GpuShaderBuffer>>,
     mut ctx: RenderContext,
 ) {
+    let Some(pipelines) = pipelines else { return };
+    for (slot, frame) in frames.0.iter().enumerate() {
+        let Some(gpu) = lights.0.get_mut(&frame.light) else { continue };
+        let stats = extract_gpu::stats_buffer(stats_handle.as_deref(), &shader_buffers)
+            .map(|b| (b, extract_gpu::stats_offset(slot)));
+        render_light_maps(gpu, &pipelines, &pipeline_cache, stats, &mut ctx);
+    }
+}
+
+/// One light's extraction and map passes, when its maps are dirty.
+fn render_light_maps(
+    gpu: &mut FinMapsGpu,
+    pipelines: &FinPipelines,
+    pipeline_cache: &PipelineCache,
+    stats: Option<(&Buffer, u64)>,
+    ctx: &mut RenderContext,
+) {
     if !gpu.dirty {
         return;
     }
-    let (Some(pipelines), Some(bind_group)) = (pipelines, gpu.bind_group.clone()) else { return };
+    let Some(bind_group) = gpu.bind_group.clone() else { return };
     let (Some(clear), Some(casters), Some(fins), Some(fin_depths)) = (
         pipeline_cache.get_compute_pipeline(pipelines.clear),
         pipeline_cache.get_compute_pipeline(pipelines.casters),
@@ -386,12 +431,11 @@ fn render_maps(
         }
         MapsSource::Gpu => {
             let (Some(params), Some(control)) = (gpu.params.as_ref(), gpu.extraction.indirect.as_ref()) else { return };
-            let stats = extract_gpu::stats_buffer(stats_handle.as_deref(), &shader_buffers);
             let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/extraction");
             let recorded = extract_gpu::record(
                 &gpu.extraction,
                 &pipelines.extract,
-                &pipeline_cache,
+                pipeline_cache,
                 params,
                 stats,
                 ctx.command_encoder(),
@@ -453,35 +497,46 @@ fn render_maps(
     gpu.dirty = false;
 }
 
-/// Per camera: its visibility (illuminance) buffer.
+/// Per camera: its visibility (illuminance) buffers, one layer per fin-shadowed
+/// light (in [`FinFrames`] order; at least one), and a view of each layer.
 #[derive(Component)]
-pub struct FinViewTexture(pub(super) CachedTexture);
+pub struct FinViewTexture {
+    pub(super) texture: CachedTexture,
+    /// One 2D view per light layer (what a visibility pass writes).
+    pub(super) layers: Vec<TextureView>,
+    /// All layers as one array (what the compositing pass reads).
+    pub(super) array: TextureView,
+}
 
+/// Per camera and light slot: the fin visibility pass's bind group (`None`
+/// for lights on the coverage method, or that cannot run this frame).
 #[derive(Component)]
-pub struct FinViewBindGroup(BindGroup);
+pub struct FinViewBindGroup(Vec<Option<BindGroup>>);
 
-/// Per camera: its view → light-frame transform (`FinView` in `visibility.wgsl`).
-#[derive(Component)]
-pub struct FinViewBuffer(pub(super) Buffer);
+/// Per camera and light slot: its view → light-frame transform (`FinView`
+/// in `visibility.wgsl`).
+#[derive(Component, Default)]
+pub struct FinViewBuffer(pub(super) Vec<Buffer>);
 
-/// The view's view → light-frame uniform, written for this frame (created the
-/// first time).
+/// The view's view → light-frame uniform of light slot `slot`, written for
+/// this frame (created the first time).
 pub(super) fn view_transform(
     device: &RenderDevice,
     queue: &RenderQueue,
     frame: &FinFrameData,
     world_from_view: &GlobalTransform,
-    existing: Option<&FinViewBuffer>,
+    buffers: &mut Vec<Buffer>,
+    slot: usize,
 ) -> Buffer {
-    let buffer = match existing {
-        Some(b) => b.0.clone(),
-        None => device.create_buffer(&BufferDescriptor {
+    while buffers.len() <= slot {
+        buffers.push(device.create_buffer(&BufferDescriptor {
             label: Some("fin_view_uniform"),
             size: size_of::<FinViewUniform>() as u64,
             usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
             mapped_at_creation: false,
-        }),
-    };
+        }));
+    }
+    let buffer = buffers[slot].clone();
     queue.write_buffer(&buffer, 0, bytemuck::bytes_of(&FinViewUniform::new(frame, world_from_view)));
     buffer
 }
@@ -538,10 +593,10 @@ mod tests {
     }
 }
 
-/// Views whose visibility buffer was written this frame (the compositing pass
-/// uses the buffer only then).
+/// (view, light slot) pairs whose visibility layer was written this frame
+/// (the compositing pass uses a layer only then).
 #[derive(Resource, Default)]
-pub(super) struct ViewsWithVisibility(pub(super) std::collections::HashSet<Entity>);
+pub(super) struct ViewsWithVisibility(pub(super) std::collections::HashSet<(Entity, usize)>);
 
 fn clear_views_with_visibility(mut views: ResMut<ViewsWithVisibility>) {
     views.0.clear();
@@ -551,8 +606,10 @@ fn prepare_view_textures(
     mut commands: Commands,
     mut cache: ResMut<TextureCache>,
     device: Res<RenderDevice>,
+    frames: Res<FinFrames>,
     views: Query<(Entity, &ExtractedCamera), With<FinShadowView>>,
 ) {
+    let layers = frames.0.len().max(1) as u32;
     for (entity, camera) in &views {
         // Target-sized like the prepass textures, so that a camera with a
         // `Camera::viewport` reads and writes at the same (target) pixels.
@@ -561,7 +618,7 @@ fn prepare_view_textures(
             &device,
             TextureDescriptor {
                 label: Some("fin_visibility"),
-                size: Extent3d { width: size.x.max(1), height: size.y.max(1), depth_or_array_layers: 1 },
+                size: Extent3d { width: size.x.max(1), height: size.y.max(1), depth_or_array_layers: layers },
                 mip_level_count: 1,
                 sample_count: 1,
                 dimension: TextureDimension::D2,
@@ -570,11 +627,21 @@ fn prepare_view_textures(
                 view_formats: &[],
             },
         );
-        commands.entity(entity).insert(FinViewTexture(texture));
+        let view = |dimension, base_array_layer, array_layer_count| {
+            texture.texture.create_view(&TextureViewDescriptor {
+                label: Some("fin_visibility_view"),
+                dimension: Some(dimension),
+                base_array_layer,
+                array_layer_count: Some(array_layer_count),
+                ..default()
+            })
+        };
+        let layer_views = (0..layers).map(|l| view(TextureViewDimension::D2, l, 1)).collect();
+        let array = view(TextureViewDimension::D2Array, 0, layers);
+        commands.entity(entity).insert(FinViewTexture { texture, layers: layer_views, array });
     }
 }
 
-#[allow(clippy::too_many_arguments)]
 /// The depth and normal prepass views a visibility pass reads (fins' and
 /// coverage's), or `None`, said once, when the camera cannot give them:
 /// multisampled prepass textures cannot be bound as single-sample inputs
@@ -591,98 +658,119 @@ pub(super) fn prepass_inputs(prepass: &ViewPrepassTextures) -> Option<(&TextureV
     Some((depth, normal))
 }
 
+#[allow(clippy::too_many_arguments)]
 fn prepare_view_bind_groups(
     mut commands: Commands,
     device: Res<RenderDevice>,
     queue: Res<RenderQueue>,
-    gpu: Res<FinMapsGpu>,
-    frame: Res<FinFrame>,
+    lights: Res<FinLightsGpu>,
+    frames: Res<FinFrames>,
     pipelines: Option<Res<FinPipelines>>,
     pipeline_cache: Res<PipelineCache>,
     view_uniforms: Res<ViewUniforms>,
-    views: Query<(Entity, &FinViewTexture, &ViewPrepassTextures, &ExtractedView, Option<&FinViewBuffer>)>,
+    mut views: Query<(Entity, &FinViewTexture, &ViewPrepassTextures, &ExtractedView, Option<&mut FinViewBuffer>)>,
 ) {
-    let inputs = match (pipelines, gpu.params.as_ref(), gpu.maps.as_ref(), view_uniforms.uniforms.binding(), &frame.0) {
-        (Some(pipelines), Some(params), Some(maps), Some(view_binding), Some(f)) if gpu.bind_group.is_some() => {
-            Some((pipelines, params, maps, view_binding, f))
+    let (Some(pipelines), Some(view_binding)) = (pipelines, view_uniforms.uniforms.binding()) else {
+        for (entity, ..) in &views {
+            commands.entity(entity).remove::<FinViewBindGroup>();
         }
-        _ => None,
+        return;
     };
-    for (entity, texture, prepass, view, view_buffer) in &views {
-        // A view that cannot run the pass this frame loses its bind group, so
+    for (entity, texture, prepass, view, view_buffers) in &mut views {
+        // A light that cannot run the pass this frame has no bind group, so
         // the pass does not run on last frame's maps and nothing composites
         // stale shadows.
-        let Some((pipelines, params, maps, view_binding, f)) = inputs.as_ref() else {
-            commands.entity(entity).remove::<FinViewBindGroup>();
-            continue;
-        };
-        let Some((depth, normal)) = prepass_inputs(prepass) else {
-            commands.entity(entity).remove::<FinViewBindGroup>();
-            continue;
-        };
-        let buffer = view_transform(&device, &queue, f, &view.world_from_view, view_buffer);
-        let bind_group = device.create_bind_group(
-            "fin_visibility_bind_group",
-            &pipeline_cache.get_bind_group_layout(&pipelines.view_layout),
-            &BindGroupEntries::sequential((
-                params.as_entire_binding(),
-                maps.as_entire_binding(),
-                depth,
-                normal,
-                &texture.0.default_view,
-                (*view_binding).clone(),
-                buffer.as_entire_binding(),
-            )),
-        );
-        commands.entity(entity).insert((FinViewBindGroup(bind_group), FinViewBuffer(buffer)));
+        let inputs = prepass_inputs(prepass);
+        let mut buffers = view_buffers.map(|mut b| std::mem::take(&mut b.0)).unwrap_or_default();
+        let groups = frames
+            .0
+            .iter()
+            .enumerate()
+            .map(|(slot, frame)| {
+                let gpu = lights.0.get(&frame.light)?;
+                let (Some(params), Some(maps), Some(_), Some((depth, normal)), Some(layer)) =
+                    (gpu.params.as_ref(), gpu.maps.as_ref(), gpu.bind_group.as_ref(), inputs, texture.layers.get(slot))
+                else {
+                    return None;
+                };
+                let buffer = view_transform(&device, &queue, &frame.data, &view.world_from_view, &mut buffers, slot);
+                Some(device.create_bind_group(
+                    "fin_visibility_bind_group",
+                    &pipeline_cache.get_bind_group_layout(&pipelines.view_layout),
+                    &BindGroupEntries::sequential((
+                        params.as_entire_binding(),
+                        maps.as_entire_binding(),
+                        depth,
+                        normal,
+                        layer,
+                        view_binding.clone(),
+                        buffer.as_entire_binding(),
+                    )),
+                ))
+            })
+            .collect();
+        commands.entity(entity).insert((FinViewBindGroup(groups), FinViewBuffer(buffers)));
     }
 }
 
 fn fin_visibility(
     view: ViewQuery<(Entity, &FinShadowView, &FinViewTexture, &FinViewBindGroup, &ViewUniformOffset)>,
+    frames: Res<FinFrames>,
     pipelines: Option<Res<FinPipelines>>,
     pipeline_cache: Res<PipelineCache>,
     images: Res<RenderAssets<GpuImage>>,
     mut written: ResMut<ViewsWithVisibility>,
     mut ctx: RenderContext,
 ) {
-    let (entity, settings, texture, bind_group, offset) = view.into_inner();
+    let (entity, settings, texture, bind_groups, offset) = view.into_inner();
     let Some(pipeline) = pipelines.and_then(|p| pipeline_cache.get_compute_pipeline(p.visibility)) else { return };
-    let size = texture.0.texture.size();
-    let diagnostics = ctx.diagnostic_recorder();
-    let diagnostics = diagnostics.as_deref();
-    let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/visibility");
-    {
-        let mut pass = ctx
-            .command_encoder()
-            .begin_compute_pass(&ComputePassDescriptor { label: Some("fin_visibility"), timestamp_writes: None });
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &bind_group.0, &[offset.offset]);
-        pass.dispatch_workgroups(size.width.div_ceil(8), size.height.div_ceil(8), 1);
+    let size = texture.texture.texture.size();
+    for (slot, bind_group) in bind_groups.0.iter().enumerate() {
+        let Some(bind_group) = bind_group else { continue };
+        let diagnostics = ctx.diagnostic_recorder();
+        let diagnostics = diagnostics.as_deref();
+        let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/visibility");
+        {
+            let mut pass = ctx
+                .command_encoder()
+                .begin_compute_pass(&ComputePassDescriptor { label: Some("fin_visibility"), timestamp_writes: None });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, bind_group, &[offset.offset]);
+            pass.dispatch_workgroups(size.width.div_ceil(8), size.height.div_ceil(8), 1);
+        }
+        span.end(ctx.command_encoder());
+        written.0.insert((entity, slot));
+        copy_to_targets(&mut ctx, settings, texture, &images, &frames, slot);
     }
-    span.end(ctx.command_encoder());
-    written.0.insert(entity);
-    copy_to_target(&mut ctx, settings, texture, &images, size);
 }
 
-/// Copies a camera's visibility buffer into its `visibility_target`, if any.
-pub(super) fn copy_to_target(
+/// Copies light slot `slot` of a camera's visibility buffers into the
+/// camera's targets for that light: `visibility_target` for the first light,
+/// `light_visibility_targets` for the light's entity.
+pub(super) fn copy_to_targets(
     ctx: &mut RenderContext,
     settings: &FinShadowView,
     texture: &FinViewTexture,
     images: &RenderAssets<GpuImage>,
-    size: Extent3d,
+    frames: &FinFrames,
+    slot: usize,
 ) {
-    if let Some(target) = settings.visibility_target.as_ref().and_then(|h| images.get(h)) {
-        let t = target.texture.size();
-        if t == size && target.texture_descriptor.format == TextureFormat::R32Float {
-            ctx.command_encoder().copy_texture_to_texture(
-                texture.0.texture.as_image_copy(),
-                target.texture.as_image_copy(),
-                size,
-            );
+    let Some(light) = frames.0.get(slot).map(|f| f.light) else { return };
+    let first = settings.visibility_target.as_ref().filter(|_| slot == 0);
+    let own = settings.light_visibility_targets.iter().filter(|(e, _)| *e == light).map(|(_, h)| h);
+    let size = texture.texture.texture.size();
+    let size = Extent3d { depth_or_array_layers: 1, ..size };
+    for target in first.into_iter().chain(own).filter_map(|h| images.get(h)) {
+        if target.texture.size() == size && target.texture_descriptor.format == TextureFormat::R32Float {
+            let source = TexelCopyTextureInfo {
+                texture: &texture.texture.texture,
+                mip_level: 0,
+                origin: Origin3d { x: 0, y: 0, z: slot as u32 },
+                aspect: TextureAspect::All,
+            };
+            ctx.command_encoder().copy_texture_to_texture(source, target.texture.as_image_copy(), size);
         } else {
-            warn_once!("fin shadows: visibility_target must be R32Float at the camera's size ({size:?})");
+            warn_once!("fin shadows: visibility targets must be R32Float at the camera's size ({size:?})");
         }
     }
 }

@@ -1,0 +1,36 @@
+//! Bevy's own lights with fin shadows: their Bevy shadow map is off while
+//! fin shadows are on (no double cost), without touching the user's light.
+//!
+//! Bevy's `extract_lights` copies a light into the render world only when it
+//! changed; this system then clears `shadow_maps_enabled` on the extracted
+//! copy of every fin-shadowed Bevy light, before Bevy's `prepare_lights`
+//! allocates shadow maps. The main world marks a light changed when it stops
+//! being fin-shadowed (`extract.rs`), so Bevy extracts it again with the
+//! user's own setting.
+
+use bevy::{
+    pbr::ExtractedPointLight,
+    prelude::*,
+    render::{Render, RenderApp, RenderSystems},
+};
+
+use crate::extract::{FinFrames, LightShading};
+
+pub(super) fn finish(app: &mut App) {
+    let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
+    render_app.add_systems(
+        Render,
+        bevy_shadow_maps_off.after(RenderSystems::ExtractCommands).before(RenderSystems::CreateViews),
+    );
+}
+
+fn bevy_shadow_maps_off(frames: Res<FinFrames>, mut lights: Query<&mut ExtractedPointLight>) {
+    for frame in &frames.0 {
+        let LightShading::Bevy { render_entity } = frame.shading else { continue };
+        if let Ok(mut light) = lights.get_mut(render_entity)
+            && light.shadow_maps_enabled
+        {
+            light.shadow_maps_enabled = false;
+        }
+    }
+}

@@ -1,0 +1,185 @@
+//! Bevy's own lights with fin shadows (`FinShadows` on a `SpotLight`), and
+//! several fin-shadowed lights at once.
+//!
+//! Tolerances: colour as in `compositing.rs` (8-bit sRGB steps, ≤ 0.0088
+//! linear each); a light's visibility next to other lights must be the one it
+//! has alone up to float noise (1e-4: the passes are the same, the maps the
+//! same size), and within the oracle bound of `oracle_agreement.rs` (0.01).
+
+use bevy::prelude::*;
+use bevy_shadow_fins::{FinShadowStats, FinShadows};
+use shadow_fins::{
+    light::{DiskLight, Light},
+    oracle::Method,
+    scenes::SceneId,
+};
+use shadow_fins_app::harness::{Session, Setup, Shot};
+
+use super::common::*;
+
+fn linear_rgb(shot: &Shot) -> Vec<[f32; 3]> {
+    shot.color.iter().map(|p| [linear(p[0]), linear(p[1]), linear(p[2])]).collect()
+}
+
+/// Writes a test's image to `<target>/tmp/test-images/` when `SHADOW_FINS_TEST_IMAGES` is set.
+fn save(shot: &Shot, name: &str) {
+    if std::env::var_os("SHADOW_FINS_TEST_IMAGES").is_some() {
+        shot.save_color(&format!("{}/test-images/{name}.png", env!("CARGO_TARGET_TMPDIR"))).expect("write test image");
+    }
+}
+
+/// The box over the plane lit by a fin-shadowed Bevy spot light.
+fn spot_setup() -> Setup {
+    let mut s = setup(SceneId::BoxOverPlane, settings());
+    s.spot = true;
+    // Dim enough that nothing clips at white.
+    s.intensity = 1.5e5;
+    s
+}
+
+fn disk(setup: &Setup) -> DiskLight {
+    match setup.light {
+        Light::Disk(d) => d,
+        Light::Sun(_) => unreachable!("the built-in scenes have disk lights"),
+    }
+}
+
+/// The setup with its light moved by `offset` (same size and direction).
+fn moved(setup: &Setup, offset: Vec3) -> DiskLight {
+    DiskLight { center: disk(setup).center + offset, ..disk(setup) }
+}
+
+#[test]
+fn a_fin_shadowed_spot_light_is_bevys_light_times_the_visibility() {
+    // Tonemapping off: per pixel shadowed = dark + V × (lit − dark), where
+    // `lit` is the same Bevy spot light with nothing casting (V = 1: Bevy's
+    // own shading, untouched) and `dark` the scene with the light at zero.
+    // Bevy's own shadow map must be off: it would darken the inner penumbra
+    // a second time.
+    let shadowed = spot_setup();
+    let mut lit = shadowed.clone();
+    for o in &mut lit.scene.objects {
+        o.casts_shadows = false;
+    }
+    let mut dark = shadowed.clone();
+    dark.intensity = 0.0;
+    let (s, l, d) = (render(&shadowed), render(&lit), render(&dark));
+    save(&s, "spot_shadowed");
+    save(&l, "spot_lit");
+    assert_not_trivial(&s);
+    assert!(l.visibility.iter().all(|v| *v == 1.0), "nothing casts, yet V < 1 somewhere");
+    let (sc, lc, dc) = (linear_rgb(&s), linear_rgb(&l), linear_rgb(&d));
+    let lit_pixels = (0..lc.len()).filter(|&i| lc[i][1] - dc[i][1] > 0.05).count();
+    assert!(lit_pixels > 1000, "the spot light lights only {lit_pixels} pixels");
+    let mut errors: Vec<f32> = (0..sc.len())
+        .filter(|&i| lc[i][1] - dc[i][1] > 0.05 && lc[i].iter().all(|c| *c < 0.95))
+        .map(|i| (sc[i][1] - (dc[i][1] + s.visibility[i] * (lc[i][1] - dc[i][1]))).abs())
+        .collect();
+    let penumbra = (0..sc.len()).filter(|&i| (0.05..0.95).contains(&s.visibility[i])).count();
+    assert!(penumbra > 100, "only {penumbra} penumbra pixels");
+    errors.sort_by(f32::total_cmp);
+    let mean = errors.iter().sum::<f32>() / errors.len() as f32;
+    let p99 = errors[errors.len() * 99 / 100];
+    println!("spot composite vs dark + V·(lit − dark): mean {mean:.4}, p99 {p99:.4} over {} pixels", errors.len());
+    assert!(mean <= 0.005 && p99 <= 0.02, "mean {mean}, p99 {p99}");
+}
+
+#[test]
+fn removing_fin_shadows_gives_the_light_its_bevy_shadow_map_back() {
+    // Bevy's shadow map is turned off in the render world only (the user's
+    // `shadow_maps_enabled: true` stays); without `FinShadows` Bevy extracts
+    // the light again and its hard shadow map darkens the umbra.
+    let setup = spot_setup();
+    let mut session = Session::new(&setup);
+    let fin = session.settle(3).expect("render");
+    let world = session.app.world_mut();
+    let spot = world.query_filtered::<Entity, With<SpotLight>>().single(world).expect("one spot light");
+    assert!(world.get::<SpotLight>(spot).unwrap().shadow_maps_enabled, "the user's setting is left alone");
+    world.entity_mut(spot).remove::<FinShadows>();
+    let bevy = session.settle(3).expect("render");
+    assert_eq!(session.app.world().resource::<FinShadowStats>().0, Default::default());
+    let (fc, bc) = (linear_rgb(&fin), linear_rgb(&bevy));
+    // In the fins' umbra Bevy's hard shadow is dark too; in the fins' outer
+    // penumbra (V ≥ 0.5, lit by Bevy's hard shadow) Bevy's image is brighter.
+    let umbra: Vec<usize> = (0..fc.len()).filter(|&i| fin.visibility[i] < 0.02).collect();
+    assert!(umbra.len() > 50, "no umbra");
+    let umbra_gap = umbra.iter().map(|&i| (fc[i][1] - bc[i][1]).abs()).sum::<f32>() / umbra.len() as f32;
+    println!("umbra: mean |fins − Bevy's shadow map| {umbra_gap:.4}");
+    assert!(umbra_gap <= 0.01, "Bevy's shadow map is not back: umbra differs by {umbra_gap}");
+}
+
+#[test]
+fn two_spot_lights_each_match_their_shadow_alone() {
+    let a = spot_setup();
+    let b = moved(&a, Vec3::new(1.5, 0.0, 0.5));
+    let mut both = a.clone();
+    both.extra_spots = vec![b];
+    let mut b_alone = a.clone();
+    b_alone.light = Light::Disk(b);
+    let (shot, alone_a, alone_b) = (render(&both), render(&a), render(&b_alone));
+    // Slot order is entity order, not spawn order: read each light's own layer.
+    let (together_a, together_b) = (&shot.light_visibility[0], &shot.light_visibility[1]);
+    assert_not_trivial(&alone_a);
+    assert_visibility_not_trivial(&alone_b.visibility);
+    let (mad_a, _) = compare(together_a, &alone_a.visibility);
+    let (mad_b, _) = compare(together_b, &alone_b.visibility);
+    let (apart, _) = compare(&alone_a.visibility, &alone_b.visibility);
+    println!("together vs alone: A {mad_a:.2e}, B {mad_b:.2e}; A vs B {apart:.3}");
+    assert!(apart > 0.01, "the two lights cast the same shadow ({apart}): the test would prove nothing");
+    assert!(mad_a <= 1e-4 && mad_b <= 1e-4, "A {mad_a}, B {mad_b}");
+}
+
+#[test]
+fn eight_spot_lights_each_match_the_oracle() {
+    let base = spot_setup();
+    let offsets: Vec<Vec3> = (0..8)
+        .map(|k| {
+            let a = k as f32 * std::f32::consts::TAU / 8.0;
+            Vec3::new(a.cos(), 0.0, a.sin()) * 1.2
+        })
+        .collect();
+    let mut all = base.clone();
+    all.extra_spots = offsets.iter().map(|o| moved(&base, *o)).collect();
+    let shot = render(&all);
+    assert_eq!(shot.light_visibility.len(), 9, "the setup's light and eight more");
+    let mut worst: f32 = 0.0;
+    for (k, light) in all.extra_spots.iter().enumerate() {
+        let mut alone = base.clone();
+        alone.light = Light::Disk(*light);
+        let expected = oracle(&alone, Method::MultiLayer);
+        let (mad, far) = compare(&shot.light_visibility[k + 1], &expected);
+        assert_visibility_not_trivial(&shot.light_visibility[k + 1]);
+        println!("light {k}: mean |GPU − oracle| {mad:.2e}, {:.1}% off by > 0.1", far * 100.0);
+        assert!(mad <= 0.01 && far <= 0.03, "light {k}: {mad} / {far}");
+        worst = worst.max(mad);
+    }
+    println!("worst of eight lights: {worst:.2e}");
+}
+
+#[test]
+fn lights_past_the_budget_degrade_with_the_reason_in_their_stats() {
+    // Four lights share 8 MiB of maps (2 MiB each, under one 256² layer of
+    // 2.25 MiB): every light's maps shrink, each says why, nothing fails.
+    let base = spot_setup();
+    let mut setup = base.clone();
+    setup.extra_spots = (1..4).map(|k| moved(&base, Vec3::new(k as f32 * 0.5, 0.0, 0.0))).collect();
+    let mut session = Session::new(&setup);
+    session.app.world_mut().insert_resource(bevy_shadow_fins::FinShadowBudget { map_bytes: 8 << 20, ..default() });
+    let shot = session.settle(6).expect("render");
+    let world = session.app.world_mut();
+    let stats: Vec<_> = world.query::<&bevy_shadow_fins::FinLightStats>().iter(world).map(|s| s.0).collect();
+    assert_eq!(stats.len(), 4);
+    for s in &stats {
+        println!("{:?} at {}²: {}", s.layers, s.map_resolution, s.degraded.map_or("-".into(), |d| d.to_string()));
+        let Some(bevy_shadow_fins::FinDegradation::Maps { resolution, layers, limit_bytes, .. }) = s.degraded else {
+            panic!("no degradation reason: {s:?}");
+        };
+        assert_eq!(limit_bytes, 2 << 20, "the reason names the light's share");
+        let bytes = resolution as u64 * resolution as u64 * layers as u64 * 36;
+        assert!(bytes <= 2 << 20, "{layers} layers at {resolution}² exceed the light's share");
+    }
+    for v in &shot.light_visibility {
+        assert_visibility_not_trivial(v);
+        assert!(v.iter().all(|v| (0.0..=1.0).contains(v)));
+    }
+}
