@@ -5,7 +5,9 @@
 //!   ground truth, frame and per-pass times, Bevy's shadow maps and PCSS and
 //!   the CPU oracle as peers; CSV, JSON, Pareto plots, image strips;
 //! - `stability`: the extremes; exits 1 if any NaN or Inf reaches the
-//!   visibility buffer.
+//!   visibility buffer;
+//! - `lights`: the frame cost of N fin-shadowed spot lights beside Bevy's own
+//!   shadow maps for the same N lights.
 
 use std::{io::Write, path::PathBuf, process::ExitCode};
 
@@ -19,7 +21,7 @@ use shadow_fins::{
     scenes::SceneId,
     shapes,
 };
-use shadow_fins_app::render_lab::{measure, stability};
+use shadow_fins_app::render_lab::{lights, measure, stability};
 use shadow_fins_lab::{
     LabError,
     grid::{Axes, Technique, parse_list},
@@ -55,6 +57,28 @@ enum Command {
         #[arg(long, default_value = "fins")]
         method: String,
         /// Also write the report table here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Frame cost of N fin-shadowed SpotLights beside Bevy's shadow maps for the same N lights.
+    Lights {
+        /// Built-in scene (its light, plus N − 1 more on a ring).
+        #[arg(long, default_value = "demo")]
+        scene: String,
+        /// Light counts, comma-separated.
+        #[arg(long, default_value = "1,2,4,8")]
+        counts: String,
+        /// Frames timed per configuration (median reported).
+        #[arg(long, default_value_t = 20)]
+        frames: u32,
+        #[arg(long, default_value_t = 320)]
+        width: u32,
+        #[arg(long, default_value_t = 240)]
+        height: u32,
+        /// Fin maps' and Bevy's shadow maps' resolution.
+        #[arg(long, default_value_t = 1024)]
+        map_resolution: u32,
+        /// Also write the table here.
         #[arg(long)]
         out: Option<PathBuf>,
     },
@@ -134,11 +158,36 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Measure(args) => run_measure(args).map(|()| ExitCode::SUCCESS),
         Command::Stability { cases, samples, method, out } => run_stability(&cases, samples, &method, out),
+        Command::Lights { scene, counts, frames, width, height, map_resolution, out } => {
+            run_lights(&scene, &counts, frames, (width, height), map_resolution, out).map(|()| ExitCode::SUCCESS)
+        }
     };
     result.unwrap_or_else(|e| {
         eprintln!("error: {e}");
         ExitCode::from(2)
     })
+}
+
+fn run_lights(
+    scene: &str,
+    counts: &str,
+    frames: u32,
+    (width, height): (u32, u32),
+    map_resolution: u32,
+    out: Option<PathBuf>,
+) -> Result<(), LabError> {
+    let scene = SceneId::parse(scene).ok_or_else(|| usage(format!("unknown scene '{scene}'")))?;
+    let max = bevy_shadow_fins::MAX_FIN_LIGHTS;
+    let counts =
+        parse_list("counts", counts, |s| s.parse::<usize>().ok().filter(|n| (1..=max).contains(n))).map_err(usage)?;
+    let run = lights::LightsRun { scene, counts, frames: frames.max(1), width, height, map_resolution };
+    let rows = lights::run(&run).map_err(usage)?;
+    let table = lights::markdown(&rows);
+    println!("{table}");
+    if let Some(path) = &out {
+        write(path, &table)?;
+    }
+    Ok(())
 }
 
 fn usage(e: String) -> LabError {

@@ -3,5 +3,6 @@
 //! (`stability`). The `shadow-fins-render-lab` binary drives both; the
 //! Bevy-free parts (the grid, rows, CSV/JSON, plots) live in `shadow_fins_lab`.
 
+pub mod lights;
 pub mod measure;
 pub mod stability;
