@@ -15,6 +15,7 @@
 
 mod autosave;
 mod cli;
+mod lights;
 mod orbit;
 mod scene;
 mod settings_file;
@@ -65,6 +66,7 @@ impl Plugin for EditorPlugin {
         views::build(app);
         truth::build(app);
         ui::build(app);
+        lights::build(app);
         cli::build(app);
         autosave::build(app);
     }
