@@ -77,6 +77,7 @@ fn a_fin_shadowed_spot_light_is_bevys_light_times_the_visibility() {
         .collect();
     let penumbra = (0..sc.len()).filter(|&i| (0.05..0.95).contains(&s.visibility[i])).count();
     assert!(penumbra > 100, "only {penumbra} penumbra pixels");
+    assert!(errors.len() > 1000, "only {} unclipped lit pixels", errors.len());
     errors.sort_by(f32::total_cmp);
     let mean = errors.iter().sum::<f32>() / errors.len() as f32;
     let p99 = errors[errors.len() * 99 / 100];
@@ -99,8 +100,8 @@ fn removing_fin_shadows_gives_the_light_its_bevy_shadow_map_back() {
     let bevy = session.settle(3).expect("render");
     assert_eq!(session.app.world().resource::<FinShadowStats>().0, Default::default());
     let (fc, bc) = (linear_rgb(&fin), linear_rgb(&bevy));
-    // In the fins' umbra Bevy's hard shadow is dark too; in the fins' outer
-    // penumbra (V ≥ 0.5, lit by Bevy's hard shadow) Bevy's image is brighter.
+    // In the fins' umbra Bevy's hard shadow is as dark: without its map back
+    // the light would shine there unshadowed.
     let umbra: Vec<usize> = (0..fc.len()).filter(|&i| fin.visibility[i] < 0.02).collect();
     assert!(umbra.len() > 50, "no umbra");
     let umbra_gap = umbra.iter().map(|&i| (fc[i][1] - bc[i][1]).abs()).sum::<f32>() / umbra.len() as f32;
@@ -182,4 +183,95 @@ fn lights_past_the_budget_degrade_with_the_reason_in_their_stats() {
         assert_visibility_not_trivial(v);
         assert!(v.iter().all(|v| (0.0..=1.0).contains(v)));
     }
+}
+
+#[test]
+fn two_lights_composite_to_the_sum_of_their_shadowed_contributions() {
+    // Linear output: image(A + B) = dark + V_A·(lit_A − dark) + V_B·(lit_B − dark),
+    // with lit_X the light X alone over casters that do not cast. This pins the
+    // composite's slot ≥ 1 (its Bevy light index and its visibility layer).
+    let a = spot_setup();
+    let b = moved(&a, Vec3::new(1.5, 0.0, 0.5));
+    let mut both = a.clone();
+    both.extra_spots = vec![b];
+    let unshadowed = |light: DiskLight| {
+        let mut s = a.clone();
+        s.light = Light::Disk(light);
+        for o in &mut s.scene.objects {
+            o.casts_shadows = false;
+        }
+        s
+    };
+    let mut dark = a.clone();
+    dark.intensity = 0.0;
+    let (shot, lit_a, lit_b, dark) =
+        (render(&both), render(&unshadowed(disk(&a))), render(&unshadowed(b)), render(&dark));
+    let (sc, la, lb, dc) = (linear_rgb(&shot), linear_rgb(&lit_a), linear_rgb(&lit_b), linear_rgb(&dark));
+    let (va, vb) = (&shot.light_visibility[0], &shot.light_visibility[1]);
+    let mut errors: Vec<f32> = (0..sc.len())
+        .filter(|&i| la[i][1] + lb[i][1] - dc[i][1] < 0.95 && sc[i][1] < 0.95)
+        .filter(|&i| (0.05..0.95).contains(&va[i]) || (0.05..0.95).contains(&vb[i]))
+        .map(|i| {
+            let expected = dc[i][1] + va[i] * (la[i][1] - dc[i][1]) + vb[i] * (lb[i][1] - dc[i][1]);
+            (sc[i][1] - expected).abs()
+        })
+        .collect();
+    assert!(errors.len() > 100, "only {} penumbra pixels", errors.len());
+    errors.sort_by(f32::total_cmp);
+    let mean = errors.iter().sum::<f32>() / errors.len() as f32;
+    let p99 = errors[errors.len() * 99 / 100];
+    println!("two lights vs dark + Σ V·(lit − dark): mean {mean:.4}, p99 {p99:.4} over {} pixels", errors.len());
+    // Four 8-bit images: ≤ 4 steps of 0.0088 at worst.
+    assert!(mean <= 0.005 && p99 <= 0.03, "mean {mean}, p99 {p99}");
+}
+
+#[test]
+fn a_light_on_another_render_layer_is_shadowed_where_bevy_lights_it_and_never_taken_away_elsewhere() {
+    // A fin-shadowed spot light on render layer 1, seen by a second camera on
+    // layer 1 (so Bevy extracts it), the first camera on layer 0. Whether
+    // Bevy lights the first view with it depends on its clustering (CPU
+    // clustering checks layers, 0.19's GPU clustering does not); either way
+    // the first view's umbra must be the dark image (shadowed if lit, not lit
+    // at all otherwise) and no pixel may be darker than the dark image
+    // (taking away light Bevy never added).
+    let mut setup = spot_setup();
+    setup.extra_cameras = vec![setup.camera];
+    let mut session = Session::new(&setup);
+    let world = session.app.world_mut();
+    let layer_one = bevy::camera::visibility::RenderLayers::layer(1);
+    let spot = world.query_filtered::<Entity, With<SpotLight>>().single(world).expect("one spot light");
+    world.entity_mut(spot).insert(layer_one.clone());
+    let second = world.query::<(Entity, &Camera)>().iter(world).find(|(_, c)| c.order == 1).expect("second camera").0;
+    world.entity_mut(second).insert(layer_one);
+    let hidden = session.settle(6).expect("render");
+    let mut dark = setup.clone();
+    dark.intensity = 0.0;
+    let dark = render(&dark);
+    assert_not_trivial(&hidden);
+    let (hc, dc) = (linear_rgb(&hidden), linear_rgb(&dark));
+    let umbra: Vec<usize> = (0..hc.len()).filter(|&i| hidden.visibility[i] < 0.02).collect();
+    assert!(umbra.len() > 50, "no umbra");
+    let gap = umbra.iter().map(|&i| (hc[i][1] - dc[i][1]).abs()).sum::<f32>() / umbra.len() as f32;
+    let below = (0..hc.len()).map(|i| dc[i][1] - hc[i][1]).fold(0.0, f32::max);
+    println!("light on another layer: umbra vs dark {gap:.4}, darkest below dark {below:.4}");
+    assert!(gap <= 0.005, "the umbra is lit: {gap}");
+    assert!(below <= 0.02, "light Bevy never added was taken away: {below}");
+}
+
+#[test]
+fn receivers_fin_shadows_cannot_reach_are_counted() {
+    let setup = spot_setup();
+    let mut session = Session::new(&setup);
+    let world = session.app.world_mut();
+    let mut material = |m: StandardMaterial| world.resource_mut::<Assets<StandardMaterial>>().add(m);
+    let forward =
+        material(StandardMaterial { opaque_render_method: bevy::material::OpaqueRendererMethod::Forward, ..default() });
+    let blended = material(StandardMaterial { alpha_mode: AlphaMode::Blend, ..default() });
+    let cube = world.resource_mut::<Assets<Mesh>>().add(Cuboid::new(0.2, 0.2, 0.2));
+    for (m, x) in [(forward, -1.5), (blended, 1.5)] {
+        world.spawn((Mesh3d(cube.clone()), MeshMaterial3d(m), Transform::from_xyz(x, 0.1, 1.5)));
+    }
+    session.settle(3).expect("render");
+    let counted = *session.app.world().resource::<bevy_shadow_fins::FinReceivers>();
+    assert_eq!(counted, bevy_shadow_fins::FinReceivers { forward: 1, blended: 1 });
 }

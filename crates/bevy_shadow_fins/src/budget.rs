@@ -82,7 +82,8 @@ pub enum FinDegradation {
     /// there may be wrong on such devices.
     LongCoverageCell { edges: u32, limit: u32 },
     /// More lights ask for fin shadows than [`MAX_FIN_LIGHTS`](crate::MAX_FIN_LIGHTS):
-    /// this one (later by entity order) keeps Bevy's own shadow map.
+    /// this one (later by entity order) keeps Bevy's own shadow map (a
+    /// `FinLight`, which only the plugin lights, is not lit).
     TooManyLights { max: u32 },
 }
 
@@ -114,7 +115,10 @@ impl std::fmt::Display for FinDegradation {
                  llvmpipe's 65535-iteration limit may cut its pixels short"
             ),
             FinDegradation::TooManyLights { max } => {
-                write!(f, "more than {max} fin-shadowed lights: this one keeps Bevy's own shadow map")
+                write!(
+                    f,
+                    "more than {max} fin-shadowed lights: this one keeps Bevy's own shadow map (a FinLight is not lit)"
+                )
             }
         }
     }

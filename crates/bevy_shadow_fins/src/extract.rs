@@ -239,15 +239,18 @@ fn light_sources(
         settings: settings.clamped(),
         shading: LightShading::Own { light: *light, transform: *transform },
     });
-    let bevy = spot_lights.iter().filter(|l| l.5).filter_map(|(entity, spot, settings, transform, render, _)| {
-        Some(LightSource {
-            entity,
-            disk: disk(transform, finite(spot.radius)),
-            range: finite(spot.range),
-            settings: settings?.clamped(),
-            shading: LightShading::Bevy { render_entity: render.id() },
-        })
-    });
+    // An entity with both a FinLight and a SpotLight is the FinLight (one slot).
+    let bevy = spot_lights.iter().filter(|l| l.5 && !fin_lights.contains(l.0)).filter_map(
+        |(entity, spot, settings, transform, render, _)| {
+            Some(LightSource {
+                entity,
+                disk: disk(transform, finite(spot.radius)),
+                range: finite(spot.range),
+                settings: settings?.clamped(),
+                shading: LightShading::Bevy { render_entity: render.id() },
+            })
+        },
+    );
     let mut sources: Vec<LightSource> = own.chain(bevy).collect();
     sources.sort_by_key(|s| s.entity);
     sources
@@ -273,7 +276,7 @@ type SpotLights<'w, 's> = Query<
 fn update_fin_frames(
     fin_lights: Query<(Entity, &FinLight, &FinShadowSettings, &GlobalTransform)>,
     mut spot_lights: SpotLights,
-    other_lights: Query<(), (With<FinShadows>, Without<SpotLight>)>,
+    other_lights: Query<(), (With<FinShadows>, Without<SpotLight>, Without<FinLight>)>,
     casters: Query<(Entity, &Mesh3d, &GlobalTransform, Has<NotFinShadowCaster>, Option<&Aabb>)>,
     mut light_stats: Query<&mut FinLightStats>,
     meshes: Res<Assets<Mesh>>,
@@ -300,8 +303,19 @@ fn update_fin_frames(
         );
     }
     let mut sources = light_sources(&fin_lights, &spot_lights);
+    // A light with no finite position or direction shadows nothing and takes
+    // no share of the budget.
+    sources.retain(|s| {
+        if s.disk.is_err() {
+            set_stats(&mut light_stats, s.entity, FinFrameStats { up_to_date: true, ..default() });
+        }
+        s.disk.is_ok()
+    });
     for cut in sources.drain(sources.len().min(MAX_FIN_LIGHTS)..) {
-        warn_once!("fin shadows: more than {MAX_FIN_LIGHTS} fin-shadowed lights; the rest keep Bevy's shadows");
+        warn_once!(
+            "fin shadows: more than {MAX_FIN_LIGHTS} fin-shadowed lights; the rest keep Bevy's shadows \
+             (a FinLight past the limit is not lit)"
+        );
         let over = FinFrameStats {
             degraded: Some(FinDegradation::TooManyLights { max: MAX_FIN_LIGHTS as u32 }),
             up_to_date: true,
@@ -345,12 +359,11 @@ fn update_fin_frames(
         let state = cache.lights.entry(source.entity).or_default();
         state.capacity_epoch.hash(&mut hasher);
         source.settings.hash(&mut hasher);
-        match &source.disk {
-            Ok(d) => hash_floats(
+        if let Ok(d) = &source.disk {
+            hash_floats(
                 &mut hasher,
                 &[d.center.x, d.center.y, d.center.z, d.normal.x, d.normal.y, d.normal.z, d.radius],
-            ),
-            Err(()) => 0u8.hash(&mut hasher),
+            );
         }
         hash_floats(&mut hasher, &[source.range]);
         let signature = hasher.finish();
@@ -365,11 +378,7 @@ fn update_fin_frames(
         }
         state.signature = signature;
         changed = true;
-        // A light with no finite position or direction shadows nothing.
-        let Ok(disk) = source.disk else {
-            set_stats(&mut light_stats, source.entity, FinFrameStats::default());
-            continue;
-        };
+        let Ok(disk) = source.disk else { continue };
         let scene = scene.get_or_insert_with(|| CasterScene::collect(&casters, &meshes, &mut cache.meshes));
         let max_buffer = device.max_buffer(&budget);
         // The maps' budget is shared equally between the lights.
@@ -388,12 +397,14 @@ fn update_fin_frames(
     // A Bevy light no longer fin-shadowed gets its own shadow map back: marked
     // changed, Bevy extracts it again with the user's `shadow_maps_enabled`
     // (`render/bevy_lights.rs` turned it off in the render world).
-    for gone in frames.0.iter().filter(|f| matches!(f.shading, LightShading::Bevy { .. })) {
-        if !next.iter().any(|f| f.light == gone.light)
+    // A light no longer fin-shadowed reports nothing any more.
+    for gone in frames.0.iter().filter(|f| !next.iter().any(|n| n.light == f.light)) {
+        if matches!(gone.shading, LightShading::Bevy { .. })
             && let Ok((_, mut spot, ..)) = spot_lights.get_mut(gone.light)
         {
             spot.set_changed();
         }
+        set_stats(&mut light_stats, gone.light, FinFrameStats::default());
     }
     frames.0 = next;
     first.0 = frames.0.first().map(|f| f.data.clone());

@@ -28,13 +28,16 @@
 //! along its axis) or the plugin's own [`FinLight`] (a disk lighting the
 //! half-space it faces). Up to [`MAX_FIN_LIGHTS`] at once, any mix, each with
 //! its own [`FinShadowSettings`] (method, layers, maps), its own frame
-//! rebuilt only when it or a caster changed, its own visibility layer per
-//! camera and its own [`FinLightStats`]. A light only sees the casters in its
-//! range and in front of its disk: a light that sees none runs no pass. The
+//! rebuilt only when it, a caster, the budget or the set of lights changed,
+//! its own visibility layer per camera and its own [`FinLightStats`]. A light
+//! only sees the casters in its range and in front of its disk: a light that
+//! sees none runs no extraction or map pass (its visibility pass writes 1). The
 //! penumbra-map budget ([`FinShadowBudget::map_bytes`]) is shared equally;
 //! past it a light's maps lose resolution, then layers, with the reason in its
 //! stats. `DirectionalLight`, `PointLight` and `RectLight` are not modelled
-//! yet (they keep Bevy's shadows; said once).
+//! yet (they keep Bevy's shadows; said once). Meshes fin shadows cannot reach
+//! (forward-rendered, alpha-blended or transmissive `StandardMaterial`s) are
+//! counted in [`FinReceivers`] and said once.
 //!
 //! ## Where fin shadows enter Bevy's lighting, and why there
 //!
@@ -123,6 +126,7 @@ mod coverage_frame;
 mod extract;
 mod gpu_scene;
 mod light;
+mod receivers;
 mod render;
 
 pub use budget::{FinDegradation, FinShadowBudget};
@@ -133,6 +137,7 @@ pub use light::{
     FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster,
     NotFinShadowReceiver,
 };
+pub use receivers::FinReceivers;
 pub use shadow_fins;
 
 use bevy::prelude::*;
@@ -175,6 +180,7 @@ impl Plugin for ShadowFinsPlugin {
             .add_observer(add_not_shadow_receiver)
             .add_observer(remove_not_shadow_receiver);
         extract::build(app);
+        receivers::build(app);
         render::build(app);
     }
 

@@ -52,11 +52,16 @@ impl FinLight {
 /// - `DirectionalLight`, `PointLight`, `RectLight`: not modelled yet; said
 ///   once at run time, and they keep Bevy's own shadows.
 ///
-/// Bevy's own shadow map for the light is off while `FinShadows` is on (in
-/// the render world: the light's `shadow_maps_enabled` is left as the user
-/// set it, and comes back when `FinShadows` is removed). Fin shadows reach
-/// the pixels of cameras with [`FinShadowView`] whose materials are deferred;
-/// elsewhere the light shines unshadowed.
+/// Bevy's own shadow map and contact shadows for the light are off while
+/// `FinShadows` is on (in the render world: the light's `shadow_maps_enabled`
+/// is left as the user set it, and comes back when `FinShadows` is removed).
+/// Fin shadows reach the pixels of cameras with [`FinShadowView`] whose
+/// materials are deferred; elsewhere — other cameras, forward, blended and
+/// transmissive materials (counted in [`FinReceivers`](crate::FinReceivers)),
+/// the diffuse-transmission lobe, and while the light's visibility cannot be
+/// computed (its first frames while pipelines compile, an MSAA camera, maps
+/// over the device's storage limit) — the light shines unshadowed. A
+/// `VolumetricLight` loses its shafts (Bevy draws them from its shadow map).
 #[derive(Component, Debug, Clone, Copy, Default, Reflect)]
 #[reflect(Component, Default, Debug, Clone)]
 #[require(FinShadowSettings)]

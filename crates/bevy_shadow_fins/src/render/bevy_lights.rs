@@ -1,5 +1,9 @@
-//! Bevy's own lights with fin shadows: their Bevy shadow map is off while
-//! fin shadows are on (no double cost), without touching the user's light.
+//! Bevy's own lights with fin shadows: their Bevy shadow map (and contact
+//! shadows, which the compositing pass would otherwise count twice) are off
+//! while fin shadows are on — no double GPU cost —, without touching the
+//! user's light. (Bevy's CPU-side shadow culling for the light still runs;
+//! volumetric light needs Bevy's shadow map, so a `VolumetricLight` loses its
+//! shafts while fin-shadowed.)
 //!
 //! Bevy's `extract_lights` copies a light into the render world only when it
 //! changed; this system then clears `shadow_maps_enabled` on the extracted
@@ -28,9 +32,10 @@ fn bevy_shadow_maps_off(frames: Res<FinFrames>, mut lights: Query<&mut Extracted
     for frame in &frames.0 {
         let LightShading::Bevy { render_entity } = frame.shading else { continue };
         if let Ok(mut light) = lights.get_mut(render_entity)
-            && light.shadow_maps_enabled
+            && (light.shadow_maps_enabled || light.contact_shadows_enabled)
         {
             light.shadow_maps_enabled = false;
+            light.contact_shadows_enabled = false;
         }
     }
 }

@@ -20,12 +20,14 @@ use std::collections::{HashMap, HashSet};
 
 use bevy::{
     asset::{embedded_asset, load_embedded_asset},
+    camera::visibility::RenderLayers,
     core_pipeline::{
         core_3d::main_opaque_pass_3d,
         deferred::copy_lighting_id::DeferredLightingIdDepthTexture,
         prepass::DeferredPrepass,
         schedule::{Core3d, Core3dSystems},
     },
+    light::cluster::GlobalClusterSettings,
     pbr::{
         GlobalClusterableObjectMeta, MeshPipelineKey, MeshViewBindGroup, ViewKeyCache,
         deferred::{
@@ -251,10 +253,15 @@ fn prepare_composite_pipelines(
     }
 }
 
-/// The light slots' shading (the written flags are set per view when the
-/// pass runs). A Bevy light missing from Bevy's clustered list this frame is
-/// left out, not taken away from pixels Bevy never lit with it.
-fn composite_lights(frames: &FinFrames, clustered: Option<&GlobalClusterableObjectMeta>) -> CompositeLights {
+/// One view's light slots (the written flags are set when the pass runs). A
+/// Bevy light that Bevy does not light in this view — missing from its
+/// clustered list, or on render layers the camera does not see — is left
+/// out, not taken away from pixels Bevy never lit with it.
+fn composite_lights(
+    frames: &FinFrames,
+    clustered: Option<&GlobalClusterableObjectMeta>,
+    seen_by_view: impl Fn(Entity) -> bool,
+) -> CompositeLights {
     let mut out = CompositeLights::zeroed();
     out.count[0] = frames.0.len().min(MAX_FIN_LIGHTS) as u32;
     for (slot, frame) in frames.0.iter().take(MAX_FIN_LIGHTS).enumerate() {
@@ -265,6 +272,7 @@ fn composite_lights(frames: &FinFrames, clustered: Option<&GlobalClusterableObje
             }
             LightShading::Bevy { render_entity } => clustered
                 .and_then(|c| c.entity_to_index.get(&render_entity))
+                .filter(|_| seen_by_view(render_entity))
                 .map_or(none, |&id| (KIND_BEVY, FinLightUniform::zeroed(), id as u32)),
         };
         out.lights[slot] = CompositeLight { own, info: [kind, id, 0, 0] };
@@ -279,11 +287,25 @@ fn prepare_composite_bind_groups(
     pipelines: Option<Res<FinCompositePipelines>>,
     frames: Res<FinFrames>,
     clustered: Option<Res<GlobalClusterableObjectMeta>>,
-    views: Query<(Entity, &FinViewTexture, Option<&FinCompositeBindGroup>), With<FinCompositePipeline>>,
+    light_layers: Query<&RenderLayers>,
+    cluster_settings: Option<Res<GlobalClusterSettings>>,
+    views: Query<
+        (Entity, &FinViewTexture, Option<&FinCompositeBindGroup>, Option<&RenderLayers>),
+        With<FinCompositePipeline>,
+    >,
 ) {
     let Some(pipelines) = pipelines else { return };
-    let lights = composite_lights(&frames, clustered.as_deref());
-    for (entity, texture, previous) in &views {
+    for (entity, texture, previous, view_layers) in &views {
+        // Bevy's rule: CPU clustering (`assign_objects_to_clusters`) lights a
+        // view with a light whose render layers intersect the view's (both
+        // default to layer 0); Bevy 0.19's GPU clustering does not look at
+        // layers, so there every extracted light lights every view.
+        let gpu_clustering = cluster_settings.as_ref().is_some_and(|c| c.gpu_clustering.is_some());
+        let view_layers = view_layers.cloned().unwrap_or_default();
+        let seen = |light: Entity| {
+            gpu_clustering || light_layers.get(light).cloned().unwrap_or_default().intersects(&view_layers)
+        };
+        let lights = composite_lights(&frames, clustered.as_deref(), seen);
         let uniform = match previous {
             Some(p) => p.uniform.clone(),
             None => device.create_buffer(&BufferDescriptor {
