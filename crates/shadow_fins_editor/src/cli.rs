@@ -94,8 +94,8 @@ fn take_screenshot_when_due(
     mut commands: Commands,
     options: Res<EditorOptions>,
     state: Res<EditorState>,
-    stats: Res<bevy_shadow_fins::FinShadowStats>,
-    frame: Res<bevy_shadow_fins::FinFrame>,
+    main_light: Query<&bevy_shadow_fins::FinLightStats, With<crate::scene::EditorLight>>,
+    frames: Res<bevy_shadow_fins::FinFrames>,
     mut requested_at: Local<Option<u32>>,
     mut exit: MessageWriter<AppExit>,
 ) {
@@ -108,7 +108,8 @@ fn take_screenshot_when_due(
         return;
     }
     let due = options.frames.max(1);
-    let settled = stats.0.up_to_date || frame.0.is_none();
+    // Every light's counts, the main light's and those of "More lights".
+    let settled = main_light.iter().all(|s| s.0.up_to_date) || frames.0.is_empty();
     if state.frames < due || (!settled && state.frames < due + SETTLE_LIMIT_FRAMES) {
         return;
     }

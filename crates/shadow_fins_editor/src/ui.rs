@@ -10,7 +10,7 @@ use bevy::{
     render::view::screenshot::{Screenshot, save_to_disk},
 };
 use bevy_egui::{EguiContexts, EguiPrimaryContextPass, egui};
-use bevy_shadow_fins::{FinFrame, FinShadowSettings, FinShadowStats};
+use bevy_shadow_fins::{FinFrames, FinLightStats, FinShadowSettings};
 use shadow_fins::{oracle::Overlap, refine::Falloff};
 
 use crate::{
@@ -84,9 +84,9 @@ fn panels(
     mut settings: Query<&mut FinShadowSettings, With<EditorLight>>,
     mut paths: ResMut<FilePaths>,
     mut load: MessageWriter<LoadScene>,
-    fin_stats: Res<FinShadowStats>,
+    main_light: Query<(Entity, &FinLightStats), With<EditorLight>>,
     (frame, store, truth, analysis, error, latest, history, scene): (
-        Res<FinFrame>,
+        Res<FinFrames>,
         Res<DiagnosticsStore>,
         Res<GroundTruthJob>,
         Res<AnalysisJob>,
@@ -99,6 +99,9 @@ fn panels(
 ) -> Result {
     let ctx = contexts.ctx_mut()?.clone();
     let Ok(mut fin_settings) = settings.single_mut() else { return Ok(()) };
+    // The main light's own counts (other lights have theirs in "More lights").
+    let (main_entity, fin_stats) = main_light.single().map_or((None, default()), |(e, s)| (Some(e), s.0));
+    let main_is_fin_shadowed = frame.0.iter().any(|f| Some(f.light) == main_entity);
     let mut root = egui::Ui::new(
         ctx.clone(),
         "editor_root".into(),
@@ -164,7 +167,7 @@ fn panels(
             for v in ViewKind::ALL {
                 ui.radio_value(&mut state.view, v, v.label());
             }
-            let layers = fin_stats.0.layers.max(1) as u32;
+            let layers = fin_stats.layers.max(1) as u32;
             ui.add(egui::Slider::new(&mut state.layer, 0..=layers - 1).text("map layer"));
         });
     });
@@ -179,8 +182,8 @@ fn panels(
                 let t = pass_ms(&store, pass).map_or("–".into(), |ms| format!("{ms:.3} ms"));
                 ui.label(format!("{pass}: {t}"));
             }
-            if frame.0.is_some() {
-                let s = fin_stats.0;
+            if main_is_fin_shadowed {
+                let s = fin_stats;
                 ui.label(format!("casters {} · triangles {}", s.casters, s.triangles));
                 ui.label(format!("silhouette edges {} · fins {}", s.silhouettes, s.fins));
                 ui.label(format!(

@@ -17,7 +17,7 @@ use bevy_shadow_fins::FinShadowView;
 use shadow_fins::metrics::ErrorMetrics;
 
 use crate::{
-    scene::{EditorCamera, window_size},
+    scene::{EditorCamera, EditorLight, window_size},
     truth::{Analysis, Grid, GroundTruthJob},
 };
 
@@ -112,10 +112,16 @@ fn keep_visibility_target_sized(
     mut images: ResMut<Assets<Image>>,
     window: Query<&Window, With<PrimaryWindow>>,
     mut views: Query<&mut FinShadowView, With<EditorCamera>>,
+    main_light: Query<Entity, With<EditorLight>>,
     readbacks: Query<Entity, With<VisibilityReadback>>,
 ) {
-    let (Some(size), Ok(mut view)) = (window_size(&window), views.single_mut()) else { return };
-    let current = view.visibility_target.as_ref().and_then(|h| images.get(h)).map(|i| i.size());
+    let (Some(size), Ok(mut view), Ok(light)) = (window_size(&window), views.single_mut(), main_light.single())
+    else {
+        return;
+    };
+    // The main light's own layer (not "the first light": extra lights may
+    // sort before it).
+    let current = view.light_visibility_targets.first().and_then(|(_, h)| images.get(h)).map(|i| i.size());
     if current == Some(size) {
         return;
     }
@@ -128,7 +134,7 @@ fn keep_visibility_target_sized(
     );
     image.texture_descriptor.usage |= TextureUsages::COPY_DST | TextureUsages::COPY_SRC;
     let handle = images.add(image);
-    view.visibility_target = Some(handle.clone());
+    view.light_visibility_targets = vec![(light, handle.clone())];
     for e in &readbacks {
         commands.entity(e).despawn();
     }
