@@ -221,33 +221,13 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
     let color_format = if setup.linear_color { TextureFormat::Rgba16Float } else { TextureFormat::Rgba8UnormSrgb };
     for (order, camera) in cameras.enumerate() {
         let mut view = ViewSlots::default();
-        let visibility_image = |world: &mut World| {
-            let mut vis = Image::new_fill(
-                Extent3d { width: w, height: h, depth_or_array_layers: 1 },
-                TextureDimension::D2,
-                &0f32.to_le_bytes(),
-                TextureFormat::R32Float,
-                RenderAssetUsages::RENDER_WORLD,
-            );
-            vis.texture_descriptor.usage |= TextureUsages::COPY_DST | TextureUsages::COPY_SRC;
-            world.resource_mut::<Assets<Image>>().add(vis)
-        };
         let light_targets: Vec<(Entity, Handle<Image>)> =
-            if order == 0 { spots.iter().map(|&e| (e, visibility_image(world))).collect() } else { vec![] };
-        let (color, visibility) = {
-            let mut images = world.resource_mut::<Assets<Image>>();
+            if order == 0 { spots.iter().map(|&e| (e, visibility_image(world, w, h))).collect() } else { vec![] };
+        let visibility = visibility_image(world, w, h);
+        let color = {
             let mut color = Image::new_target_texture(w, h, color_format, None);
             color.texture_descriptor.usage |= TextureUsages::COPY_SRC;
-            let color = images.add(color);
-            let mut vis = Image::new_fill(
-                Extent3d { width: w, height: h, depth_or_array_layers: 1 },
-                TextureDimension::D2,
-                &0f32.to_le_bytes(),
-                TextureFormat::R32Float,
-                RenderAssetUsages::RENDER_WORLD,
-            );
-            vis.texture_descriptor.usage |= TextureUsages::COPY_DST | TextureUsages::COPY_SRC;
-            (color, images.add(vis))
+            world.resource_mut::<Assets<Image>>().add(color)
         };
         let defaults = PerspectiveProjection::default();
         let (near, far) = (setup.near.unwrap_or(defaults.near), setup.far.unwrap_or(defaults.far));
@@ -298,6 +278,19 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
 /// Despawns every fin light and Bevy point light, then spawns the light
 /// `setup` asks for (and its ambient and cube-map settings): the lab swaps
 /// methods in one app this way, so pipelines compile once per scene.
+/// An `R32Float` image a camera's visibility layer is copied into.
+fn visibility_image(world: &mut World, width: u32, height: u32) -> Handle<Image> {
+    let mut image = Image::new_fill(
+        Extent3d { width, height, depth_or_array_layers: 1 },
+        TextureDimension::D2,
+        &0f32.to_le_bytes(),
+        TextureFormat::R32Float,
+        RenderAssetUsages::RENDER_WORLD,
+    );
+    image.texture_descriptor.usage |= TextureUsages::COPY_DST | TextureUsages::COPY_SRC;
+    world.resource_mut::<Assets<Image>>().add(image)
+}
+
 /// Returns the fin-shadowed light spawned (`None` for Bevy's point light).
 pub fn replace_light(world: &mut World, setup: &Setup) -> Option<Entity> {
     let old: Vec<Entity> = world

@@ -66,6 +66,26 @@ pub fn compare(visibility: &[f32], oracle: &[f32]) -> (f32, f32) {
     (mad, far)
 }
 
+/// Mean and 99th percentile of per-pixel errors (at least one).
+pub fn mean_and_p99(mut errors: Vec<f32>) -> (f32, f32) {
+    assert!(!errors.is_empty(), "no pixel to compare");
+    errors.sort_by(f32::total_cmp);
+    let mean = errors.iter().sum::<f32>() / errors.len() as f32;
+    (mean, errors[errors.len() * 99 / 100])
+}
+
+/// Linear RGB of every pixel of a shot's sRGB colour.
+pub fn linear_rgb(shot: &Shot) -> Vec<[f32; 3]> {
+    shot.color.iter().map(|p| [linear(p[0]), linear(p[1]), linear(p[2])]).collect()
+}
+
+/// Writes a test's image to `<target>/tmp/test-images/` when `SHADOW_FINS_TEST_IMAGES` is set.
+pub fn save(shot: &Shot, name: &str) {
+    if std::env::var_os("SHADOW_FINS_TEST_IMAGES").is_some() {
+        shot.save_color(&format!("{}/test-images/{name}.png", env!("CARGO_TARGET_TMPDIR"))).expect("write test image");
+    }
+}
+
 pub fn render(setup: &Setup) -> Shot {
     shadow_fins_app::harness::render(setup, 6).expect("headless render")
 }

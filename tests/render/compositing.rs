@@ -6,21 +6,8 @@
 //! mean where geometry edges can flip a pixel.
 
 use shadow_fins::{oracle::Method, scenes::SceneId};
-use shadow_fins_app::harness::Shot;
 
 use super::common::*;
-
-/// Linear RGB of every pixel.
-fn linear_rgb(shot: &Shot) -> Vec<[f32; 3]> {
-    shot.color.iter().map(|p| [linear(p[0]), linear(p[1]), linear(p[2])]).collect()
-}
-
-/// Writes a test's image to `<target>/tmp/test-images/` when `SHADOW_FINS_TEST_IMAGES` is set.
-fn save(shot: &Shot, name: &str) {
-    if std::env::var_os("SHADOW_FINS_TEST_IMAGES").is_some() {
-        shot.save_color(&format!("{}/test-images/{name}.png", env!("CARGO_TARGET_TMPDIR"))).expect("write test image");
-    }
-}
 
 fn max_channel_difference(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
     a.iter().zip(b).flat_map(|(p, q)| (0..3).map(move |c| (p[c] - q[c]).abs())).fold(0.0, f32::max)
@@ -73,7 +60,7 @@ fn the_final_image_is_ambient_plus_visibility_times_the_direct_light() {
     let (sc, lc, dc) = (linear_rgb(&s), linear_rgb(&l), linear_rgb(&d));
     // Over the penumbrae on surfaces the light reaches, where V is strictly
     // between 0 and 1 (umbra and lit pixels would make the check easy).
-    let mut errors: Vec<f32> = (0..sc.len())
+    let errors: Vec<f32> = (0..sc.len())
         .filter(|&i| (0.05..0.95).contains(&s.visibility[i]) && lc[i][1] - dc[i][1] > 0.05)
         .filter(|&i| lc[i].iter().all(|c| *c < 0.95))
         .map(|i| {
@@ -82,10 +69,9 @@ fn the_final_image_is_ambient_plus_visibility_times_the_direct_light() {
         })
         .collect();
     assert!(errors.len() > 100, "only {} penumbra pixels", errors.len());
-    errors.sort_by(f32::total_cmp);
-    let mean = errors.iter().sum::<f32>() / errors.len() as f32;
-    let p99 = errors[errors.len() * 99 / 100];
-    println!("composite vs ambient + V·direct: mean {mean:.4}, p99 {p99:.4} over {} penumbra pixels", errors.len());
+    let n = errors.len();
+    let (mean, p99) = mean_and_p99(errors);
+    println!("composite vs ambient + V·direct: mean {mean:.4}, p99 {p99:.4} over {n} penumbra pixels");
     // 8-bit sRGB steps: ≤ 0.0088 linear each, three images.
     assert!(mean <= 0.005 && p99 <= 0.02, "mean {mean}, p99 {p99}");
     // And shadows are visible in the image, not only in the buffer.

@@ -13,20 +13,9 @@ use shadow_fins::{
     oracle::Method,
     scenes::SceneId,
 };
-use shadow_fins_app::harness::{Session, Setup, Shot};
+use shadow_fins_app::harness::{Session, Setup};
 
 use super::common::*;
-
-fn linear_rgb(shot: &Shot) -> Vec<[f32; 3]> {
-    shot.color.iter().map(|p| [linear(p[0]), linear(p[1]), linear(p[2])]).collect()
-}
-
-/// Writes a test's image to `<target>/tmp/test-images/` when `SHADOW_FINS_TEST_IMAGES` is set.
-fn save(shot: &Shot, name: &str) {
-    if std::env::var_os("SHADOW_FINS_TEST_IMAGES").is_some() {
-        shot.save_color(&format!("{}/test-images/{name}.png", env!("CARGO_TARGET_TMPDIR"))).expect("write test image");
-    }
-}
 
 /// The box over the plane lit by a fin-shadowed Bevy spot light.
 fn spot_setup() -> Setup {
@@ -71,17 +60,16 @@ fn a_fin_shadowed_spot_light_is_bevys_light_times_the_visibility() {
     let (sc, lc, dc) = (linear_rgb(&s), linear_rgb(&l), linear_rgb(&d));
     let lit_pixels = (0..lc.len()).filter(|&i| lc[i][1] - dc[i][1] > 0.05).count();
     assert!(lit_pixels > 1000, "the spot light lights only {lit_pixels} pixels");
-    let mut errors: Vec<f32> = (0..sc.len())
+    let errors: Vec<f32> = (0..sc.len())
         .filter(|&i| lc[i][1] - dc[i][1] > 0.05 && lc[i].iter().all(|c| *c < 0.95))
         .map(|i| (sc[i][1] - (dc[i][1] + s.visibility[i] * (lc[i][1] - dc[i][1]))).abs())
         .collect();
     let penumbra = (0..sc.len()).filter(|&i| (0.05..0.95).contains(&s.visibility[i])).count();
     assert!(penumbra > 100, "only {penumbra} penumbra pixels");
-    assert!(errors.len() > 1000, "only {} unclipped lit pixels", errors.len());
-    errors.sort_by(f32::total_cmp);
-    let mean = errors.iter().sum::<f32>() / errors.len() as f32;
-    let p99 = errors[errors.len() * 99 / 100];
-    println!("spot composite vs dark + V·(lit − dark): mean {mean:.4}, p99 {p99:.4} over {} pixels", errors.len());
+    let n = errors.len();
+    assert!(n > 1000, "only {n} unclipped lit pixels");
+    let (mean, p99) = mean_and_p99(errors);
+    println!("spot composite vs dark + V·(lit − dark): mean {mean:.4}, p99 {p99:.4} over {n} pixels");
     assert!(mean <= 0.005 && p99 <= 0.02, "mean {mean}, p99 {p99}");
 }
 
@@ -208,7 +196,7 @@ fn two_lights_composite_to_the_sum_of_their_shadowed_contributions() {
         (render(&both), render(&unshadowed(disk(&a))), render(&unshadowed(b)), render(&dark));
     let (sc, la, lb, dc) = (linear_rgb(&shot), linear_rgb(&lit_a), linear_rgb(&lit_b), linear_rgb(&dark));
     let (va, vb) = (&shot.light_visibility[0], &shot.light_visibility[1]);
-    let mut errors: Vec<f32> = (0..sc.len())
+    let errors: Vec<f32> = (0..sc.len())
         .filter(|&i| la[i][1] + lb[i][1] - dc[i][1] < 0.95 && sc[i][1] < 0.95)
         .filter(|&i| (0.05..0.95).contains(&va[i]) || (0.05..0.95).contains(&vb[i]))
         .map(|i| {
@@ -216,11 +204,10 @@ fn two_lights_composite_to_the_sum_of_their_shadowed_contributions() {
             (sc[i][1] - expected).abs()
         })
         .collect();
-    assert!(errors.len() > 100, "only {} penumbra pixels", errors.len());
-    errors.sort_by(f32::total_cmp);
-    let mean = errors.iter().sum::<f32>() / errors.len() as f32;
-    let p99 = errors[errors.len() * 99 / 100];
-    println!("two lights vs dark + Σ V·(lit − dark): mean {mean:.4}, p99 {p99:.4} over {} pixels", errors.len());
+    let n = errors.len();
+    assert!(n > 100, "only {n} penumbra pixels");
+    let (mean, p99) = mean_and_p99(errors);
+    println!("two lights vs dark + Σ V·(lit − dark): mean {mean:.4}, p99 {p99:.4} over {n} pixels");
     // Four 8-bit images: ≤ 4 steps of 0.0088 at worst.
     assert!(mean <= 0.005 && p99 <= 0.03, "mean {mean}, p99 {p99}");
 }

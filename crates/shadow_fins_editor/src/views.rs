@@ -115,8 +115,7 @@ fn keep_visibility_target_sized(
     main_light: Query<Entity, With<EditorLight>>,
     readbacks: Query<Entity, With<VisibilityReadback>>,
 ) {
-    let (Some(size), Ok(mut view), Ok(light)) = (window_size(&window), views.single_mut(), main_light.single())
-    else {
+    let (Some(size), Ok(mut view), Ok(light)) = (window_size(&window), views.single_mut(), main_light.single()) else {
         return;
     };
     // The main light's own layer (not "the first light": extra lights may
