@@ -1,7 +1,8 @@
-//! The drop-in: a disk light with a radius, and every mesh gets soft shadows.
+//! The drop-in: Bevy's own spot lights with a radius and `FinShadows`, and
+//! every mesh gets physically sized soft shadows from each.
 //! `cargo run --example minimal --features window`
 use bevy::prelude::*;
-use bevy_shadow_fins::{FinLight, FinShadowView, ShadowFinsPlugin};
+use bevy_shadow_fins::{FinShadowView, FinShadows, ShadowFinsPlugin};
 
 fn main() {
     App::new().add_plugins((DefaultPlugins, ShadowFinsPlugin)).add_systems(Startup, setup).run();
@@ -15,11 +16,18 @@ fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials
         MeshMaterial3d(material),
         Transform::from_xyz(0.0, 1.5, 0.0),
     ));
-    // A disk of radius 0.5 at 4.5 units up, facing down.
-    commands.spawn((
-        FinLight { radius: 0.5, ..default() },
-        Transform::from_xyz(0.3, 4.5, 0.2).looking_at(Vec3::ZERO, Vec3::Z),
-    ));
+    // Two spot lights: a warm one of radius 0.5 at 4.5 units up and a smaller
+    // cool one to the side; each casts its own soft shadow.
+    for (at, radius, color) in [
+        (Vec3::new(0.3, 4.5, 0.2), 0.5, Color::srgb(1.0, 0.9, 0.8)),
+        (Vec3::new(-3.0, 4.0, 1.0), 0.2, Color::srgb(0.7, 0.8, 1.0)),
+    ] {
+        commands.spawn((
+            SpotLight { radius, color, intensity: 1_000_000.0, range: 20.0, outer_angle: 1.0, ..default() },
+            FinShadows,
+            Transform::from_translation(at).looking_at(Vec3::ZERO, Vec3::Z),
+        ));
+    }
     commands.spawn((
         Camera3d::default(),
         FinShadowView::default(),

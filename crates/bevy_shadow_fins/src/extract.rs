@@ -10,6 +10,7 @@
 
 use std::{
     collections::HashMap,
+    f32::consts::FRAC_PI_2,
     hash::{Hash, Hasher},
     sync::Arc,
 };
@@ -215,7 +216,7 @@ pub(crate) fn build(app: &mut App) {
 struct LightSource {
     entity: Entity,
     disk: Result<DiskLight, ()>,
-    range: f32,
+    reach: Reach,
     settings: FinShadowSettings,
     shading: LightShading,
 }
@@ -235,7 +236,7 @@ fn light_sources(
     let own = fin_lights.iter().map(|(entity, light, settings, transform)| LightSource {
         entity,
         disk: disk(transform, light.effective_radius()),
-        range: finite(light.range),
+        reach: Reach { range: finite(light.range), cone: None },
         settings: settings.clamped(),
         shading: LightShading::Own { light: *light, transform: *transform },
     });
@@ -245,7 +246,8 @@ fn light_sources(
             Some(LightSource {
                 entity,
                 disk: disk(transform, finite(spot.radius)),
-                range: finite(spot.range),
+                // Bevy lights nothing past the outer angle (its spot attenuation).
+                reach: Reach { range: finite(spot.range), cone: Some(spot.outer_angle.clamp(0.0, FRAC_PI_2)) },
                 settings: settings?.clamped(),
                 shading: LightShading::Bevy { render_entity: render.id() },
             })
@@ -365,7 +367,7 @@ fn update_fin_frames(
                 &[d.center.x, d.center.y, d.center.z, d.normal.x, d.normal.y, d.normal.z, d.radius],
             );
         }
-        hash_floats(&mut hasher, &[source.range]);
+        hash_floats(&mut hasher, &[source.reach.range, source.reach.cone.unwrap_or(-1.0)]);
         let signature = hasher.finish();
         let previous = frames.0.iter().find(|f| f.light == source.entity);
         if let Some(previous) = previous
@@ -387,7 +389,7 @@ fn update_fin_frames(
         cache.generation += 1;
         let generation = cache.generation;
         let state = cache.lights.get_mut(&source.entity).expect("inserted above");
-        let data = light_frame(scene, disk, source.range, source.settings, generation, limits, state);
+        let data = light_frame(scene, disk, source.reach, source.settings, generation, limits, state);
         set_stats(&mut light_stats, source.entity, data.stats);
         next.push(FinLightFrame { light: source.entity, shading: source.shading, data: Arc::new(data) });
     }
@@ -473,15 +475,15 @@ impl CasterScene {
     }
 
     /// The objects as one light sees them: casters out of its reach (beyond
-    /// its range, or wholly behind its disk) cast nothing for it, but still
-    /// receive.
-    fn seen_by(&self, disk: &DiskLight, range: f32) -> Vec<SceneObject> {
+    /// its range, outside its cone, or wholly behind its disk) cast nothing
+    /// for it, but still receive.
+    fn seen_by(&self, disk: &DiskLight, reach: Reach) -> Vec<SceneObject> {
         self.objects
             .iter()
             .zip(&self.bounds)
             .map(|(o, bounds)| {
                 let mut o = o.clone();
-                if o.casts_shadows && bounds.is_some_and(|b| out_of_reach(&b, disk, range)) {
+                if o.casts_shadows && bounds.is_some_and(|b| out_of_reach(&b, disk, reach)) {
                     o.casts_shadows = false;
                 }
                 o
@@ -490,28 +492,50 @@ impl CasterScene {
     }
 }
 
+/// Where a light can light: its range (0: unbounded) and, for a spot, the
+/// outer half-angle of its cone around the disk's normal.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Reach {
+    range: f32,
+    cone: Option<f32>,
+}
+
 /// True when a box (its world corners) cannot shadow anything this light
-/// lights: all of it behind the disk's plane, or all of it beyond `range`
-/// from the centre (a range of 0 or less culls nothing).
-fn out_of_reach(corners: &[Vec3; 8], disk: &DiskLight, range: f32) -> bool {
+/// lights: all of it behind the disk's plane, all of it beyond the range from
+/// the centre, or all of it outside the cone widened by what the disk and the
+/// box subtend (a blocker of a lit receiver lies on a segment from a disk
+/// point to the receiver, within `asin(R / d)` of the cone seen from the
+/// centre).
+fn out_of_reach(corners: &[Vec3; 8], disk: &DiskLight, reach: Reach) -> bool {
     let behind = corners.iter().all(|p| (*p - disk.center).dot(disk.normal) < 0.0);
     let (lo, hi) = corners.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
     let nearest = disk.center.clamp(lo, hi);
-    behind || (range > 0.0 && nearest.distance(disk.center) > range + disk.radius)
+    let beyond = reach.range > 0.0 && nearest.distance(disk.center) > reach.range + disk.radius;
+    let outside_cone = reach.cone.is_some_and(|cone| {
+        let (middle, radius) = ((lo + hi) * 0.5, (hi - lo).length() * 0.5);
+        let to_box = middle - disk.center;
+        let distance = to_box.length();
+        let margin = radius + disk.radius;
+        distance > margin && {
+            let angle = (to_box.dot(disk.normal) / distance).clamp(-1.0, 1.0).acos();
+            angle - (margin / distance).min(1.0).asin() > cone
+        }
+    });
+    behind || beyond || outside_cone
 }
 
 /// One light's frame from the scene's objects.
 fn light_frame(
     scene: &CasterScene,
     disk: DiskLight,
-    range: f32,
+    reach: Reach,
     settings: FinShadowSettings,
     generation: u64,
     limits: FrameLimits,
     state: &mut LightState,
 ) -> FinFrameData {
     let start = std::time::Instant::now();
-    let objects = scene.seen_by(&disk, range);
+    let objects = scene.seen_by(&disk, reach);
     let unread_bounds = scene.unread_bounds.clone();
     let radius = disk.radius;
     if settings.method == FinMethod::Coverage {
@@ -826,4 +850,35 @@ fn core_mesh(mesh: &Mesh) -> CachedMesh {
     let topology = Topology::build(&core);
     let geometry = GpuMeshGeometry::pack(&topology);
     Ok((Arc::new(core), Arc::new(topology), Arc::new(geometry)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn small_box_at(p: Vec3) -> [Vec3; 8] {
+        std::array::from_fn(|k| {
+            p + Vec3::new((k & 1) as f32, ((k >> 1) & 1) as f32, ((k >> 2) & 1) as f32) * 0.2 - Vec3::splat(0.1)
+        })
+    }
+
+    #[test]
+    fn casters_out_of_a_lights_reach_are_culled_and_none_in_it() {
+        let disk = DiskLight::new(Vec3::ZERO, Vec3::NEG_Y, 0.5).unwrap();
+        let spot = Reach { range: 10.0, cone: Some(0.5) };
+        // On the axis, and just outside the cone but within what the disk subtends: kept.
+        assert!(!out_of_reach(&small_box_at(Vec3::new(0.0, -3.0, 0.0)), &disk, spot));
+        let edge = Vec3::new(0.6_f32.tan() * 3.0, -3.0, 0.0);
+        assert!(!out_of_reach(&small_box_at(edge), &disk, spot));
+        // Far outside the cone, behind the disk, beyond the range: culled.
+        assert!(out_of_reach(&small_box_at(Vec3::new(3.0, -1.0, 0.0)), &disk, spot));
+        assert!(out_of_reach(&small_box_at(Vec3::new(0.0, 2.0, 0.0)), &disk, spot));
+        assert!(out_of_reach(&small_box_at(Vec3::new(0.0, -20.0, 0.0)), &disk, spot));
+        // No cone, no range: only what is behind the disk goes.
+        let everywhere = Reach { range: 0.0, cone: None };
+        assert!(!out_of_reach(&small_box_at(Vec3::new(3.0, -1.0, 0.0)), &disk, everywhere));
+        assert!(!out_of_reach(&small_box_at(Vec3::new(0.0, -1e6, 0.0)), &disk, everywhere));
+        // A box around the light itself is never culled.
+        assert!(!out_of_reach(&small_box_at(Vec3::ZERO), &disk, spot));
+    }
 }

@@ -48,7 +48,10 @@ impl FinLight {
 /// The light keeps looking like the Bevy light it is — Bevy shades it, with
 /// its colour, intensity, range, cone and BRDF — and only its shadow changes:
 /// - `SpotLight { radius, .. }`: a disk of that radius facing along the spot
-///   axis (`radius: 0` gives exactly the hard shadow). The cone is Bevy's.
+///   axis (`radius: 0` gives exactly the hard shadow). The cone is Bevy's;
+///   casters wholly outside it (widened by what the disk subtends) cast
+///   nothing for the light, so its visibility outside the cone — where Bevy
+///   lights nothing — is not its shadow there.
 /// - `DirectionalLight`, `PointLight`, `RectLight`: not modelled yet; said
 ///   once at run time, and they keep Bevy's own shadows.
 ///
