@@ -108,6 +108,7 @@ mod tests {
             intensity: 1e6,
             color: [1.0; 3],
             method: Default::default(),
+            spot: false,
         };
         let (a, ta) = new_light(&params, 0);
         let (_, tb) = new_light(&params, 1);

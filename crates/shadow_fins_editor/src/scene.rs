@@ -10,7 +10,7 @@ use bevy::{
     window::{FileDragAndDrop, PrimaryWindow},
 };
 use bevy_egui::input::EguiWantsInput;
-use bevy_shadow_fins::{FinLight, FinMethod, FinShadowSettings, FinShadowView, NotFinShadowCaster};
+use bevy_shadow_fins::{FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster};
 use shadow_fins::{
     camera::Camera as CoreCamera,
     light::{DiskLight, Light},
@@ -94,7 +94,13 @@ pub struct LightParams {
     pub intensity: f32,
     pub color: [f32; 3],
     pub method: EditorMethod,
+    /// The light is Bevy's own `SpotLight` with `FinShadows` (cone
+    /// [`SPOT_CONE`]; Bevy shades it) instead of the plugin's `FinLight`.
+    pub spot: bool,
 }
+
+/// The outer cone angle of the editor's spot light, radians (inner: 70% of it).
+pub const SPOT_CONE: f32 = 1.0;
 
 impl LightParams {
     /// The core crate's light for these parameters (for the ground truth).
@@ -197,6 +203,7 @@ fn spawn_rig(
         intensity: FinLight::default().intensity,
         color: [1.0, 1.0, 1.0],
         method: EditorMethod::default(),
+        spot: false,
     };
     let mut settings = FinShadowSettings::default();
     // `--settings`, or the autosave an earlier run left.
@@ -346,12 +353,15 @@ fn drag_light_with_shift(
 fn sync_light(
     mut commands: Commands,
     params: Res<LightParams>,
-    mut lights: Query<(Entity, &mut Transform, &mut FinShadowSettings, Option<&mut FinLight>), With<EditorLight>>,
+    mut lights: Query<
+        (Entity, &mut Transform, &mut FinShadowSettings, Option<&mut FinLight>, Option<&mut SpotLight>),
+        With<EditorLight>,
+    >,
 ) {
     if !params.is_changed() {
         return;
     }
-    let Ok((entity, mut transform, mut settings, fin)) = lights.single_mut() else { return };
+    let Ok((entity, mut transform, mut settings, fin, spot)) = lights.single_mut() else { return };
     *transform = params.transform();
     let color = Color::srgb(params.color[0], params.color[1], params.color[2]);
     let radius = params.radius.max(0.0);
@@ -362,16 +372,34 @@ fn sync_light(
             if settings.method != method {
                 settings.method = method;
             }
+            if params.spot {
+                let light = SpotLight {
+                    color,
+                    intensity,
+                    range,
+                    radius,
+                    outer_angle: SPOT_CONE,
+                    inner_angle: SPOT_CONE * 0.7,
+                    ..default()
+                };
+                match spot {
+                    Some(mut s) => *s = light,
+                    None => {
+                        commands.entity(entity).remove::<(PointLight, FinLight)>().insert((light, FinShadows));
+                    }
+                }
+                return;
+            }
             let light = FinLight { color, intensity, range, radius };
             match fin {
                 Some(mut f) => *f = light,
                 None => {
-                    commands.entity(entity).remove::<PointLight>().insert(light);
+                    commands.entity(entity).remove::<(PointLight, SpotLight, FinShadows)>().insert(light);
                 }
             }
         }
         None => {
-            commands.entity(entity).remove::<FinLight>().insert(PointLight {
+            commands.entity(entity).remove::<(FinLight, SpotLight, FinShadows)>().insert(PointLight {
                 color,
                 intensity,
                 range,
@@ -415,6 +443,7 @@ mod tests {
                 intensity: 5e5,
                 color: [1.0, 0.5, 0.25],
                 method: EditorMethod::default(),
+                spot: false,
             })
             .add_message::<LoadScene>()
             .add_systems(Update, load_scene);

@@ -31,6 +31,10 @@ pub struct EditorSettings {
     /// Light samples of the coverage method (absent in files from before it).
     #[serde(default = "default_coverage_samples")]
     pub coverage_samples: u32,
+    /// The light is Bevy's `SpotLight` with `FinShadows` (absent in files from
+    /// before it: the plugin's `FinLight`).
+    #[serde(default)]
+    pub spot: bool,
 }
 
 fn default_coverage_samples() -> u32 {
@@ -76,6 +80,7 @@ impl EditorSettings {
             falloff: fins.falloff.name().into(),
             overlap: fins.overlap.name().into(),
             coverage_samples: fins.coverage_samples,
+            spot: light.spot,
         }
     }
 
@@ -94,6 +99,7 @@ impl EditorSettings {
         if let Some(m) = EditorMethod::ALL.into_iter().find(|m| method_name(*m) == self.method) {
             light.method = m;
         }
+        light.spot = self.spot;
         *fins = FinShadowSettings {
             layers: self.layers,
             sub_layers: self.sub_layers,
@@ -174,6 +180,7 @@ pub fn check_settings_text(text: &str) {
         intensity: 1e6,
         color: [1.0; 3],
         method: EditorMethod::default(),
+        spot: false,
     };
     let mut fins = FinShadowSettings::default();
     file.apply(&mut light, &mut fins);
@@ -196,6 +203,7 @@ mod tests {
             intensity: 1e6,
             color: [1.0, 0.9, 0.8],
             method: EditorMethod::BevyPcss,
+            spot: false,
         }
     }
 
@@ -219,6 +227,19 @@ mod tests {
         s.apply(&mut l, &mut f);
         assert_eq!((l.radius, f.layers, f.map_resolution, l.intensity), (0.0, 1, 4096, 1e6));
         assert!(matches!(EditorSettings::from_ron("(radius: oops", "bad.ron"), Err(SettingsFileError::Parse { .. })));
+    }
+
+    #[test]
+    fn the_light_kind_is_saved_and_older_files_keep_the_fin_light() {
+        let saved = EditorSettings::capture(&LightParams { spot: true, ..light() }, &FinShadowSettings::default());
+        let (mut l, mut f) = (light(), FinShadowSettings::default());
+        EditorSettings::from_ron(&saved.to_ron(), "x.ron").unwrap().apply(&mut l, &mut f);
+        assert!(l.spot);
+        let older = saved.to_ron().replace("spot: true,", "");
+        assert_ne!(older, saved.to_ron(), "the field must be in the file to be dropped from it");
+        let mut l = LightParams { spot: true, ..light() };
+        EditorSettings::from_ron(&older, "old.ron").unwrap().apply(&mut l, &mut f);
+        assert!(!l.spot);
     }
 
     #[test]

@@ -112,6 +112,11 @@ fn panels(
         egui::ScrollArea::vertical().show(ui, |ui| {
             ui.heading("Light");
             let mut p = *params;
+            ui.horizontal(|ui| {
+                ui.radio_value(&mut p.spot, false, "FinLight (disk)");
+                ui.radio_value(&mut p.spot, true, "Bevy SpotLight")
+                    .on_hover_text("Bevy's own SpotLight with FinShadows: Bevy shades it (cone 1 rad), fins shadow it");
+            });
             vec3_row(ui, "position", &mut p.position, 0.05);
             vec3_row(ui, "direction", &mut p.direction, 0.01);
             ui.small("Shift+drag in the view moves the light; Shift+Ctrl+drag raises it.");
