@@ -47,7 +47,8 @@ fn lights_window(
     mut extras: Query<(Entity, &mut SpotLight, &mut FinShadowSettings, &FinLightStats), With<ExtraLight>>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?.clone();
-    egui::Window::new("More lights").default_open(false).show(&ctx, |ui| {
+    // Over the 3D view, clear of the side panels.
+    egui::Window::new("More lights").default_open(false).default_pos(egui::pos2(300.0, 12.0)).show(&ctx, |ui| {
         ui.small("Bevy SpotLights with FinShadows, shadowed together with the main light.");
         let count = extras.iter().count();
         let room = count + 1 < MAX_FIN_LIGHTS;
