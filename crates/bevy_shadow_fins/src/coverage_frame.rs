@@ -2,8 +2,8 @@
 //! built with the core crate when a caster, the light or a setting changed:
 //! the potential silhouette edges and their footprint grid, every caster
 //! triangle in light-map space for the depth lists, and the light samples.
-//! The render world uploads them and runs `render/coverage_lists.wgsl` and
-//! `render/coverage.wgsl`.
+//! The render world uploads them and runs `shaders/coverage_lists.wgsl` and
+//! `shaders/coverage.wgsl`.
 
 use bevy::prelude::*;
 use shadow_fins::{

@@ -1,5 +1,5 @@
 //! Main world side of GPU fin extraction: caster geometry packed once per mesh
-//! for `render/extract.wgsl`, and one small record per caster instance (its
+//! for `shaders/extract.wgsl`, and one small record per caster instance (its
 //! transform into the light frame) rebuilt when something moves.
 
 use std::{

@@ -70,7 +70,7 @@
 //!
 //! Stages, per light, per frame and only when something moved or a setting changed:
 //! 1. **fin extraction and layer assignment** in compute passes
-//!    (`render/extract.wgsl`): per-face facing test, patches (connected
+//!    (`shaders/extract.wgsl`): per-face facing test, patches (connected
 //!    light-facing regions) by a lock-free union-find, per-edge silhouette test
 //!    appending oriented edges, fins and fans appended per silhouette edge and
 //!    vertex, the sub-layer histogram of edge depths (atomics), its prefix sum
@@ -99,9 +99,9 @@
 //! fusion (`shadow_fins::coverage`): on the CPU, when something moved, the
 //! potential silhouette edges of the light's disk, binned by penumbra
 //! footprint into light-space cells (`coverage_frame.rs`); on the GPU
-//! (`render/coverage_lists.wgsl`) per-texel depth lists of every caster (24
+//! (`shaders/coverage_lists.wgsl`) per-texel depth lists of every caster (24
 //! near, 6 far depths, the total), then per camera pixel
-//! (`render/coverage.wgsl`) the reference count from those lists, the
+//! (`shaders/coverage.wgsl`) the reference count from those lists, the
 //! per-sample count changes of the cell's edges over up to 256 light samples
 //! in 32-sample words, and the visible share — three dispatches, each
 //! invocation's loops short (llvmpipe stops a shader after 65535 loop

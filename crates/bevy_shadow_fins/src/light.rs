@@ -106,7 +106,7 @@ impl From<FinMethod> for Method {
 /// Where fins are extracted and layers assigned.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Reflect)]
 pub enum FinExtraction {
-    /// Compute passes (`render/extract.wgsl`): caster geometry is uploaded once
+    /// Compute passes (`shaders/extract.wgsl`): caster geometry is uploaded once
     /// per mesh and only instance transforms when something moves; silhouettes,
     /// patches, fins, the depth histogram and the layer cut all run on the GPU.
     #[default]

@@ -122,7 +122,7 @@ struct CompositeLights {
 }
 
 pub(crate) fn build(app: &mut App) {
-    embedded_asset!(app, "composite.wgsl");
+    embedded_asset!(app, "shaders/composite.wgsl");
 }
 
 pub(crate) fn finish(app: &mut App) {
@@ -164,7 +164,7 @@ struct FinCompositePipelines {
 /// Loads the shader at startup, so the pipeline is ready as soon as a fin light appears.
 fn init_composite(mut commands: Commands, asset_server: Res<AssetServer>) {
     commands.insert_resource(FinCompositePipelines {
-        shader: load_embedded_asset!(asset_server.as_ref(), "composite.wgsl"),
+        shader: load_embedded_asset!(asset_server.as_ref(), "shaders/composite.wgsl"),
         light_layout: light_layout(),
         specialized: HashMap::new(),
     });

@@ -37,9 +37,9 @@ use crate::{
 const WORKGROUP: u32 = 64;
 
 pub(super) fn build(app: &mut App) {
-    load_shader_library!(app, "coverage_types.wgsl");
-    embedded_asset!(app, "coverage_lists.wgsl");
-    embedded_asset!(app, "coverage.wgsl");
+    load_shader_library!(app, "shaders/coverage_types.wgsl");
+    embedded_asset!(app, "shaders/coverage_lists.wgsl");
+    embedded_asset!(app, "shaders/coverage.wgsl");
 }
 
 pub(super) fn finish(app: &mut App) {
@@ -133,8 +133,8 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
             ),
         ),
     );
-    let lists_shader = load_embedded_asset!(asset_server.as_ref(), "coverage_lists.wgsl");
-    let visibility_shader = load_embedded_asset!(asset_server.as_ref(), "coverage.wgsl");
+    let lists_shader = load_embedded_asset!(asset_server.as_ref(), "shaders/coverage_lists.wgsl");
+    let visibility_shader = load_embedded_asset!(asset_server.as_ref(), "shaders/coverage.wgsl");
     let compute =
         |label, layout: &_, shader: &_, entry| super::queue_compute(&pipeline_cache, label, layout, shader, entry);
     commands.insert_resource(CoveragePipelines {

@@ -62,7 +62,7 @@ const ENTRY_POINTS: [&str; 13] = [
 ];
 
 pub(super) fn build(app: &mut App) {
-    embedded_asset!(app, "extract.wgsl");
+    embedded_asset!(app, "shaders/extract.wgsl");
     app.add_plugins(ExtractResourcePlugin::<FinStatsBuffer>::default()).add_systems(Startup, spawn_stats_readback);
 }
 
@@ -190,7 +190,7 @@ impl ExtractPipelines {
                 ),
             ),
         );
-        let shader = load_embedded_asset!(asset_server, "extract.wgsl");
+        let shader = load_embedded_asset!(asset_server, "shaders/extract.wgsl");
         let ids = ENTRY_POINTS
             .iter()
             .map(|entry| {

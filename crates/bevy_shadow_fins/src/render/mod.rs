@@ -42,9 +42,9 @@ mod coverage;
 mod extract_gpu;
 
 pub(crate) fn build(app: &mut App) {
-    load_shader_library!(app, "fin_types.wgsl");
-    embedded_asset!(app, "maps.wgsl");
-    embedded_asset!(app, "visibility.wgsl");
+    load_shader_library!(app, "shaders/fin_types.wgsl");
+    embedded_asset!(app, "shaders/maps.wgsl");
+    embedded_asset!(app, "shaders/visibility.wgsl");
     app.add_plugins((
         ExtractResourcePlugin::<FinFrames>::default(),
         ExtractComponentPlugin::<FinShadowView>::default(),
@@ -193,8 +193,8 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
             ),
         ),
     );
-    let maps_shader = load_embedded_asset!(asset_server.as_ref(), "maps.wgsl");
-    let visibility_shader = load_embedded_asset!(asset_server.as_ref(), "visibility.wgsl");
+    let maps_shader = load_embedded_asset!(asset_server.as_ref(), "shaders/maps.wgsl");
+    let visibility_shader = load_embedded_asset!(asset_server.as_ref(), "shaders/visibility.wgsl");
     let compute = |label, layout: &_, shader: &_, entry| queue_compute(&pipeline_cache, label, layout, shader, entry);
     commands.insert_resource(FinPipelines {
         clear: compute("fin_clear_maps", &maps_layout, &maps_shader, "clear_maps"),
@@ -771,6 +771,28 @@ pub(super) fn copy_to_targets(
             ctx.command_encoder().copy_texture_to_texture(source, target.texture.as_image_copy(), size);
         } else {
             warn_once!("fin shadows: visibility targets must be R32Float at the camera's size ({size:?})");
+        }
+    }
+}
+
+#[cfg(test)]
+mod shader_layout_tests {
+    /// Every pass's WGSL lives in the workspace's top-level `shaders/`; the
+    /// crate sees it through the `src/render/shaders` link, which `cargo
+    /// package` follows, so the published crate carries the same files.
+    #[test]
+    fn the_shaders_the_plugin_embeds_are_the_top_level_shaders_folder() {
+        let manifest = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let linked = manifest.join("src/render/shaders").canonicalize().expect("src/render/shaders resolves");
+        let top = manifest.join("../../shaders").canonicalize().expect("the top-level shaders/ folder");
+        assert_eq!(linked, top);
+        let sources: String = ["mod.rs", "composite.rs", "coverage.rs", "extract_gpu.rs"]
+            .iter()
+            .map(|f| std::fs::read_to_string(manifest.join("src/render").join(f)).expect("render source"))
+            .collect();
+        for entry in std::fs::read_dir(&top).expect("shaders/") {
+            let name = entry.expect("entry").file_name().into_string().expect("utf-8 name");
+            assert!(sources.contains(&format!("\"shaders/{name}\"")), "shaders/{name} is not embedded by the plugin");
         }
     }
 }
