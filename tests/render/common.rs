@@ -90,6 +90,14 @@ pub fn render(setup: &Setup) -> Shot {
     shadow_fins_app::harness::render(setup, 6).expect("headless render")
 }
 
+/// [`render`] for tests of Bevy's own lights: at least 16 frames, since
+/// Bevy's clustering adds lights a few frames late (later the more lights
+/// and the busier the machine; seen as frames without a light on lavapipe),
+/// and a stable image before that is not the settled one.
+pub fn render_bevy_lights(setup: &Setup) -> Shot {
+    shadow_fins_app::harness::render(setup, 16).expect("headless render")
+}
+
 /// A shot must show both shadow and light: a test that passes on a black (or
 /// white) image is a bug.
 pub fn assert_not_trivial(shot: &Shot) {

@@ -52,7 +52,7 @@ fn a_fin_shadowed_spot_light_is_bevys_light_times_the_visibility() {
     }
     let mut dark = shadowed.clone();
     dark.intensity = 0.0;
-    let (s, l, d) = (render(&shadowed), render(&lit), render(&dark));
+    let (s, l, d) = (render_bevy_lights(&shadowed), render_bevy_lights(&lit), render_bevy_lights(&dark));
     save(&s, "spot_shadowed");
     save(&l, "spot_lit");
     assert_not_trivial(&s);
@@ -80,12 +80,12 @@ fn removing_fin_shadows_gives_the_light_its_bevy_shadow_map_back() {
     // the light again and its hard shadow map darkens the umbra.
     let setup = spot_setup();
     let mut session = Session::new(&setup);
-    let fin = session.settle(3).expect("render");
+    let fin = session.settle(16).expect("render");
     let world = session.app.world_mut();
     let spot = world.query_filtered::<Entity, With<SpotLight>>().single(world).expect("one spot light");
     assert!(world.get::<SpotLight>(spot).unwrap().shadow_maps_enabled, "the user's setting is left alone");
     world.entity_mut(spot).remove::<FinShadows>();
-    let bevy = session.settle(3).expect("render");
+    let bevy = session.settle(16).expect("render");
     assert_eq!(session.app.world().resource::<FinShadowStats>().0, Default::default());
     let (fc, bc) = (linear_rgb(&fin), linear_rgb(&bevy));
     // In the fins' umbra Bevy's hard shadow is as dark: without its map back
@@ -105,7 +105,7 @@ fn two_spot_lights_each_match_their_shadow_alone() {
     both.extra_spots = vec![b];
     let mut b_alone = a.clone();
     b_alone.light = Light::Disk(b);
-    let (shot, alone_a, alone_b) = (render(&both), render(&a), render(&b_alone));
+    let (shot, alone_a, alone_b) = (render_bevy_lights(&both), render_bevy_lights(&a), render_bevy_lights(&b_alone));
     // Slot order is entity order, not spawn order: read each light's own layer.
     let (together_a, together_b) = (&shot.light_visibility[0], &shot.light_visibility[1]);
     assert_not_trivial(&alone_a);
@@ -129,7 +129,7 @@ fn eight_spot_lights_each_match_the_oracle() {
         .collect();
     let mut all = base.clone();
     all.extra_spots = offsets.iter().map(|o| moved(&base, *o)).collect();
-    let shot = render(&all);
+    let shot = render_bevy_lights(&all);
     assert_eq!(shot.light_visibility.len(), 9, "the setup's light and eight more");
     let mut worst: f32 = 0.0;
     for (k, light) in all.extra_spots.iter().enumerate() {
@@ -154,7 +154,7 @@ fn lights_past_the_budget_degrade_with_the_reason_in_their_stats() {
     setup.extra_spots = (1..4).map(|k| moved(&base, Vec3::new(k as f32 * 0.5, 0.0, 0.0))).collect();
     let mut session = Session::new(&setup);
     session.app.world_mut().insert_resource(bevy_shadow_fins::FinShadowBudget { map_bytes: 8 << 20, ..default() });
-    let shot = session.settle(6).expect("render");
+    let shot = session.settle(16).expect("render");
     let world = session.app.world_mut();
     let stats: Vec<_> = world.query::<&bevy_shadow_fins::FinLightStats>().iter(world).map(|s| s.0).collect();
     assert_eq!(stats.len(), 4);
@@ -192,8 +192,12 @@ fn two_lights_composite_to_the_sum_of_their_shadowed_contributions() {
     };
     let mut dark = a.clone();
     dark.intensity = 0.0;
-    let (shot, lit_a, lit_b, dark) =
-        (render(&both), render(&unshadowed(disk(&a))), render(&unshadowed(b)), render(&dark));
+    let (shot, lit_a, lit_b, dark) = (
+        render_bevy_lights(&both),
+        render_bevy_lights(&unshadowed(disk(&a))),
+        render_bevy_lights(&unshadowed(b)),
+        render_bevy_lights(&dark),
+    );
     let (sc, la, lb, dc) = (linear_rgb(&shot), linear_rgb(&lit_a), linear_rgb(&lit_b), linear_rgb(&dark));
     let (va, vb) = (&shot.light_visibility[0], &shot.light_visibility[1]);
     let errors: Vec<f32> = (0..sc.len())
@@ -230,10 +234,10 @@ fn a_light_on_another_render_layer_is_shadowed_where_bevy_lights_it_and_never_ta
     world.entity_mut(spot).insert(layer_one.clone());
     let second = world.query::<(Entity, &Camera)>().iter(world).find(|(_, c)| c.order == 1).expect("second camera").0;
     world.entity_mut(second).insert(layer_one);
-    let hidden = session.settle(6).expect("render");
+    let hidden = session.settle(16).expect("render");
     let mut dark = setup.clone();
     dark.intensity = 0.0;
-    let dark = render(&dark);
+    let dark = render_bevy_lights(&dark);
     assert_not_trivial(&hidden);
     let (hc, dc) = (linear_rgb(&hidden), linear_rgb(&dark));
     let umbra: Vec<usize> = (0..hc.len()).filter(|&i| hidden.visibility[i] < 0.02).collect();
@@ -258,7 +262,7 @@ fn receivers_fin_shadows_cannot_reach_are_counted() {
     for (m, x) in [(forward, -1.5), (blended, 1.5)] {
         world.spawn((Mesh3d(cube.clone()), MeshMaterial3d(m), Transform::from_xyz(x, 0.1, 1.5)));
     }
-    session.settle(3).expect("render");
+    session.settle(16).expect("render");
     let counted = *session.app.world().resource::<bevy_shadow_fins::FinReceivers>();
     assert_eq!(counted, bevy_shadow_fins::FinReceivers { forward: 1, blended: 1 });
 }
