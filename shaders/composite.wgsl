@@ -18,7 +18,7 @@
     mesh_types::MESH_FLAGS_SHADOW_RECEIVER_BIT,
     mesh_view_bindings::{deferred_prepass_texture, view},
 }
-#import bevy_pbr::{mesh_view_bindings, mesh_view_types}
+#import bevy_pbr::{mesh_view_bindings, mesh_view_types, clustered_forward as clustering}
 
 #ifdef SCREEN_SPACE_AMBIENT_OCCLUSION
 #import bevy_pbr::mesh_view_bindings::screen_space_ambient_occlusion_texture
@@ -109,6 +109,27 @@ fn lighting_input_of(in: PbrInput) -> lighting::LightingInput {
     input.clearcoat_strength = in.material.clearcoat;
 #endif
     return input;
+}
+
+// Whether Bevy's lighting of this pixel went over clustered light `id`: the
+// very list `apply_pbr_lighting` walks (point lights, then spot lights). A
+// light Bevy did not add here — not yet clustered in its first frames, out of
+// range, on render layers the view does not see — must not be taken away.
+fn bevy_lit_pixel_with(id: u32, in: PbrInput) -> bool {
+    let view_z = dot(vec4<f32>(
+        view.view_from_world[0].z,
+        view.view_from_world[1].z,
+        view.view_from_world[2].z,
+        view.view_from_world[3].z
+    ), in.world_position);
+    let cluster = clustering::view_fragment_cluster_index(in.frag_coord.xy, view_z, in.is_orthographic);
+    let ranges = clustering::unpack_clusterable_object_index_ranges(cluster);
+    for (var j = ranges.first_point_light_index_offset; j < ranges.first_reflection_probe_index_offset; j += 1u) {
+        if (clustering::get_clusterable_object_id(j) == id) {
+            return true;
+        }
+    }
+    return false;
 }
 
 // A FinLight's unshadowed direct light at the surface (before exposure):
@@ -212,7 +233,7 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
             visibility = clamp(visibility, 0.0, 1.0);
             if (light.info.x == KIND_OWN) {
                 change += visibility * fin_light_direct(&input, light.own);
-            } else if (light.info.x == KIND_BEVY && visibility < 1.0) {
+            } else if (light.info.x == KIND_BEVY && visibility < 1.0 && bevy_lit_pixel_with(light.info.y, pbr_input)) {
                 // Bevy added this light unshadowed; clustered lights past the
                 // point lights are spot lights (`first_spot_light_index_offset`).
                 let flags = mesh_view_bindings::clustered_lights.data[light.info.y].flags;

@@ -48,8 +48,9 @@
 //! when `FinShadows` goes). The compositing pass then takes `(1 − V)` of the
 //! light's contribution away per pixel, evaluated by *Bevy's own* per-light
 //! function (`bevy_pbr::lighting::spot_light`, found by the light's index in
-//! Bevy's clustered list): the shading is Bevy's by construction and follows
-//! Bevy upgrades. The alternatives were weighed: overriding Bevy's shadow
+//! Bevy's clustered list), and only where Bevy's cluster list for the pixel
+//! holds the light — where Bevy added it: the shading is Bevy's by
+//! construction and follows Bevy upgrades. The alternatives were weighed: overriding Bevy's shadow
 //! lookup (`fetch_spot_shadow`) would reach forward materials too, but Bevy
 //! 0.19 gives a plugin no binding in the mesh view group to feed a per-light
 //! screen-space term to it (its layout is Bevy's; a fourth bind group is

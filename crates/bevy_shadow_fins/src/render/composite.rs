@@ -20,14 +20,12 @@ use std::collections::{HashMap, HashSet};
 
 use bevy::{
     asset::{embedded_asset, load_embedded_asset},
-    camera::visibility::RenderLayers,
     core_pipeline::{
         core_3d::main_opaque_pass_3d,
         deferred::copy_lighting_id::DeferredLightingIdDepthTexture,
         prepass::DeferredPrepass,
         schedule::{Core3d, Core3dSystems},
     },
-    light::cluster::GlobalClusterSettings,
     pbr::{
         GlobalClusterableObjectMeta, MeshPipelineKey, MeshViewBindGroup, ViewKeyCache,
         deferred::{
@@ -253,15 +251,13 @@ fn prepare_composite_pipelines(
     }
 }
 
-/// One view's light slots (the written flags are set when the pass runs). A
-/// Bevy light that Bevy does not light in this view — missing from its
-/// clustered list, or on render layers the camera does not see — is left
-/// out, not taken away from pixels Bevy never lit with it.
-fn composite_lights(
-    frames: &FinFrames,
-    clustered: Option<&GlobalClusterableObjectMeta>,
-    seen_by_view: impl Fn(Entity) -> bool,
-) -> CompositeLights {
+/// The light slots (the written flags are set per view when the pass runs).
+/// A Bevy light missing from Bevy's clustered list is left out; per pixel the
+/// shader takes a light away only where Bevy's own cluster list for that
+/// pixel holds it (`bevy_lit_pixel_with` in `composite.wgsl`): never from
+/// light Bevy did not add — out of range, on render layers the view does not
+/// see, or in its first frames before Bevy clusters it.
+fn composite_lights(frames: &FinFrames, clustered: Option<&GlobalClusterableObjectMeta>) -> CompositeLights {
     let mut out = CompositeLights::zeroed();
     out.count[0] = frames.0.len().min(MAX_FIN_LIGHTS) as u32;
     for (slot, frame) in frames.0.iter().take(MAX_FIN_LIGHTS).enumerate() {
@@ -272,7 +268,6 @@ fn composite_lights(
             }
             LightShading::Bevy { render_entity } => clustered
                 .and_then(|c| c.entity_to_index.get(&render_entity))
-                .filter(|_| seen_by_view(render_entity))
                 .map_or(none, |&id| (KIND_BEVY, FinLightUniform::zeroed(), id as u32)),
         };
         out.lights[slot] = CompositeLight { own, info: [kind, id, 0, 0] };
@@ -287,25 +282,11 @@ fn prepare_composite_bind_groups(
     pipelines: Option<Res<FinCompositePipelines>>,
     frames: Res<FinFrames>,
     clustered: Option<Res<GlobalClusterableObjectMeta>>,
-    light_layers: Query<&RenderLayers>,
-    cluster_settings: Option<Res<GlobalClusterSettings>>,
-    views: Query<
-        (Entity, &FinViewTexture, Option<&FinCompositeBindGroup>, Option<&RenderLayers>),
-        With<FinCompositePipeline>,
-    >,
+    views: Query<(Entity, &FinViewTexture, Option<&FinCompositeBindGroup>), With<FinCompositePipeline>>,
 ) {
     let Some(pipelines) = pipelines else { return };
-    for (entity, texture, previous, view_layers) in &views {
-        // Bevy's rule: CPU clustering (`assign_objects_to_clusters`) lights a
-        // view with a light whose render layers intersect the view's (both
-        // default to layer 0); Bevy 0.19's GPU clustering does not look at
-        // layers, so there every extracted light lights every view.
-        let gpu_clustering = cluster_settings.as_ref().is_some_and(|c| c.gpu_clustering.is_some());
-        let view_layers = view_layers.cloned().unwrap_or_default();
-        let seen = |light: Entity| {
-            gpu_clustering || light_layers.get(light).cloned().unwrap_or_default().intersects(&view_layers)
-        };
-        let lights = composite_lights(&frames, clustered.as_deref(), seen);
+    let lights = composite_lights(&frames, clustered.as_deref());
+    for (entity, texture, previous) in &views {
         let uniform = match previous {
             Some(p) => p.uniform.clone(),
             None => device.create_buffer(&BufferDescriptor {
