@@ -16,6 +16,8 @@ use shadow_fins::{
     scenes::SceneId,
 };
 
+use shadow_fins_lab::results::Spread;
+
 use crate::harness::{Session, Setup};
 
 /// One light count's frame times, medians in ms.
@@ -37,11 +39,6 @@ pub struct LightsRun {
     pub width: u32,
     pub height: u32,
     pub map_resolution: u32,
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
 /// The scene's light plus `n − 1` more on a ring around it.
@@ -72,7 +69,7 @@ fn time(session: &mut Session, frames: u32, moving: bool) -> f64 {
             }
         }
     });
-    median(timing.frame_ms)
+    Spread::of(&timing.frame_ms).median
 }
 
 /// One row per light count.

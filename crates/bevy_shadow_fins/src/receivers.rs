@@ -30,22 +30,22 @@ pub(crate) fn build(app: &mut App) {
     app.init_resource::<FinReceivers>().add_systems(PostUpdate, count_unreached_receivers);
 }
 
-/// What a material is to the compositing pass.
-fn reach(material: &StandardMaterial, default_forward: bool) -> Option<fn(&mut FinReceivers)> {
-    let blended = !matches!(material.alpha_mode, AlphaMode::Opaque | AlphaMode::Mask(_))
-        || material.specular_transmission > 0.0
-        || material.diffuse_transmission > 0.0;
-    let forward = match material.opaque_render_method {
-        OpaqueRendererMethod::Forward => true,
-        OpaqueRendererMethod::Deferred => false,
-        OpaqueRendererMethod::Auto => default_forward,
-    };
-    if blended {
-        Some(|r| r.blended += 1)
-    } else if forward {
-        Some(|r| r.forward += 1)
-    } else {
-        None
+impl FinReceivers {
+    /// Counts one mesh of `material` if the compositing pass cannot reach it.
+    fn count(&mut self, material: &StandardMaterial, default_forward: bool) {
+        let blended = !matches!(material.alpha_mode, AlphaMode::Opaque | AlphaMode::Mask(_))
+            || material.specular_transmission > 0.0
+            || material.diffuse_transmission > 0.0;
+        let forward = match material.opaque_render_method {
+            OpaqueRendererMethod::Forward => true,
+            OpaqueRendererMethod::Deferred => false,
+            OpaqueRendererMethod::Auto => default_forward,
+        };
+        if blended {
+            self.blended += 1;
+        } else if forward {
+            self.forward += 1;
+        }
     }
 }
 
@@ -71,9 +71,7 @@ fn count_unreached_receivers(
         .is_some_and(|m| *m == OpaqueRendererMethod::Forward);
     let mut now = FinReceivers::default();
     for material in meshes.iter().filter_map(|m| materials.get(&m.0)) {
-        if let Some(count) = reach(material, default_forward) {
-            count(&mut now);
-        }
+        now.count(material, default_forward);
     }
     if *counted != now {
         *counted = now;

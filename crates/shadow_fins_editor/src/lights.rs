@@ -25,8 +25,6 @@ fn new_light(params: &LightParams, index: usize) -> (SpotLight, Transform) {
     let (u, v) = direction.any_orthonormal_pair();
     let a = index as f32 * 2.4;
     let offset = (u * a.cos() + v * a.sin()) * (params.position.length() * 0.25).max(0.5);
-    let at = params.position + offset;
-    let up = if direction.cross(Vec3::Z).length() > 1e-3 { Vec3::Z } else { Vec3::X };
     let spot = SpotLight {
         intensity: params.intensity.max(0.0),
         radius: params.radius.max(0.0),
@@ -35,7 +33,7 @@ fn new_light(params: &LightParams, index: usize) -> (SpotLight, Transform) {
         inner_angle: 0.6,
         ..default()
     };
-    (spot, Transform::from_translation(at).looking_at(at + direction, up))
+    (spot, LightParams { position: params.position + offset, ..*params }.transform())
 }
 
 #[allow(clippy::type_complexity)]

@@ -109,7 +109,8 @@ impl LightParams {
         DiskLight::new(self.position, direction, self.radius.max(0.0)).ok().map(Light::Disk)
     }
 
-    fn transform(&self) -> Transform {
+    /// At `position`, facing along `direction` (−Y when it has no length).
+    pub(crate) fn transform(&self) -> Transform {
         let direction = self.direction.try_normalize().unwrap_or(Vec3::NEG_Y);
         let up = if direction.cross(Vec3::Z).length() > 1e-3 { Vec3::Z } else { Vec3::X };
         Transform::from_translation(self.position).looking_to(direction, up)
