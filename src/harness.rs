@@ -18,7 +18,7 @@ use bevy::{
     window::ExitCondition,
 };
 use bevy_shadow_fins::{
-    FinFrame, FinLight, FinLightStats, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster,
+    FinFrames, FinLight, FinLightStats, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster,
     NotFinShadowReceiver, ShadowFinsPlugin,
 };
 use shadow_fins::{camera::Camera as CoreCamera, light::Light, scene::Scene};
@@ -444,7 +444,7 @@ impl Session {
             // frame that overflowed a buffer is redone once they do.
             let world = self.app.world_mut();
             let extracted = world.query::<&FinLightStats>().iter(world).all(|s| s.0.up_to_date)
-                || world.resource::<FinFrame>().0.is_none();
+                || world.resource::<FinFrames>().0.is_empty();
             stable = if color.is_some() && color == previous_color && extracted { stable + 1 } else { 0 };
             previous_color = color;
             // Three equal frames in a row: Bevy's own lights take a few frames

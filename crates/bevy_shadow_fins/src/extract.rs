@@ -135,11 +135,6 @@ pub struct FinFrameData {
     pub(crate) coverage: Option<CoverageFrame>,
 }
 
-/// The first fin-shadowed light's frame (`None` without one), by entity order:
-/// what the editor's map views show. Every light's frame is in [`FinFrames`].
-#[derive(Resource, Clone, Default, ExtractResource)]
-pub struct FinFrame(pub Option<Arc<FinFrameData>>);
-
 /// The most lights with fin shadows at once. Lights past it (by entity
 /// order) keep Bevy's own shadow map, with [`FinDegradation::TooManyLights`]
 /// in their [`FinLightStats`].
@@ -173,6 +168,14 @@ pub struct FinLightFrame {
 #[derive(Resource, Clone, Default, ExtractResource)]
 pub struct FinFrames(pub Vec<FinLightFrame>);
 
+impl FinFrames {
+    /// The lights on the coverage method (`true`) or on a fin method (`false`):
+    /// each set has its own GPU resources (`render/coverage.rs`, `render/mod.rs`).
+    pub(crate) fn on_coverage(&self, coverage: bool) -> impl Iterator<Item = &FinLightFrame> {
+        self.0.iter().filter(move |f| f.data.coverage.is_some() == coverage)
+    }
+}
+
 /// What one light's fin shadows currently model: on every light with
 /// [`FinShadowSettings`] (the first light's is also the [`FinShadowStats`]
 /// resource).
@@ -205,17 +208,16 @@ pub(crate) struct MeshCache {
 }
 
 pub(crate) fn build(app: &mut App) {
-    app.init_resource::<FinFrame>()
-        .init_resource::<FinFrames>()
-        .init_resource::<MeshCache>()
-        .init_resource::<FinShadowStats>()
-        .add_systems(PostUpdate, update_fin_frames.after(TransformSystems::Propagate));
+    app.init_resource::<FinFrames>().init_resource::<MeshCache>().init_resource::<FinShadowStats>().add_systems(
+        PostUpdate,
+        (update_fin_frames, mirror_first_light_stats).chain().after(TransformSystems::Propagate),
+    );
 }
 
 /// A light asking for fin shadows, as the frame builder sees it.
 struct LightSource {
     entity: Entity,
-    disk: Result<DiskLight, ()>,
+    disk: DiskLight,
     reach: Reach,
     settings: FinShadowSettings,
     shading: LightShading,
@@ -228,34 +230,43 @@ struct LightSource {
 fn light_sources(
     fin_lights: &Query<(Entity, &FinLight, &FinShadowSettings, &GlobalTransform)>,
     spot_lights: &SpotLights,
-) -> Vec<LightSource> {
-    let disk = |t: &GlobalTransform, radius: f32| {
-        DiskLight::new(t.translation(), t.forward().as_vec3(), radius).map_err(|_| ())
-    };
+) -> (Vec<LightSource>, Vec<Entity>) {
+    let disk = |t: &GlobalTransform, radius: f32| DiskLight::new(t.translation(), t.forward().as_vec3(), radius);
     let finite = |x: f32| if x.is_finite() && x > 0.0 { x } else { 0.0 };
-    let own = fin_lights.iter().map(|(entity, light, settings, transform)| LightSource {
-        entity,
-        disk: disk(transform, light.effective_radius()),
-        reach: Reach { range: finite(light.range), cone: None },
-        settings: settings.clamped(),
-        shading: LightShading::Own { light: *light, transform: *transform },
+    let own = fin_lights.iter().map(|(entity, light, settings, transform)| {
+        let source = |disk| LightSource {
+            entity,
+            disk,
+            reach: Reach { range: finite(light.range), cone: None },
+            settings: settings.clamped(),
+            shading: LightShading::Own { light: *light, transform: *transform },
+        };
+        disk(transform, light.effective_radius()).map(source).map_err(|_| entity)
     });
     // An entity with both a FinLight and a SpotLight is the FinLight (one slot).
     let bevy = spot_lights.iter().filter(|l| l.5 && !fin_lights.contains(l.0)).filter_map(
         |(entity, spot, settings, transform, render, _)| {
-            Some(LightSource {
+            let settings = settings?.clamped();
+            let source = |disk| LightSource {
                 entity,
-                disk: disk(transform, finite(spot.radius)),
+                disk,
                 // Bevy lights nothing past the outer angle (its spot attenuation).
                 reach: Reach { range: finite(spot.range), cone: Some(spot.outer_angle.clamp(0.0, FRAC_PI_2)) },
-                settings: settings?.clamped(),
+                settings,
                 shading: LightShading::Bevy { render_entity: render.id() },
-            })
+            };
+            Some(disk(transform, finite(spot.radius)).map(source).map_err(|_| entity))
         },
     );
-    let mut sources: Vec<LightSource> = own.chain(bevy).collect();
+    let (mut sources, mut invalid) = (Vec::new(), Vec::new());
+    for light in own.chain(bevy) {
+        match light {
+            Ok(source) => sources.push(source),
+            Err(entity) => invalid.push(entity),
+        }
+    }
     sources.sort_by_key(|s| s.entity);
-    sources
+    (sources, invalid)
 }
 
 /// Every `SpotLight`, fin-shadowed (`FinShadows`) or not: mutable, so that
@@ -288,8 +299,6 @@ fn update_fin_frames(
     mut mesh_events: MessageReader<AssetEvent<Mesh>>,
     mut cache: ResMut<MeshCache>,
     mut frames: ResMut<FinFrames>,
-    mut first: ResMut<FinFrame>,
-    mut stats: ResMut<FinShadowStats>,
 ) {
     let mut meshes_changed = false;
     for event in mesh_events.read() {
@@ -304,15 +313,12 @@ fn update_fin_frames(
              those lights keep Bevy's shadows (SpotLight and FinLight have fin shadows)"
         );
     }
-    let mut sources = light_sources(&fin_lights, &spot_lights);
+    let (mut sources, invalid) = light_sources(&fin_lights, &spot_lights);
     // A light with no finite position or direction shadows nothing and takes
     // no share of the budget.
-    sources.retain(|s| {
-        if s.disk.is_err() {
-            set_stats(&mut light_stats, s.entity, FinFrameStats { up_to_date: true, ..default() });
-        }
-        s.disk.is_ok()
-    });
+    for entity in invalid {
+        set_stats(&mut light_stats, entity, FinFrameStats { up_to_date: true, ..default() });
+    }
     for cut in sources.drain(sources.len().min(MAX_FIN_LIGHTS)..) {
         warn_once!(
             "fin shadows: more than {MAX_FIN_LIGHTS} fin-shadowed lights; the rest keep Bevy's shadows \
@@ -329,9 +335,6 @@ fn update_fin_frames(
         let off = FinFrameStats { degraded: Some(FinDegradation::Unsupported(why.0)), up_to_date: true, ..default() };
         for s in &sources {
             set_stats(&mut light_stats, s.entity, off);
-        }
-        if stats.0 != off && !sources.is_empty() {
-            stats.0 = off;
         }
         return;
     }
@@ -361,12 +364,8 @@ fn update_fin_frames(
         let state = cache.lights.entry(source.entity).or_default();
         state.capacity_epoch.hash(&mut hasher);
         source.settings.hash(&mut hasher);
-        if let Ok(d) = &source.disk {
-            hash_floats(
-                &mut hasher,
-                &[d.center.x, d.center.y, d.center.z, d.normal.x, d.normal.y, d.normal.z, d.radius],
-            );
-        }
+        let d = &source.disk;
+        hash_floats(&mut hasher, &[d.center.x, d.center.y, d.center.z, d.normal.x, d.normal.y, d.normal.z, d.radius]);
         hash_floats(&mut hasher, &[source.reach.range, source.reach.cone.unwrap_or(-1.0)]);
         let signature = hasher.finish();
         let previous = frames.0.iter().find(|f| f.light == source.entity);
@@ -380,7 +379,7 @@ fn update_fin_frames(
         }
         state.signature = signature;
         changed = true;
-        let Ok(disk) = source.disk else { continue };
+        let disk = source.disk;
         let scene = scene.get_or_insert_with(|| CasterScene::collect(&casters, &meshes, &mut cache.meshes));
         let max_buffer = device.max_buffer(&budget);
         // The maps' budget is shared equally between the lights.
@@ -409,10 +408,25 @@ fn update_fin_frames(
         set_stats(&mut light_stats, gone.light, FinFrameStats::default());
     }
     frames.0 = next;
-    first.0 = frames.0.first().map(|f| f.data.clone());
-    let first_stats = frames.0.first().map(|f| f.data.stats).unwrap_or_default();
-    if stats.0 != first_stats {
-        stats.0 = first_stats;
+}
+
+/// [`FinShadowStats`] is the first light's [`FinLightStats`]: the first
+/// light with a frame, else (no frame: the device is unsupported, or every
+/// light is invalid) the first light asking for fin shadows, by entity order.
+/// One place keeps the mirror, whoever wrote the light's stats (the frame
+/// builder or the GPU read-back).
+fn mirror_first_light_stats(
+    frames: Res<FinFrames>,
+    lights: Query<(Entity, &FinLightStats)>,
+    mut stats: ResMut<FinShadowStats>,
+) {
+    let first = match frames.0.first() {
+        Some(f) => lights.get(f.light).ok().map(|(_, s)| s.0),
+        None => lights.iter().min_by_key(|(e, _)| *e).map(|(_, s)| s.0),
+    };
+    let now = first.unwrap_or_default();
+    if stats.0 != now {
+        stats.0 = now;
     }
 }
 

@@ -132,7 +132,7 @@ mod render;
 
 pub use budget::{FinDegradation, FinShadowBudget};
 pub use extract::{
-    FinFrame, FinFrameStats, FinFrames, FinLightFrame, FinLightStats, FinSceneError, FinShadowStats, MAX_FIN_LIGHTS,
+    FinFrameStats, FinFrames, FinLightFrame, FinLightStats, FinSceneError, FinShadowStats, MAX_FIN_LIGHTS,
 };
 pub use light::{
     FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster,

@@ -185,13 +185,12 @@ fn prepare_coverage(
     pipelines: Option<Res<CoveragePipelines>>,
     pipeline_cache: Res<PipelineCache>,
 ) {
-    let coverage = |f: &&crate::extract::FinLightFrame| f.data.coverage.is_some();
-    lights.0.retain(|light, _| frames.0.iter().filter(coverage).any(|f| f.light == *light));
+    lights.0.retain(|light, _| frames.on_coverage(true).any(|f| f.light == *light));
     let Some(pipelines) = pipelines else {
         lights.0.clear();
         return;
     };
-    for frame in frames.0.iter().filter(coverage) {
+    for frame in frames.on_coverage(true) {
         let gpu = lights.0.entry(frame.light).or_default();
         prepare_light(&frame.data, gpu, &device, &queue, &pipelines, &pipeline_cache);
     }

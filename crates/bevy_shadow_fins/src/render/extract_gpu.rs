@@ -22,7 +22,7 @@ use bevy::{
 
 use crate::{
     budget::FinDegradation,
-    extract::{FinFrameData, FinFrameStats, FinFrames, FinLightStats, FinShadowStats, MAX_FIN_LIGHTS, MeshCache},
+    extract::{FinFrameData, FinFrameStats, FinFrames, FinLightStats, MAX_FIN_LIGHTS, MeshCache},
     gpu_scene::{GpuCapacity, GpuScene},
     light::FinMethod,
 };
@@ -91,7 +91,6 @@ fn on_stats_readback(
     readback: On<ReadbackComplete>,
     frames: Res<FinFrames>,
     mut cache: ResMut<MeshCache>,
-    mut stats: ResMut<FinShadowStats>,
     mut light_stats: Query<&mut FinLightStats>,
 ) {
     let words: Vec<u32> = readback.data.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
@@ -99,10 +98,8 @@ fn on_stats_readback(
         let at = slot * STATS_WORDS as usize;
         let Some(w) = words.get(at..at + STATS_WORDS as usize) else { continue };
         let Some(state) = cache.lights.get_mut(&frame.light) else { continue };
-        let Some(now) = stats_of_readback(&frame.data, w, state) else { continue };
-        crate::extract::set_stats(&mut light_stats, frame.light, now);
-        if slot == 0 && stats.0 != now {
-            stats.0 = now;
+        if let Some(now) = stats_of_readback(&frame.data, w, state) {
+            crate::extract::set_stats(&mut light_stats, frame.light, now);
         }
     }
 }

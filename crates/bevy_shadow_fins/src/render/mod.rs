@@ -275,13 +275,12 @@ fn prepare_maps(
     pipelines: Option<Res<FinPipelines>>,
     pipeline_cache: Res<PipelineCache>,
 ) {
-    let fins = |f: &&crate::extract::FinLightFrame| f.data.coverage.is_none();
-    lights.0.retain(|light, _| frames.0.iter().filter(fins).any(|f| f.light == *light));
+    lights.0.retain(|light, _| frames.on_coverage(false).any(|f| f.light == *light));
     let Some(pipelines) = pipelines else {
         lights.0.clear();
         return;
     };
-    for frame in frames.0.iter().filter(fins) {
+    for frame in frames.on_coverage(false) {
         let gpu = lights.0.entry(frame.light).or_default();
         prepare_light_maps(&frame.data, gpu, &device, &queue, &pipelines, &pipeline_cache);
     }
