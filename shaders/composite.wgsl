@@ -54,10 +54,13 @@ struct FinLightUniform {
 // Mirrors `CompositeLight(s)` in composite.rs.
 const KIND_OWN: u32 = 0u;
 const KIND_BEVY: u32 = 1u;
+const KIND_BEVY_DIRECTIONAL: u32 = 3u;
 const MAX_FIN_LIGHTS: u32 = 16u;
 struct CompositeLight {
     own: FinLightUniform,
     // x: kind, y: Bevy's clustered light index, z: 1 when the layer was written.
+    // A directional light's `own` holds its direction towards the light
+    // (forward_inverse_square_range.xyz) and colour × illuminance (color).
     info: vec4<u32>,
 };
 struct CompositeLights {
@@ -130,6 +133,25 @@ fn bevy_lit_pixel_with(id: u32, in: PbrInput) -> bool {
         }
     }
     return false;
+}
+
+// The index in the view's directional lights of the fin-shadowed sun in
+// `light`, or n_directional_lights when the view has none such: Bevy sorts
+// its directional lights and leaves out those on render layers the view does
+// not see, so the slot is found by what Bevy uploaded for it (the direction
+// and colour the CPU read from Bevy's extracted light, exactly) and its shadow
+// maps being off, as fin shadows turned them off.
+fn bevy_directional_index(light: FinLightUniform) -> u32 {
+    let n = mesh_view_bindings::lights.n_directional_lights;
+    for (var j = 0u; j < n; j += 1u) {
+        let d = &mesh_view_bindings::lights.directional_lights[j];
+        let shadowed = ((*d).flags & mesh_view_types::DIRECTIONAL_LIGHT_FLAGS_SHADOWS_ENABLED_BIT) != 0u;
+        if (!shadowed && all((*d).direction_to_light == light.forward_inverse_square_range.xyz)
+                && all((*d).color.rgb == light.color.rgb)) {
+            return j;
+        }
+    }
+    return n;
 }
 
 // A FinLight's unshadowed direct light at the surface (before exposure):
@@ -244,6 +266,11 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
                     bevy_light = lighting::point_light(light.info.y, &input, true, true);
                 }
                 change -= (1.0 - visibility) * bevy_light;
+            } else if (light.info.x == KIND_BEVY_DIRECTIONAL && visibility < 1.0) {
+                let j = bevy_directional_index(light.own);
+                if (j < mesh_view_bindings::lights.n_directional_lights) {
+                    change -= (1.0 - visibility) * lighting::directional_light(j, &input, true);
+                }
             }
         }
         // Never below black: what is taken away is at most what Bevy added.

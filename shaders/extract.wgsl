@@ -30,8 +30,9 @@ struct ExtractParams {
     layering: vec4<u32>,
     // (silhouette capacity, fin capacity, caster capacity, method 0 hard 1 outer-fins 2 single 3 multi)
     capacity: vec4<u32>,
-    // (light radius R, scene extent, deepest receiver the CPU knows of besides
-    // the casters' vertices, unused)
+    // (light size: disk radius R or sun tan θ, scene extent, deepest receiver
+    // the CPU knows of besides the casters' vertices, 1 for the sun's
+    // orthographic frame / 0 for a disk's perspective one)
     light: vec4<f32>,
     // (refinement, falloff, overlap, generation)
     flags: vec4<u32>,
@@ -51,7 +52,9 @@ struct Instance {
     normal0: vec4<f32>,
     normal1: vec4<f32>,
     normal2: vec4<f32>,
-    // The light centre in object space (for the facing test).
+    // The light in object space as a homogeneous point for the facing test
+    // n·c > d·w: the disk's centre (w = 1) or the sun's direction towards
+    // the light (w = 0).
     light: vec4<f32>,
     // (geometry word offset, first vertex, first caster face, first caster edge)
     ids: vec4<u32>,
@@ -198,24 +201,40 @@ fn reference_depth() -> f32 {
     return select(params.light.y, deepest, deepest > 0.0);
 }
 
-fn near_depth() -> f32 {
-    return reference_depth() * 1e-5;
+fn orthographic() -> bool {
+    return params.light.w > 0.5;
 }
 
-// `LightFrame::map` and `map_direction` (disk light: perspective).
+// `shadow_fins::oracle::near_depth`: a disk's maps start just in front of its
+// centre; the sun's have no near plane (its frame's origin is in front of
+// everything drawn), the most negative finite float standing in for −∞.
+const NO_NEAR: f32 = -3.0e38;
+fn near_depth() -> f32 {
+    return select(reference_depth() * 1e-5, NO_NEAR, orthographic());
+}
+
+// `LightFrame::map` and `map_direction`: perspective from a disk's centre,
+// orthographic for the sun.
 fn map_point(p: vec3<f32>) -> vec2<f32> {
-    return p.xy / p.z;
+    return select(p.xy / p.z, p.xy, orthographic());
 }
 
 fn map_direction(p: vec3<f32>, d: vec3<f32>) -> vec2<f32> {
+    if (orthographic()) {
+        return d.xy;
+    }
     return (d.xy - p.xy / p.z * d.z) / p.z;
 }
 
-// Penumbra half-width on the reference plane, map units (eq. 3): R(1/z − 1/L0)
-// without the cancellation of two nearby reciprocals.
+// Penumbra half-width on the reference plane, map units (eq. 3): a disk's
+// R(1/z − 1/L0) without the cancellation of two nearby reciprocals, the sun's
+// tan θ (L0 − z) (`LightFrame::fin_world_width`).
 fn fin_width(z: f32) -> f32 {
     let l0 = reference_depth();
-    let w = params.light.x * ((l0 - z) / z) / l0;
+    var w = params.light.x * ((l0 - z) / z) / l0;
+    if (orthographic()) {
+        w = params.light.x * (l0 - z);
+    }
     return select(0.0, w, w > 0.0);
 }
 
@@ -285,7 +304,7 @@ fn classify_faces(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocatio
     let inst = instances[instance_of(i, 2u)];
     let at = g(inst, G_FACES_AT) + 7u * (i - inst.ids.z);
     let n = vec3<f32>(gf(inst, at + 3u), gf(inst, at + 4u), gf(inst, at + 5u));
-    let facing = (dot(n, inst.light.xyz) > gf(inst, at + 6u)) != ((inst.info.x & 4u) != 0u);
+    let facing = (dot(n, inst.light.xyz) > gf(inst, at + 6u) * inst.light.w) != ((inst.info.x & 4u) != 0u);
     // Back faces of closed meshes stay out of the maps.
     let in_maps = facing || (inst.info.x & 2u) == 0u;
     let s = FACE_WORDS * i;
@@ -885,8 +904,11 @@ fn plan_layers() {
     // Map region: the bounds of every caster and fin (`RasterMaps::covering_region`).
     var rlo = vec2<f32>(order_value(atomicLoad(&control[C_REGION])), order_value(atomicLoad(&control[C_REGION + 1u])));
     var rhi = vec2<f32>(order_value(atomicLoad(&control[C_REGION + 2u])), order_value(atomicLoad(&control[C_REGION + 3u])));
-    rlo = max(rlo, vec2<f32>(-MAP_LIMIT));
-    rhi = min(rhi, vec2<f32>(MAP_LIMIT));
+    // A perspective map stops ~83° off axis; the sun's is in world units.
+    if (!orthographic()) {
+        rlo = max(rlo, vec2<f32>(-MAP_LIMIT));
+        rhi = min(rhi, vec2<f32>(MAP_LIMIT));
+    }
     if (!(rlo.x <= rhi.x && rlo.y <= rhi.y)) {
         rlo = vec2<f32>(0.0);
         rhi = vec2<f32>(1.0);
@@ -900,8 +922,8 @@ fn plan_layers() {
     let p = array<u32, 32>(
         bitcast<u32>(region_min.x), bitcast<u32>(region_min.y), bitcast<u32>(size / f32(resolution)), bitcast<u32>(l0),
         resolution, used, n_casters, n_fins,
-        bitcast<u32>(params.light.x), bitcast<u32>(l0 * 1e-5), bitcast<u32>(params.light.y * 1e-7), bitcast<u32>(1e-5),
-        params.flags.x, params.flags.y, params.flags.z, 0u,
+        bitcast<u32>(params.light.x), bitcast<u32>(near_depth()), bitcast<u32>(params.light.y * 1e-7), bitcast<u32>(1e-5),
+        params.flags.x, params.flags.y, params.flags.z, select(0u, 1u, orthographic()),
         bitcast<u32>(params.origin.x), bitcast<u32>(params.origin.y), bitcast<u32>(params.origin.z), 0u,
         bitcast<u32>(params.axis_u.x), bitcast<u32>(params.axis_u.y), bitcast<u32>(params.axis_u.z), 0u,
         bitcast<u32>(params.axis_v.x), bitcast<u32>(params.axis_v.y), bitcast<u32>(params.axis_v.z), 0u,

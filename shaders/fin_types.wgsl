@@ -7,10 +7,11 @@ struct FinParams {
     map: vec4<f32>,
     // (resolution, layers, caster count, fin count)
     counts: vec4<u32>,
-    // (light radius R, near depth, surface epsilon floor, surface epsilon relative
+    // (light size: disk radius R or sun tan θ, near depth, surface epsilon floor, surface epsilon relative
     // to the receiver's distance from the light: `shadow_fins::scene::surface_epsilon`)
     light: vec4<f32>,
-    // (refinement 0/1, falloff 0 linear 1 bernstein 2 disk-segment, overlap 0 min-max 1 union, unused)
+    // (refinement 0/1, falloff 0 linear 1 bernstein 2 disk-segment, overlap 0
+    // min-max 1 union, projection 0 perspective (disk) 1 orthographic (sun))
     flags: vec4<u32>,
     origin: vec4<f32>,
     axis_u: vec4<f32>,
@@ -53,6 +54,12 @@ const DEPTH_OF_KEY: u32 = 4u;
 const NO_MIN: u32 = 0xffffffffu;
 const NO_MAX: u32 = 0u;
 const INF_BITS: u32 = 0x7f800000u;
+
+// The sun's maps: map point (x, y), penumbrae tan θ ΔL; else a disk's
+// perspective maps: (x/L, y/L), penumbrae R ΔL/(L_b L_r).
+fn orthographic(params: FinParams) -> bool {
+    return params.flags.w == 1u;
+}
 
 fn texel_index(params: FinParams, layer: u32, x: u32, y: u32) -> u32 {
     let res = params.counts.x;

@@ -3,7 +3,7 @@
 // One workgroup per primitive; its threads stride over the primitive's texels.
 #import bevy_shadow_fins::fin_types::{
     FinParams, Caster, Fin, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, INF_BITS, texel_index, min_key, max_key,
-    texel_center, cross2,
+    texel_center, cross2, orthographic,
 }
 
 @group(0) @binding(0) var<uniform> params: FinParams;
@@ -72,8 +72,12 @@ fn raster_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocatio
         if (!inside) {
             continue;
         }
-        // Perspective: the plane n·X = offset along the ray X = z (q, 1).
+        // Perspective: the plane n·X = offset along the ray X = z (q, 1);
+        // orthographic: along X = (q, z) (`MapTriangle::depth_at`).
         var z = c.offset / dot(n, vec3<f32>(q, 1.0));
+        if (orthographic(params)) {
+            z = (c.offset - n.x * q.x - n.y * q.y) / n.z;
+        }
         if (z != z || abs(z) > 3.0e38) {
             z = c.min_depth;
         }
@@ -150,7 +154,12 @@ fn fin_sample(f: Fin, q: vec2<f32>) -> vec2<f32> {
         }
         let z0 = f.data[10];
         let z1 = f.data[11];
-        let depth = 1.0 / (1.0 / z0 + (1.0 / z1 - 1.0 / z0) * at.x);
+        // 1/L is linear along the edge's projection under perspective; L
+        // itself under the sun's orthographic projection.
+        var depth = 1.0 / (1.0 / z0 + (1.0 / z1 - 1.0 / z0) * at.x);
+        if (orthographic(params)) {
+            depth = z0 + (z1 - z0) * at.x;
+        }
         return vec2<f32>(0.5 * (1.0 - at.y), depth);
     }
     let center = vec2<f32>(f.data[0], f.data[1]);

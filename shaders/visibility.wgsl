@@ -5,6 +5,7 @@
 #import bevy_render::view::View
 #import bevy_shadow_fins::fin_types::{
     FinParams, FinSample, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, texel_index, decode_min_key, decode_max_key,
+    orthographic,
 }
 
 // The camera's view space → the light frame, composed on the CPU in f64
@@ -28,10 +29,13 @@ struct FinView {
 @group(0) @binding(5) var<uniform> view: View;
 @group(0) @binding(6) var<uniform> fin_view: FinView;
 
-// Penumbra half-width in map units that an edge at depth lb casts at depth lr:
-// R(1/lb − 1/lr) without the cancellation of two nearby reciprocals
-// (`LightFrame::penumbra_half_width`).
+// Penumbra half-width in map units that an edge at depth lb casts at depth lr
+// (`LightFrame::penumbra_half_width`): a disk's R(1/lb − 1/lr) without the
+// cancellation of two nearby reciprocals, the sun's tan θ (lr − lb).
 fn half_width(lb: f32, lr: f32) -> f32 {
+    if (orthographic(params)) {
+        return max(params.light.x * (lr - lb), 0.0);
+    }
     return max(params.light.x * ((lr - lb) / lb) / lr, 0.0);
 }
 
@@ -132,14 +136,15 @@ fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
     let normal_world = normalize(textureLoad(normal_prepass, pixel, 0).xyz * 2.0 - 1.0);
     let normal = dir_to_frame(normal_world);
 
-    // Lift by one texel's world size along the normal (as the raster oracle).
+    // Lift by one texel's world size along the normal (as the raster oracle:
+    // a perspective texel grows with depth, an orthographic one does not).
     let near = params.light.y;
-    let texel_world = params.map.z * max(position.z, near);
+    let texel_world = select(params.map.z * max(position.z, near), params.map.z, orthographic(params));
     let eps = max(params.light.w * length(position), params.light.z);
     let p = position + normal * (eps + texel_world);
     var v = 0.0;
     if (p.z > near) {
-        let q = p.xy / p.z;
+        let q = select(p.xy / p.z, p.xy, orthographic(params));
         let t = (q - params.map.xy) / params.map.z;
         let res = f32(params.counts.x);
         let inside = t.x >= 0.0 && t.y >= 0.0 && t.x < res && t.y < res;

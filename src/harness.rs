@@ -7,7 +7,7 @@ use bevy::{
     camera::RenderTarget,
     core_pipeline::tonemapping::{DebandDither, Tonemapping},
     diagnostic::DiagnosticsStore,
-    light::PointLightShadowMap,
+    light::{PointLightShadowMap, SunDisk},
     prelude::*,
     render::diagnostic::RenderDiagnosticsPlugin,
     render::{
@@ -24,7 +24,9 @@ use bevy_shadow_fins::{
 use shadow_fins::{camera::Camera as CoreCamera, light::Light, scene::Scene};
 use shadow_fins_lab::picture::srgb;
 
-/// A scene to render: the core's scene, a disk light and a camera.
+/// A scene to render: the core's scene, a disk light (a `FinLight`, or a
+/// Bevy `SpotLight` / `PointLight`) or a sun (a Bevy `DirectionalLight` with
+/// `FinShadows` and a `SunDisk` of the sun's angular size), and a camera.
 #[derive(Clone)]
 pub struct Setup {
     pub scene: Scene,
@@ -76,6 +78,8 @@ pub struct Setup {
     /// setup's settings), each one's visibility read back from the first
     /// camera into [`Shot::light_visibility`].
     pub extra_spots: Vec<shadow_fins::light::DiskLight>,
+    /// The illuminance of a `Light::Sun`'s `DirectionalLight`, lux.
+    pub sun_illuminance: f32,
 }
 
 /// Marks `Setup::extra_spots` (kept when the main light is replaced).
@@ -121,6 +125,7 @@ impl Setup {
             viewport: None,
             spot: false,
             extra_spots: vec![],
+            sun_illuminance: 3000.0,
         }
     }
 }
@@ -294,7 +299,12 @@ fn visibility_image(world: &mut World, width: u32, height: u32) -> Handle<Image>
 /// Returns the fin-shadowed light spawned (`None` for Bevy's point light).
 pub fn replace_light(world: &mut World, setup: &Setup) -> Option<Entity> {
     let old: Vec<Entity> = world
-        .query_filtered::<Entity, Or<(With<FinLight>, With<PointLight>, (With<SpotLight>, Without<ExtraSpot>))>>()
+        .query_filtered::<Entity, Or<(
+            With<FinLight>,
+            With<PointLight>,
+            With<DirectionalLight>,
+            (With<SpotLight>, Without<ExtraSpot>),
+        )>>()
         .iter(world)
         .collect();
     for e in old {
@@ -304,7 +314,16 @@ pub fn replace_light(world: &mut World, setup: &Setup) -> Option<Entity> {
         world.resource_mut::<GlobalAmbientLight>().brightness = brightness;
     }
     world.insert_resource(PointLightShadowMap { size: setup.settings.clamped().map_resolution as usize });
-    let Light::Disk(d) = setup.light else { return None };
+    let d = match setup.light {
+        Light::Disk(d) => d,
+        Light::Sun(sun) => {
+            let sun_light =
+                DirectionalLight { illuminance: setup.sun_illuminance, shadow_maps_enabled: true, ..default() };
+            let disk = SunDisk { angular_size: 2.0 * sun.angular_radius, intensity: 1.0 };
+            let transform = light_transform(Vec3::ZERO, sun.direction);
+            return Some(world.spawn((sun_light, disk, FinShadows, setup.settings, transform)).id());
+        }
+    };
     let transform = light_transform(d.center, d.normal);
     let fin =
         FinLight { radius: d.radius, intensity: setup.intensity, range: light_range(setup, d.center), ..default() };

@@ -14,4 +14,5 @@ mod render {
     mod reliability;
     mod robustness;
     mod runtime_changes;
+    mod sun;
 }

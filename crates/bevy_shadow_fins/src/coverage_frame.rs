@@ -9,9 +9,8 @@ use bevy::prelude::*;
 use shadow_fins::{
     coverage::{DEPTH_LIST_LENGTH, EdgeIndex, far_list_length, potential_silhouette_edges, reference},
     ground_truth::disk_samples,
-    light::{DiskLight, Light},
     oracle::{MapRegion, near_depth},
-    scene::{LightSpaceScene, Scene},
+    scene::Scene,
 };
 
 use crate::{
@@ -109,25 +108,25 @@ fn raster_blocks(corners: &[Vec2; 3], region: &MapRegion) -> u32 {
     texels.div_ceil(LIST_BLOCK_TEXELS as u64).min(u32::MAX as u64) as u32
 }
 
-/// The coverage frame of a scene under a disk light; the maps' budget caps
+/// The coverage frame of a scene under a disk or sun light; the maps' budget caps
 /// the depth lists (resolution first), the buffer limit the edge lists.
 pub(crate) fn coverage_frame(
     scene: &Scene,
-    disk: DiskLight,
+    in_frame: crate::extract::InFrame,
     resolution: u32,
     samples: u32,
     receiver_bound: impl Iterator<Item = Vec3>,
     map_bytes: u64,
     max_buffer: u64,
 ) -> (CoverageFrame, Option<FinDegradation>, usize) {
-    let mut ls = LightSpaceScene::new(scene, Light::Disk(disk));
+    let mut ls = in_frame.light_space(scene);
     let frame = ls.frame;
     ls.cover_receivers(receiver_bound.map(|p| frame.to_frame(p)));
     let near = near_depth(&ls);
     let alloc = allocate_maps(resolution, 1, LIST_WORDS * 4, map_bytes);
     let mut degraded = alloc.degradation;
     let triangles = reference::map_triangles(&ls.casters, &ls.frame, near);
-    let region = reference::covering_region(&triangles, alloc.resolution);
+    let region = reference::covering_region(&triangles, alloc.resolution, &ls.frame);
     let edges = potential_silhouette_edges(scene, &ls, near);
     let index = EdgeIndex::new(&edges, &ls.frame, ls.reference_depth, 1.5 * region.texel);
     let (min, inv_cell, dims) = index.grid();

@@ -18,6 +18,7 @@ use std::{
 use bevy::{
     asset::AssetId,
     camera::primitives::Aabb,
+    light::SunDisk,
     math::DVec3,
     mesh::{Indices, Mesh, PrimitiveTopology, VertexAttributeValues},
     prelude::*,
@@ -25,7 +26,7 @@ use bevy::{
 };
 use shadow_fins::{
     fins::{Fin, FinShape, FinSide},
-    light::{DiskLight, Light, LightFrame},
+    light::{DiskLight, Light, LightFrame, SunLight},
     mesh::{Mesh as CoreMesh, Topology},
     oracle::{FinShadowModel, MapRegion, RasterMaps},
     scene::{LightSpaceScene, Scene, SceneObject},
@@ -124,7 +125,11 @@ pub struct FinFrameData {
     /// from the world origin.
     pub(crate) origin: DVec3,
     pub(crate) axes: [DVec3; 3],
-    pub(crate) radius: f32,
+    /// The light's size: the disk's radius `R`, or the sun's `tan θ`.
+    pub(crate) size: f32,
+    /// The sun's orthographic maps (`x, y` in world units); else perspective
+    /// maps from the disk's centre (`x/L, y/L`).
+    pub(crate) orthographic: bool,
     pub(crate) reference_depth: f32,
     pub(crate) near: f32,
     pub(crate) scene_extent: f32,
@@ -217,26 +222,27 @@ pub(crate) fn build(app: &mut App) {
 /// A light asking for fin shadows, as the frame builder sees it.
 struct LightSource {
     entity: Entity,
-    disk: DiskLight,
+    /// A disk (`FinLight`, `SpotLight`) or the sun (`DirectionalLight`).
+    light: Light,
     reach: Reach,
     settings: FinShadowSettings,
     shading: LightShading,
 }
 
-/// The lights with fin shadows: `FinLight`s and Bevy `SpotLight`s with
-/// [`FinShadows`], by entity order. Other Bevy lights with `FinShadows` are
-/// not modelled yet: said once, they keep Bevy's shadows.
-#[allow(clippy::type_complexity)]
+/// The lights with fin shadows: `FinLight`s, and Bevy `SpotLight`s and
+/// `DirectionalLight`s with [`FinShadows`], by entity order; and the entities
+/// of those whose position or direction is not finite (they shadow nothing).
 fn light_sources(
     fin_lights: &Query<(Entity, &FinLight, &FinShadowSettings, &GlobalTransform)>,
     spot_lights: &SpotLights,
+    directional_lights: &DirectionalLights,
 ) -> (Vec<LightSource>, Vec<Entity>) {
     let disk = |t: &GlobalTransform, radius: f32| DiskLight::new(t.translation(), t.forward().as_vec3(), radius);
     let finite = |x: f32| if x.is_finite() && x > 0.0 { x } else { 0.0 };
     let own = fin_lights.iter().map(|(entity, light, settings, transform)| {
         let source = |disk| LightSource {
             entity,
-            disk,
+            light: Light::Disk(disk),
             reach: Reach { range: finite(light.range), cone: None },
             settings: settings.clamped(),
             shading: LightShading::Own { light: *light, transform: *transform },
@@ -244,12 +250,12 @@ fn light_sources(
         disk(transform, light.effective_radius()).map(source).map_err(|_| entity)
     });
     // An entity with both a FinLight and a SpotLight is the FinLight (one slot).
-    let bevy = spot_lights.iter().filter(|l| l.5 && !fin_lights.contains(l.0)).filter_map(
+    let spots = spot_lights.iter().filter(|l| l.5 && !fin_lights.contains(l.0)).filter_map(
         |(entity, spot, settings, transform, render, _)| {
             let settings = settings?.clamped();
             let source = |disk| LightSource {
                 entity,
-                disk,
+                light: Light::Disk(disk),
                 // Bevy lights nothing past the outer angle (its spot attenuation).
                 reach: Reach { range: finite(spot.range), cone: Some(spot.outer_angle.clamp(0.0, FRAC_PI_2)) },
                 settings,
@@ -258,8 +264,21 @@ fn light_sources(
             Some(disk(transform, finite(spot.radius)).map(source).map_err(|_| entity))
         },
     );
+    let suns = directional_lights.iter().filter(|l| l.6 && !fin_lights.contains(l.0)).filter_map(
+        |(entity, _, sun_disk, settings, transform, render, _)| {
+            let settings = settings?.clamped();
+            let sun = SunLight::new(transform.forward().as_vec3(), sun_angular_radius(sun_disk)).map_err(|_| entity);
+            Some(sun.map(|sun| LightSource {
+                entity,
+                light: Light::Sun(sun),
+                reach: Reach { range: 0.0, cone: None },
+                settings,
+                shading: LightShading::Bevy { render_entity: render.id() },
+            }))
+        },
+    );
     let (mut sources, mut invalid) = (Vec::new(), Vec::new());
-    for light in own.chain(bevy) {
+    for light in own.chain(spots).chain(suns) {
         match light {
             Ok(source) => sources.push(source),
             Err(entity) => invalid.push(entity),
@@ -267,6 +286,15 @@ fn light_sources(
     }
     sources.sort_by_key(|s| s.entity);
     (sources, invalid)
+}
+
+/// The sun's angular radius `θ` from Bevy's `SunDisk::angular_size` (a
+/// diameter): half of it, `SunDisk::EARTH` (what Bevy draws) when the light
+/// has none, clamped to `[0, 1.4]` rad (the core's `SunLight` range; 80°,
+/// far past any sun) and 0 when not finite.
+pub(crate) fn sun_angular_radius(sun_disk: Option<&SunDisk>) -> f32 {
+    let size = sun_disk.map_or(SunDisk::EARTH.angular_size, |d| d.angular_size);
+    if size.is_finite() { (size * 0.5).clamp(0.0, 1.4) } else { 0.0 }
 }
 
 /// Every `SpotLight`, fin-shadowed (`FinShadows`) or not: mutable, so that
@@ -284,12 +312,28 @@ type SpotLights<'w, 's> = Query<
     ),
 >;
 
+/// Every `DirectionalLight`, as [`SpotLights`].
+type DirectionalLights<'w, 's> = Query<
+    'w,
+    's,
+    (
+        Entity,
+        &'static mut DirectionalLight,
+        Option<&'static SunDisk>,
+        Option<&'static FinShadowSettings>,
+        &'static GlobalTransform,
+        &'static RenderEntity,
+        Has<FinShadows>,
+    ),
+>;
+
 /// Rebuilds each light's frame when it, a setting or a caster changed.
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
 fn update_fin_frames(
     fin_lights: Query<(Entity, &FinLight, &FinShadowSettings, &GlobalTransform)>,
     mut spot_lights: SpotLights,
-    other_lights: Query<(), (With<FinShadows>, Without<SpotLight>, Without<FinLight>)>,
+    mut directional_lights: DirectionalLights,
+    other_lights: Query<(), (With<FinShadows>, Without<SpotLight>, Without<DirectionalLight>, Without<FinLight>)>,
     casters: Query<(Entity, &Mesh3d, &GlobalTransform, Has<NotFinShadowCaster>, Option<&Aabb>)>,
     mut light_stats: Query<&mut FinLightStats>,
     meshes: Res<Assets<Mesh>>,
@@ -309,11 +353,11 @@ fn update_fin_frames(
     }
     if !other_lights.is_empty() {
         warn_once!(
-            "fin shadows: FinShadows on a DirectionalLight, PointLight or RectLight is not modelled yet; \
-             those lights keep Bevy's shadows (SpotLight and FinLight have fin shadows)"
+            "fin shadows: FinShadows on a PointLight or RectLight is not modelled yet; those lights keep \
+             Bevy's shadows (DirectionalLight, SpotLight and FinLight have fin shadows)"
         );
     }
-    let (mut sources, invalid) = light_sources(&fin_lights, &spot_lights);
+    let (mut sources, invalid) = light_sources(&fin_lights, &spot_lights, &directional_lights);
     // A light with no finite position or direction shadows nothing and takes
     // no share of the budget.
     for entity in invalid {
@@ -364,8 +408,7 @@ fn update_fin_frames(
         let state = cache.lights.entry(source.entity).or_default();
         state.capacity_epoch.hash(&mut hasher);
         source.settings.hash(&mut hasher);
-        let d = &source.disk;
-        hash_floats(&mut hasher, &[d.center.x, d.center.y, d.center.z, d.normal.x, d.normal.y, d.normal.z, d.radius]);
+        hash_floats(&mut hasher, &light_key(&source.light));
         hash_floats(&mut hasher, &[source.reach.range, source.reach.cone.unwrap_or(-1.0)]);
         let signature = hasher.finish();
         let previous = frames.0.iter().find(|f| f.light == source.entity);
@@ -379,7 +422,7 @@ fn update_fin_frames(
         }
         state.signature = signature;
         changed = true;
-        let disk = source.disk;
+        let light = source.light;
         let scene = scene.get_or_insert_with(|| CasterScene::collect(&casters, &meshes, &mut cache.meshes));
         let max_buffer = device.max_buffer(&budget);
         // The maps' budget is shared equally between the lights.
@@ -388,7 +431,7 @@ fn update_fin_frames(
         cache.generation += 1;
         let generation = cache.generation;
         let state = cache.lights.get_mut(&source.entity).expect("inserted above");
-        let data = light_frame(scene, disk, source.reach, source.settings, generation, limits, state);
+        let data = light_frame(scene, light, source.reach, source.settings, generation, limits, state);
         set_stats(&mut light_stats, source.entity, data.stats);
         next.push(FinLightFrame { light: source.entity, shading: source.shading, data: Arc::new(data) });
     }
@@ -400,10 +443,13 @@ fn update_fin_frames(
     // (`render/bevy_lights.rs` turned it off in the render world).
     // A light no longer fin-shadowed reports nothing any more.
     for gone in frames.0.iter().filter(|f| !next.iter().any(|n| n.light == f.light)) {
-        if matches!(gone.shading, LightShading::Bevy { .. })
-            && let Ok((_, mut spot, ..)) = spot_lights.get_mut(gone.light)
-        {
-            spot.set_changed();
+        if matches!(gone.shading, LightShading::Bevy { .. }) {
+            if let Ok((_, mut spot, ..)) = spot_lights.get_mut(gone.light) {
+                spot.set_changed();
+            }
+            if let Ok((_, mut sun, ..)) = directional_lights.get_mut(gone.light) {
+                sun.set_changed();
+            }
         }
         set_stats(&mut light_stats, gone.light, FinFrameStats::default());
     }
@@ -491,7 +537,9 @@ impl CasterScene {
     /// The objects as one light sees them: casters out of its reach (beyond
     /// its range, outside its cone, or wholly behind its disk) cast nothing
     /// for it, but still receive.
-    fn seen_by(&self, disk: &DiskLight, reach: Reach) -> Vec<SceneObject> {
+    fn seen_by(&self, light: &Light, reach: Reach) -> Vec<SceneObject> {
+        // The sun lights everything in front of it: no caster is out of its reach.
+        let Light::Disk(disk) = light else { return self.objects.clone() };
         self.objects
             .iter()
             .zip(&self.bounds)
@@ -503,6 +551,30 @@ impl CasterScene {
                 o
             })
             .collect()
+    }
+
+    /// The light's frame. A disk's is its own; the sun's origin is put in
+    /// front of everything drawn (every mesh's world box, readable or not),
+    /// so that every depth is positive (`LightFrame::sun`).
+    fn frame_for(&self, light: &Light) -> (LightFrame, f32) {
+        let boxes = self.objects.iter().zip(&self.gpu_meshes).map(|(o, m)| {
+            let (a, b) = m.bounds;
+            let corners: [Vec3; 8] = std::array::from_fn(|k| {
+                Vec3::new(
+                    if k & 1 == 0 { a.x } else { b.x },
+                    if k & 2 == 0 { a.y } else { b.y },
+                    if k & 4 == 0 { a.z } else { b.z },
+                )
+            });
+            corners.map(|c| o.transform.transform_point3(c))
+        });
+        let (lo, hi) = boxes
+            .chain(self.unread_bounds.iter().copied())
+            .flatten()
+            .filter(|p| p.is_finite())
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));
+        let (lo, hi) = if lo.x <= hi.x { (lo, hi) } else { (Vec3::ZERO, Vec3::ONE) };
+        (LightFrame::new(light, lo, hi), (hi - lo).length())
     }
 }
 
@@ -541,7 +613,7 @@ fn out_of_reach(corners: &[Vec3; 8], disk: &DiskLight, reach: Reach) -> bool {
 /// One light's frame from the scene's objects.
 fn light_frame(
     scene: &CasterScene,
-    disk: DiskLight,
+    light: Light,
     reach: Reach,
     settings: FinShadowSettings,
     generation: u64,
@@ -549,11 +621,12 @@ fn light_frame(
     state: &mut LightState,
 ) -> FinFrameData {
     let start = std::time::Instant::now();
-    let objects = scene.seen_by(&disk, reach);
+    let objects = scene.seen_by(&light, reach);
     let unread_bounds = scene.unread_bounds.clone();
-    let radius = disk.radius;
+    let (frame, extent) = scene.frame_for(&light);
+    let in_frame = InFrame { light, frame, extent };
     if settings.method == FinMethod::Coverage {
-        let data = coverage_data(&objects, disk, settings, generation, start, unread_bounds, limits);
+        let data = coverage_data(&objects, in_frame, settings, generation, start, unread_bounds, limits);
         warn_degradation(&mut state.warned, data.stats.degraded);
         return data;
     }
@@ -562,7 +635,7 @@ fn light_frame(
     let max_buffer = limits.max_buffer;
     if extraction == FinExtraction::Gpu {
         let LightState { gpu, capacity, .. } = &mut *state;
-        let scene = gpu.build(&objects, &scene.gpu_meshes, &disk, capacity, GpuCapacity::max_for(max_buffer));
+        let scene = gpu.build(&objects, &scene.gpu_meshes, &frame, capacity, GpuCapacity::max_for(max_buffer));
         // Buffers sized by the scene itself cannot shrink: past the limit the
         // core crate extracts on the CPU instead.
         match scene.input_bytes().into_iter().find(|(_, bytes)| *bytes > max_buffer) {
@@ -589,7 +662,6 @@ fn light_frame(
             let alloc = allocate_maps(settings.map_resolution, wanted, MAP_TEXEL_BYTES, limits.map_bytes);
             scene.capacity.layers = alloc.layers;
             scene.max_capacity.layers = most;
-            let frame = LightFrame::disk(&disk);
             scene.receiver_depth = receiver_bound.map(|p| frame.to_frame(p).z).fold(0.0, f32::max);
             let stats = FinFrameStats {
                 casters: objects.iter().filter(|o| o.casts_shadows).count(),
@@ -610,9 +682,10 @@ fn light_frame(
                 map_layers: alloc.layers,
                 limit_bytes: limits.max_buffer,
                 map_limit_bytes: limits.map_bytes,
-                origin: disk.center.as_dvec3(),
-                axes: scene.axes,
-                radius,
+                origin: frame.origin(),
+                axes: frame.axes_f64(),
+                size: frame.size(),
+                orthographic: !frame.is_perspective(),
                 reference_depth: 0.0,
                 near: 0.0,
                 scene_extent: scene.extent,
@@ -622,7 +695,8 @@ fn light_frame(
             }
         }
         (_, fallback) => {
-            let mut data = cpu_frame(Scene::new(objects), disk, settings, generation, start, receiver_bound, limits);
+            let mut data =
+                cpu_frame(Scene::new(objects), in_frame, settings, generation, start, receiver_bound, limits);
             if let Some(Err(why)) = fallback {
                 // What the CPU path had to cut (maps, dropped casters) shows first.
                 data.stats.degraded = data.stats.degraded.or(Some(why));
@@ -642,7 +716,7 @@ fn light_frame(
 /// The coverage method's frame: edges and lists from the core crate.
 fn coverage_data(
     objects: &[SceneObject],
-    disk: DiskLight,
+    in_frame: InFrame,
     settings: FinShadowSettings,
     generation: u64,
     start: std::time::Instant,
@@ -652,7 +726,7 @@ fn coverage_data(
     let scene = Scene::new(objects.to_vec());
     let (coverage, degraded, potential_silhouettes) = coverage_frame(
         &scene,
-        disk,
+        in_frame,
         settings.map_resolution,
         settings.coverage_samples,
         unread_bounds.into_iter().flatten(),
@@ -671,7 +745,6 @@ fn coverage_data(
         map_resolution: coverage.region.resolution,
         extraction: FinExtraction::Cpu,
     };
-    let axes = shadow_fins::light::LightFrame::disk(&disk).axes_f64();
     FinFrameData {
         generation,
         stats,
@@ -681,9 +754,10 @@ fn coverage_data(
         map_layers: 1,
         limit_bytes: limits.max_buffer,
         map_limit_bytes: limits.map_bytes,
-        origin: disk.center.as_dvec3(),
-        axes,
-        radius: disk.radius,
+        origin: in_frame.frame.origin(),
+        axes: in_frame.frame.axes_f64(),
+        size: in_frame.frame.size(),
+        orthographic: !in_frame.frame.is_perspective(),
         reference_depth: 0.0,
         near: coverage.near,
         scene_extent: coverage.extent,
@@ -706,6 +780,21 @@ pub(crate) fn warn_degradation(warned: &mut Option<FinDegradation>, now: Option<
 
 /// Bytes per penumbra-map texel (nine 32-bit channels, `fin_types.wgsl`).
 pub(crate) const MAP_TEXEL_BYTES: u64 = 9 * 4;
+
+/// A light and the frame every path of it (GPU, CPU, coverage) works in.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct InFrame {
+    pub light: Light,
+    pub frame: LightFrame,
+    /// The diagonal of everything drawn.
+    pub extent: f32,
+}
+
+impl InFrame {
+    pub fn light_space(&self, scene: &Scene) -> LightSpaceScene {
+        LightSpaceScene::in_frame(scene, self.light, self.frame, self.extent)
+    }
+}
 
 /// The buffer limits one frame is built under.
 #[derive(Debug, Clone, Copy)]
@@ -732,15 +821,14 @@ fn world_corners(aabb: &Aabb, transform: &GlobalTransform) -> [Vec3; 8] {
 /// The whole extraction on the CPU with the core crate.
 fn cpu_frame(
     scene: Scene,
-    disk: DiskLight,
+    in_frame: InFrame,
     settings: FinShadowSettings,
     generation: u64,
     start: std::time::Instant,
     receiver_bound: impl Iterator<Item = Vec3>,
     limits: FrameLimits,
 ) -> FinFrameData {
-    let radius = disk.radius;
-    let mut ls = LightSpaceScene::new(&scene, Light::Disk(disk));
+    let mut ls = in_frame.light_space(&scene);
     let frame = ls.frame;
     ls.cover_receivers(receiver_bound.map(|p| frame.to_frame(p)));
     let mut core = settings.core();
@@ -810,13 +898,23 @@ fn cpu_frame(
         map_limit_bytes: limits.map_bytes,
         origin: ls.frame.origin(),
         axes: ls.frame.axes_f64(),
-        radius,
+        size: ls.frame.size(),
+        orthographic: !ls.frame.is_perspective(),
         reference_depth: ls.reference_depth,
         near: model.near,
         scene_extent: ls.extent,
         settings,
         gpu: None,
         coverage: None,
+    }
+}
+
+/// The numbers a light's frame depends on.
+fn light_key(light: &Light) -> [f32; 7] {
+    match light {
+        Light::Disk(d) => [d.center.x, d.center.y, d.center.z, d.normal.x, d.normal.y, d.normal.z, d.radius],
+        // A sun's NaN centre keeps it apart from any disk.
+        Light::Sun(s) => [f32::NAN, 0.0, 0.0, s.direction.x, s.direction.y, s.direction.z, s.angular_radius],
     }
 }
 
@@ -874,6 +972,22 @@ mod tests {
         std::array::from_fn(|k| {
             p + Vec3::new((k & 1) as f32, ((k >> 1) & 1) as f32, ((k >> 2) & 1) as f32) * 0.2 - Vec3::splat(0.1)
         })
+    }
+
+    #[test]
+    fn the_suns_angular_radius_is_half_its_sun_disk_clamped_and_earths_without_one() {
+        let radius = |angular_size| sun_angular_radius(Some(&SunDisk { angular_size, intensity: 1.0 }));
+        assert_eq!(sun_angular_radius(None), SunDisk::EARTH.angular_size * 0.5);
+        assert_eq!(radius(0.2), 0.1);
+        assert_eq!(radius(0.0), 0.0);
+        assert_eq!(radius(-1.0), 0.0);
+        assert_eq!(radius(f32::NAN), 0.0);
+        assert_eq!(radius(f32::INFINITY), 0.0);
+        assert_eq!(radius(10.0), 1.4);
+        // Every clamped value is a valid core sun.
+        for size in [0.0, 0.2, -1.0, f32::NAN, 10.0] {
+            assert!(SunLight::new(Vec3::NEG_Y, radius(size)).is_ok(), "{size}");
+        }
     }
 
     #[test]

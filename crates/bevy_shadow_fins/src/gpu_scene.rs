@@ -10,7 +10,7 @@ use std::{
 
 use bevy::prelude::*;
 use shadow_fins::{
-    light::{DiskLight, LightFrame},
+    light::LightFrame,
     mesh::{NO_FACE, Topology},
     scene::{LightInObject, ObjectToFrame, SceneObject},
 };
@@ -244,7 +244,7 @@ impl GpuSceneBuilder {
         &mut self,
         objects: &[SceneObject],
         meshes: &[Arc<GpuMeshGeometry>],
-        disk: &DiskLight,
+        frame: &LightFrame,
         capacity_slot: &mut Option<GpuCapacity>,
         max_capacity: GpuCapacity,
     ) -> GpuScene {
@@ -272,13 +272,18 @@ impl GpuSceneBuilder {
             self.geometry_key = key;
         }
 
-        let frame = LightFrame::disk(disk);
         let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
         let mut instances = Vec::with_capacity(objects.len());
         let (mut vertices, mut faces, mut edges) = (0u32, 0u32, 0u32);
         for (object, mesh) in objects.iter().zip(meshes) {
-            let to_frame = ObjectToFrame::new(object, &frame);
-            let LightInObject::Point(light) = to_frame.light_in_object(&frame) else { continue };
+            let to_frame = ObjectToFrame::new(object, frame);
+            // The light as a homogeneous point for the facing test n·c > d·w:
+            // the disk's centre (w = 1), or the sun at infinity against its
+            // travel direction (w = 0: n·(−dir) > 0).
+            let light = match to_frame.light_in_object(frame) {
+                LightInObject::Point(c) => c.extend(1.0),
+                LightInObject::Direction(d) => (-d).extend(0.0),
+            };
             let c = to_frame.linear;
             let sign = if to_frame.mirrors { -1.0 } else { 1.0 };
             let cofactor = [c.y_axis.cross(c.z_axis), c.z_axis.cross(c.x_axis), c.x_axis.cross(c.y_axis)];
@@ -292,7 +297,7 @@ impl GpuSceneBuilder {
                 linear: [v4(c.x_axis), v4(c.y_axis), v4(c.z_axis)],
                 translation: v4(to_frame.translation),
                 normal: cofactor.map(|n| v4(n * sign)),
-                light: v4(light),
+                light: light.to_array(),
                 ids: [self.offsets[&(Arc::as_ptr(mesh) as usize)], vertices, faces, edges],
                 info: [flags, mesh.vertices, f, e],
             });

@@ -52,8 +52,13 @@ impl FinLight {
 ///   casters wholly outside it (widened by what the disk subtends) cast
 ///   nothing for the light, so its visibility outside the cone — where Bevy
 ///   lights nothing — is not its shadow there.
-/// - `DirectionalLight`, `PointLight`, `RectLight`: not modelled yet; said
-///   once at run time, and they keep Bevy's own shadows.
+/// - `DirectionalLight` (+ `SunDisk`): the sun, a disk at infinity of half
+///   the `SunDisk::angular_size` (`SunDisk::EARTH`, 0.53°, when it has none;
+///   at most 80°), through orthographic maps over everything drawn; `0` gives
+///   exactly the hard shadow. Bevy's cascades and contact shadows for it are
+///   off.
+/// - `PointLight`, `RectLight`: not modelled yet; said once at run time, and
+///   they keep Bevy's own shadows.
 ///
 /// Bevy's own shadow map and contact shadows for the light are off while
 /// `FinShadows` is on (in the render world: the light's `shadow_maps_enabled`

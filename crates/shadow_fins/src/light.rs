@@ -242,6 +242,14 @@ impl LightFrame {
     pub fn is_perspective(&self) -> bool {
         matches!(self.projection, Projection::Perspective { .. })
     }
+
+    /// How far from the axis map coordinates are kept: a perspective map's
+    /// coordinates are tangents of the angle off the light's axis, clamped
+    /// to `perspective_limit` (geometry beyond is seen edge-on); the sun's are
+    /// world units, never clamped (a 200-wide scene is 200 map units wide).
+    pub fn map_limit(&self, perspective_limit: f32) -> f32 {
+        if self.is_perspective() { perspective_limit } else { f32::INFINITY }
+    }
 }
 
 /// A right-handed orthonormal frame `(u, v, n)` with `u × v = n`.

@@ -210,7 +210,15 @@ impl LightSpaceScene {
     pub fn new(scene: &Scene, light: Light) -> Self {
         let (lo, hi) = scene.bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
         let frame = LightFrame::new(&light, lo, hi);
-        let extent = (hi - lo).length().max(1e-30);
+        Self::in_frame(scene, light, frame, (hi - lo).length())
+    }
+
+    /// The scene in a frame chosen by the caller: a renderer places a sun's
+    /// frame from bounds it already has (every drawn mesh's box, not only
+    /// the ones it can read), so that the GPU and the CPU paths share it.
+    /// `extent` is the scene's diagonal (the surface epsilon's floor).
+    pub fn in_frame(scene: &Scene, light: Light, frame: LightFrame, extent: f32) -> Self {
+        let extent = if extent.is_finite() { extent.max(1e-30) } else { 1.0 };
         let object_frames: Vec<ObjectToFrame> = scene.objects.iter().map(|o| ObjectToFrame::new(o, &frame)).collect();
         let mut casters = Vec::with_capacity(scene.triangle_count());
         let mut deepest = f32::NEG_INFINITY;

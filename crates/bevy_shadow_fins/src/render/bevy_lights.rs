@@ -13,7 +13,7 @@
 //! user's own setting.
 
 use bevy::{
-    pbr::ExtractedPointLight,
+    pbr::{ExtractedDirectionalLight, ExtractedPointLight},
     prelude::*,
     render::{Render, RenderApp, RenderSystems},
 };
@@ -28,7 +28,12 @@ pub(super) fn finish(app: &mut App) {
     );
 }
 
-fn bevy_shadow_maps_off(frames: Res<FinFrames>, mut lights: Query<&mut ExtractedPointLight>) {
+/// Spot and point lights are `ExtractedPointLight`s, suns `ExtractedDirectionalLight`s.
+fn bevy_shadow_maps_off(
+    frames: Res<FinFrames>,
+    mut lights: Query<&mut ExtractedPointLight>,
+    mut suns: Query<&mut ExtractedDirectionalLight>,
+) {
     for frame in &frames.0 {
         let LightShading::Bevy { render_entity } = frame.shading else { continue };
         if let Ok(mut light) = lights.get_mut(render_entity)
@@ -36,6 +41,12 @@ fn bevy_shadow_maps_off(frames: Res<FinFrames>, mut lights: Query<&mut Extracted
         {
             light.shadow_maps_enabled = false;
             light.contact_shadows_enabled = false;
+        }
+        if let Ok(mut sun) = suns.get_mut(render_entity)
+            && (sun.shadow_maps_enabled || sun.contact_shadows_enabled)
+        {
+            sun.shadow_maps_enabled = false;
+            sun.contact_shadows_enabled = false;
         }
     }
 }

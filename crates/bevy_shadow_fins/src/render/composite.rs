@@ -4,11 +4,13 @@
 //! On a fin-shadowed camera this pass takes the place of Bevy's deferred
 //! lighting pass: it runs Bevy's own `apply_pbr_lighting` on the G-buffer (so
 //! every Bevy light, probe, SSAO and fog is unchanged), then per fin light:
-//! - a Bevy light (`SpotLight` + `FinShadows`): Bevy has just shaded it, with
-//!   its shadow map off; the pass takes `(1 − V)` of it away again, evaluated
-//!   by Bevy's own per-light function (`lighting::spot_light` with the
-//!   light's index in Bevy's clustered list), so the light's colour, range,
-//!   cone and BRDF are Bevy's by construction, after any Bevy upgrade;
+//! - a Bevy light (`SpotLight` or `DirectionalLight` + `FinShadows`): Bevy
+//!   has just shaded it, with its shadow map off; the pass takes `(1 − V)` of
+//!   it away again, evaluated by Bevy's own per-light function
+//!   (`lighting::spot_light` with the light's index in Bevy's clustered list,
+//!   `lighting::directional_light` with its index in the view's directional
+//!   lights), so the light's colour, range, cone and BRDF are Bevy's by
+//!   construction, after any Bevy upgrade;
 //! - a [`FinLight`]: the pass adds it, shaded by Bevy's point-light BRDF
 //!   functions, times `V`.
 //!
@@ -27,7 +29,7 @@ use bevy::{
         schedule::{Core3d, Core3dSystems},
     },
     pbr::{
-        GlobalClusterableObjectMeta, MeshPipelineKey, MeshViewBindGroup, ViewKeyCache,
+        ExtractedDirectionalLight, GlobalClusterableObjectMeta, MeshPipelineKey, MeshViewBindGroup, ViewKeyCache,
         deferred::{
             DeferredLightingLayout, PbrDeferredLightingDepthId, SkipDeferredLighting, deferred_lighting,
             prepare_deferred_lighting_pipelines,
@@ -93,12 +95,26 @@ impl FinLightUniform {
             ],
         })
     }
+
+    /// A Bevy directional light as `prepare_lights` uploads it
+    /// (`GpuDirectionalLight::dir_to_light` and `color`): the composite finds
+    /// the light in the view's list by these (`position_radius` unused).
+    fn directional(sun: &ExtractedDirectionalLight) -> Self {
+        let dir_to_light: Vec3 = sun.transform.back().into();
+        let color = Vec4::from_slice(&sun.color.to_f32_array()) * sun.illuminance;
+        Self {
+            position_radius: [0.0; 4],
+            forward_inverse_square_range: dir_to_light.extend(0.0).to_array(),
+            color: color.to_array(),
+        }
+    }
 }
 
 /// What the compositing pass does with light slot `i` (`CompositeLight.info.x`).
 const KIND_OWN: u32 = 0;
 const KIND_BEVY: u32 = 1;
 const KIND_NONE: u32 = 2;
+const KIND_BEVY_DIRECTIONAL: u32 = 3;
 
 /// One light slot as the compositing shader reads it (`CompositeLight` in
 /// `composite.wgsl`): the shading of a [`FinLight`], or the index of a Bevy
@@ -257,7 +273,18 @@ fn prepare_composite_pipelines(
 /// pixel holds it (`bevy_lit_pixel_with` in `composite.wgsl`): never from
 /// light Bevy did not add — out of range, on render layers the view does not
 /// see, or in its first frames before Bevy clusters it.
-fn composite_lights(frames: &FinFrames, clustered: Option<&GlobalClusterableObjectMeta>) -> CompositeLights {
+///
+/// A directional light is not clustered, and its index in a view's list
+/// depends on Bevy's sort and the view's render layers: the slot holds the
+/// light as Bevy uploads it (direction towards the light, colour ×
+/// illuminance) and the shader finds it in the view's list by those (and
+/// its shadow maps being off), or leaves it alone when the view has no such
+/// light.
+fn composite_lights(
+    frames: &FinFrames,
+    clustered: Option<&GlobalClusterableObjectMeta>,
+    directional: &Query<&ExtractedDirectionalLight>,
+) -> CompositeLights {
     let mut out = CompositeLights::zeroed();
     out.count[0] = frames.0.len().min(MAX_FIN_LIGHTS) as u32;
     for (slot, frame) in frames.0.iter().take(MAX_FIN_LIGHTS).enumerate() {
@@ -266,9 +293,12 @@ fn composite_lights(frames: &FinFrames, clustered: Option<&GlobalClusterableObje
             LightShading::Own { light, transform } => {
                 FinLightUniform::new(&light, &transform).map_or(none, |own| (KIND_OWN, own, 0))
             }
-            LightShading::Bevy { render_entity } => clustered
-                .and_then(|c| c.entity_to_index.get(&render_entity))
-                .map_or(none, |&id| (KIND_BEVY, FinLightUniform::zeroed(), id as u32)),
+            LightShading::Bevy { render_entity } => match directional.get(render_entity) {
+                Ok(sun) => (KIND_BEVY_DIRECTIONAL, FinLightUniform::directional(sun), 0),
+                Err(_) => clustered
+                    .and_then(|c| c.entity_to_index.get(&render_entity))
+                    .map_or(none, |&id| (KIND_BEVY, FinLightUniform::zeroed(), id as u32)),
+            },
         };
         out.lights[slot] = CompositeLight { own, info: [kind, id, 0, 0] };
     }
@@ -282,10 +312,11 @@ fn prepare_composite_bind_groups(
     pipelines: Option<Res<FinCompositePipelines>>,
     frames: Res<FinFrames>,
     clustered: Option<Res<GlobalClusterableObjectMeta>>,
+    directional: Query<&ExtractedDirectionalLight>,
     views: Query<(Entity, &FinViewTexture, Option<&FinCompositeBindGroup>), With<FinCompositePipeline>>,
 ) {
     let Some(pipelines) = pipelines else { return };
-    let lights = composite_lights(&frames, clustered.as_deref());
+    let lights = composite_lights(&frames, clustered.as_deref(), &directional);
     for (entity, texture, previous) in &views {
         let uniform = match previous {
             Some(p) => p.uniform.clone(),

@@ -79,9 +79,10 @@ fn params_of(f: &FinFrameData) -> Option<CoverageParams> {
         // w: edges, so that casters without raster work still shadow.
         lists: [c.region.min.x, c.region.min.y, c.region.texel, c.edges.len() as f32],
         counts: [c.region.resolution, NEAR_DEPTHS, FAR_DEPTHS, c.raster_work.len() as u32],
-        light: [f.radius, c.near, c.extent * 1e-7, shadow_fins::scene::SURFACE_EPSILON],
+        light: [f.size, c.near.max(-3.0e38), c.extent * 1e-7, shadow_fins::scene::SURFACE_EPSILON],
         grid: c.grid,
-        info: [c.dims[0], c.dims[1], c.samples.len() as u32, 1],
+        // w: 1 perspective (disk), 0 orthographic (sun).
+        info: [c.dims[0], c.dims[1], c.samples.len() as u32, !f.orthographic as u32],
         axis_u: v4(f.axes[0]),
         axis_v: v4(f.axes[1]),
         axis_n: v4(f.axes[2]),

@@ -256,8 +256,10 @@ fn params_of(f: &FinFrameData) -> FinParams {
     FinParams {
         map: [f.region.min.x, f.region.min.y, f.region.texel, f.reference_depth],
         counts: [f.region.resolution, f.stats.layers as u32, f.casters.len() as u32, f.fins.len() as u32],
-        light: [f.radius, f.near, f.scene_extent * 1e-7, shadow_fins::scene::SURFACE_EPSILON],
-        flags: [s.refinement as u32, falloff, overlap, 0],
+        // The sun's near depth is −∞ (no near plane); the shaders' stand-in is
+        // the most negative finite float.
+        light: [f.size, f.near.max(-3.0e38), f.scene_extent * 1e-7, shadow_fins::scene::SURFACE_EPSILON],
+        flags: [s.refinement as u32, falloff, overlap, f.orthographic as u32],
         origin: v4(f.origin),
         axis_u: v4(f.axes[0]),
         axis_v: v4(f.axes[1]),

@@ -13,7 +13,8 @@ use super::CoverageEdge;
 use crate::cell_grid::{CellGrid, cell_range};
 use crate::light::{LightFrame, Projection};
 
-/// Map coordinates beyond this (about 89° off the light axis) are clamped.
+/// Perspective map coordinates beyond this (about 89° off the light axis) are
+/// clamped (`LightFrame::map_limit`).
 const MAP_LIMIT: f32 = 64.0;
 
 /// The most cell entries the grid keeps (4M: 16 MiB of edge ids).
@@ -57,7 +58,8 @@ impl EdgeIndex {
     /// raster reference count corrects over up to a texel).
     pub fn new(edges: &[CoverageEdge], frame: &LightFrame, reference_depth: f32, margin: f32) -> Self {
         let feet: Vec<Option<(Vec2, Vec2, f32)>> = edges.iter().map(|e| footprint(e, frame, reference_depth)).collect();
-        let clamp = |v: Vec2| v.clamp(Vec2::splat(-MAP_LIMIT), Vec2::splat(MAP_LIMIT));
+        let limit = frame.map_limit(MAP_LIMIT);
+        let clamp = |v: Vec2| v.clamp(Vec2::splat(-limit), Vec2::splat(limit));
         let bounds: Vec<Option<(Vec2, Vec2)>> = feet
             .iter()
             .map(|f| f.filter(|(a, b, r)| a.is_finite() && b.is_finite() && r.is_finite()))

@@ -62,7 +62,7 @@ impl DepthLists {
     pub fn new(casters: &[[Vec3; 3]], frame: &LightFrame, near: f32, resolution: u32, depths: u32) -> Self {
         let depths = depths.clamp(1, 64) as usize;
         let triangles = map_triangles(casters, frame, near);
-        let region = covering_region(&triangles, resolution);
+        let region = covering_region(&triangles, resolution, frame);
         let resolution = region.resolution;
         let far_depths = far_list_length(depths as u32) as usize;
         let mut lists = vec![f32::INFINITY; (resolution * resolution) as usize * depths];
@@ -134,10 +134,11 @@ pub fn map_triangles(casters: &[[Vec3; 3]], frame: &LightFrame, near: f32) -> Ve
     casters.iter().flat_map(|t| MapTriangle::clipped(t, frame, near, perspective)).collect()
 }
 
-/// The square of map space the depth lists cover: every caster, clamped to
-/// ±83° off the light's axis.
-pub fn covering_region(triangles: &[MapTriangle], resolution: u32) -> MapRegion {
-    MapRegion::covering(triangles.iter().map(MapTriangle::bounds), resolution.clamp(1, 8192))
+/// The square of map space the depth lists cover: every caster, a perspective
+/// one clamped to ±83° off the light's axis.
+pub fn covering_region(triangles: &[MapTriangle], resolution: u32, frame: &LightFrame) -> MapRegion {
+    let limit = frame.map_limit(crate::oracle::RASTER_MAP_LIMIT);
+    MapRegion::covering(triangles.iter().map(MapTriangle::bounds), resolution.clamp(1, 8192), limit)
 }
 
 /// Whether the map triangle `c` owns point `q`: inside, or on an edge by the

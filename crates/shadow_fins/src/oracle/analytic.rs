@@ -5,8 +5,8 @@ use glam::Vec2;
 use super::{FinShadowModel, LayerTexel, Receiver};
 use crate::cell_grid::CellGrid;
 
-/// Map coordinates beyond this (about 89° off the light axis) are clamped when
-/// indexing; geometry out there is seen edge-on by the light.
+/// Perspective map coordinates beyond this (about 89° off the light axis) are
+/// clamped when indexing; geometry out there is seen edge-on by the light.
 const MAP_LIMIT: f32 = 64.0;
 
 /// A uniform grid over map space listing, per cell, the casters and fins whose
@@ -19,12 +19,13 @@ pub struct AnalyticIndex<'m, 'a> {
 
 impl<'m, 'a> AnalyticIndex<'m, 'a> {
     pub fn new(model: &'m FinShadowModel<'a>) -> Self {
+        let limit = model.frame().map_limit(MAP_LIMIT);
         let bounds: Vec<(Vec2, Vec2)> = model
             .casters
             .iter()
             .map(|c| c.bounds())
             .chain(model.fins.iter().map(|f| f.bounds()))
-            .map(|(lo, hi)| (lo.max(Vec2::splat(-MAP_LIMIT)), hi.min(Vec2::splat(MAP_LIMIT))))
+            .map(|(lo, hi)| (lo.max(Vec2::splat(-limit)), hi.min(Vec2::splat(limit))))
             .collect();
         let (mut min, mut max) =
             bounds.iter().fold((Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)), |(a, b), (lo, hi)| {

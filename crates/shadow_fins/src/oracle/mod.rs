@@ -20,7 +20,7 @@ use glam::{Vec2, Vec3};
 
 pub use analytic::AnalyticIndex;
 pub use map_geometry::MapTriangle;
-pub use raster::{MapRegion, RasterMaps};
+pub use raster::{MapRegion, RASTER_MAP_LIMIT, RasterMaps};
 
 use crate::{
     error::SettingsError,

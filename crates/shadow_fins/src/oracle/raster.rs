@@ -10,8 +10,9 @@ use glam::{Vec2, Vec3};
 
 use super::{FinShadowModel, LayerTexel, Receiver};
 
-/// Map coordinates beyond this (about 83° off the light axis) are not mapped.
-const RASTER_MAP_LIMIT: f32 = 8.0;
+/// Perspective map coordinates beyond this (about 83° off the light axis) are
+/// not mapped.
+pub const RASTER_MAP_LIMIT: f32 = 8.0;
 
 /// The square of map space covered by the maps.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -24,16 +25,16 @@ pub struct MapRegion {
 
 impl MapRegion {
     /// The square of `resolution²` texels covering the union of `bounds`
-    /// (map space), clamped to ±`RASTER_MAP_LIMIT` (about 83° off the light's
-    /// axis); the unit square when there is nothing to cover.
-    pub fn covering(bounds: impl Iterator<Item = (Vec2, Vec2)>, resolution: u32) -> Self {
+    /// (map space), clamped to ±`limit` (`LightFrame::map_limit` of
+    /// [`RASTER_MAP_LIMIT`]); the unit square when there is nothing to cover.
+    pub fn covering(bounds: impl Iterator<Item = (Vec2, Vec2)>, resolution: u32, limit: f32) -> Self {
         let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
         for (a, b) in bounds {
             lo = lo.min(a);
             hi = hi.max(b);
         }
-        lo = lo.max(Vec2::splat(-RASTER_MAP_LIMIT));
-        hi = hi.min(Vec2::splat(RASTER_MAP_LIMIT));
+        lo = lo.max(Vec2::splat(-limit));
+        hi = hi.min(Vec2::splat(limit));
         if !(lo.x <= hi.x && lo.y <= hi.y) {
             (lo, hi) = (Vec2::ZERO, Vec2::ONE);
         }
@@ -117,10 +118,11 @@ impl<'m, 'a> RasterMaps<'m, 'a> {
         Self { model, region, layers }
     }
 
-    /// The square covering every caster and fin, clamped to ±83° off axis.
+    /// The square covering every caster and fin, a perspective one clamped
+    /// to ±83° off axis.
     pub fn covering_region(model: &FinShadowModel, resolution: u32) -> MapRegion {
         let bounds = model.casters.iter().map(|c| c.bounds()).chain(model.fins.iter().map(|f| f.bounds()));
-        MapRegion::covering(bounds, resolution)
+        MapRegion::covering(bounds, resolution, model.frame().map_limit(RASTER_MAP_LIMIT))
     }
 
     /// World size of one texel at depth `z`.

@@ -121,3 +121,27 @@ fn a_sun_casts_penumbrae_of_tan_theta_times_distance() {
         assert!((g - exact).abs() < 0.01, "x {}: ground truth {g} vs exact {exact}", p.x);
     }
 }
+
+#[test]
+fn a_sun_over_a_scene_wider_than_a_perspective_map_shadows_all_of_it() {
+    // The sun's map coordinates are world units: nothing may clamp them to a
+    // perspective map's tan-of-angle range (±8), or a 200-wide scene's edge
+    // at x = 90 comes out lit. Sun straight down, θ = 0.05, edge 3 above the
+    // ground at x = 90; the scene spans x ∈ [−100, 100].
+    let ground = object("ground", quad(-100.0, 100.0, -100.0, 100.0, 0.0));
+    let scene = shadow_fins::scene::Scene::new(vec![ground, object("edge", quad(-100.0, 90.0, -20.0, 20.0, 3.0))]);
+    let sun = shadow_fins::light::Light::Sun(shadow_fins::light::SunLight::new(Vec3::NEG_Y, 0.05).unwrap());
+    let half = 0.05f32.tan() * 3.0;
+    let xs: Vec<Vec3> = (-8..=8).map(|i| Vec3::new(90.0 + i as f32 * half / 6.0, 0.0, 0.3)).collect();
+    let ls = shadow_fins::scene::LightSpaceScene::new(&scene, sun);
+    let model = shadow_fins::oracle::FinShadowModel::new(&scene, &ls, Method::MultiLayer, FinSettings::default());
+    let raster = model.raster(4096);
+    let analytic = model.analytic();
+    for (p, r) in xs.iter().zip(ground_receivers(&ls, &xs)) {
+        let exact = disk_segment_fraction((p.x - 90.0) / half);
+        let (a, m) = (analytic.visibility(r), raster.visibility(r));
+        assert!((a - exact).abs() < 0.02, "x {}: analytic {a} vs exact {exact}", p.x);
+        // 4096 texels over 200 units: a texel is 0.05, a third of the penumbra.
+        assert!((m - exact).abs() < 0.2, "x {}: raster {m} vs exact {exact}", p.x);
+    }
+}

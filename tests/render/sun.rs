@@ -1,0 +1,115 @@
+//! The sun: `FinShadows` on a Bevy `DirectionalLight`, sized by its
+//! `SunDisk::angular_size`, rendered through orthographic maps.
+//!
+//! Tolerances as in `oracle_agreement.rs` (mean |GPU − oracle| ≤ 0.01, at most
+//! 3% of pixels off by more than 0.1: the view's geometric edges) and in
+//! `lights.rs` for colour (8-bit sRGB steps).
+
+use bevy_shadow_fins::{FinExtraction, FinMethod, FinShadowSettings};
+use shadow_fins::{
+    ground_truth::GroundTruth,
+    light::{Light, SunLight},
+    oracle::Method,
+    scene::LightSpaceScene,
+    scenes::SceneId,
+};
+use shadow_fins_app::harness::Setup;
+
+use super::common::*;
+
+/// A built-in scene under a sun from about where its disk light is, tilted a
+/// little so that shadows fall sideways, and as soft as the disk seen from the
+/// scene's origin (`tan θ = R / |c|`): penumbrae of the size the scene was
+/// built to show.
+fn sun_setup(id: SceneId, settings: FinShadowSettings) -> Setup {
+    let mut s = setup(id, settings);
+    let Light::Disk(d) = s.light else { unreachable!("the built-in scenes have disk lights") };
+    let direction = (d.normal + bevy::math::Vec3::new(0.6, 0.0, 0.35)).normalize();
+    let angle = (d.radius / d.center.length().max(1e-3)).atan();
+    s.light = Light::Sun(SunLight::new(direction, angle).expect("valid sun"));
+    s
+}
+
+#[test]
+fn a_fin_shadowed_sun_matches_the_raster_oracle_on_three_scenes() {
+    for extraction in [FinExtraction::Gpu, FinExtraction::Cpu] {
+        for id in [SceneId::BoxOverPlane, SceneId::NearContact, SceneId::RingPlate] {
+            let setup = sun_setup(id, FinShadowSettings { extraction, ..settings() });
+            let shot = render_bevy_lights(&setup);
+            save(&shot, &format!("sun_{}_{extraction:?}", id.name()));
+            assert_not_trivial(&shot);
+            let (mad, far) = compare(&shot.visibility, &oracle(&setup, Method::MultiLayer));
+            println!(
+                "sun, {extraction:?}, {}: mean |gpu − oracle| = {mad:.5}, share > 0.1 = {:.2}%",
+                id.name(),
+                far * 100.0
+            );
+            assert!(mad <= 0.01 && far <= 0.03, "{extraction:?} {}: {mad} / {far}", id.name());
+            let penumbra = shot.visibility.iter().filter(|v| (0.05..0.95).contains(*v)).count();
+            assert!(penumbra > 100, "{}: only {penumbra} penumbra pixels: is the sun soft at all?", id.name());
+        }
+    }
+}
+
+#[test]
+fn a_sun_of_angular_size_zero_gives_the_hard_shadow() {
+    let mut setup = sun_setup(SceneId::BoxOverPlane, settings());
+    setup.light = setup.light.with_zero_size();
+    let shot = render_bevy_lights(&setup);
+    assert_not_trivial(&shot);
+    assert_eq!(shot.stats.fins, 0, "θ = 0 must build no fins");
+    assert!(shot.visibility.iter().all(|v| *v == 0.0 || *v == 1.0), "θ = 0 must give only 0 and 1");
+    let (mad, far) = compare(&shot.visibility, &oracle(&setup, Method::Hard));
+    assert!(mad <= 0.01 && far <= 0.03, "hard: {mad} / {far}");
+}
+
+#[test]
+fn a_fin_shadowed_sun_is_bevys_light_times_the_visibility() {
+    // As for the spot light (`lights.rs`): per pixel, with tonemapping off,
+    // shadowed = dark + V × (lit − dark); `lit` is the same Bevy sun with
+    // nothing casting, `dark` the sun at zero illuminance. Bevy's cascades
+    // must be off, or the umbra would be darkened twice.
+    let mut shadowed = sun_setup(SceneId::BoxOverPlane, settings());
+    shadowed.sun_illuminance = 1500.0;
+    let mut lit = shadowed.clone();
+    for o in &mut lit.scene.objects {
+        o.casts_shadows = false;
+    }
+    let mut dark = shadowed.clone();
+    dark.sun_illuminance = 0.0;
+    let (s, l, d) = (render_bevy_lights(&shadowed), render_bevy_lights(&lit), render_bevy_lights(&dark));
+    save(&s, "sun_shadowed");
+    save(&l, "sun_lit");
+    assert_not_trivial(&s);
+    let (sc, lc, dc) = (linear_rgb(&s), linear_rgb(&l), linear_rgb(&d));
+    let errors: Vec<f32> = (0..sc.len())
+        .filter(|&i| lc[i][1] - dc[i][1] > 0.05 && lc[i].iter().all(|c| *c < 0.95))
+        .map(|i| (sc[i][1] - (dc[i][1] + s.visibility[i] * (lc[i][1] - dc[i][1]))).abs())
+        .collect();
+    let n = errors.len();
+    assert!(n > 1000, "only {n} unclipped lit pixels");
+    let umbra = (0..sc.len()).filter(|&i| s.visibility[i] < 0.02 && lc[i][1] - dc[i][1] > 0.05).count();
+    assert!(umbra > 50, "no lit-but-shadowed umbra to check");
+    let (mean, p99) = mean_and_p99(errors);
+    println!("sun composite vs dark + V·(lit − dark): mean {mean:.4}, p99 {p99:.4} over {n} pixels");
+    assert!(mean <= 0.005 && p99 <= 0.02, "mean {mean}, p99 {p99}");
+}
+
+#[test]
+fn a_sun_on_the_coverage_method_matches_the_ground_truth() {
+    // The coverage method counts blockers per light sample: against the
+    // ray-traced truth it is off by its sample count's noise only (64
+    // samples: about 0.01 mean on the disk's scenes).
+    let setup = sun_setup(
+        SceneId::NearContact,
+        FinShadowSettings { method: FinMethod::Coverage, coverage_samples: 64, ..settings() },
+    );
+    let shot = render_bevy_lights(&setup);
+    assert_not_trivial(&shot);
+    let ls = LightSpaceScene::new(&setup.scene, setup.light);
+    let truth = GroundTruth::new(&ls, 1024);
+    let expected = per_pixel(&setup, &setup.camera, &ls, |r| truth.visibility(r));
+    let (mad, far) = compare(&shot.visibility, &expected);
+    println!("sun, coverage (64 samples) vs 1024-sample truth: mean {mad:.4}, share > 0.1 = {:.2}%", far * 100.0);
+    assert!(mad <= 0.02 && far <= 0.05, "{mad} / {far}");
+}
