@@ -107,7 +107,9 @@ mod tests {
             intensity: 1e6,
             color: [1.0; 3],
             method: Default::default(),
-            spot: false,
+            kind: crate::scene::LightKind::FinLight,
+            sun_angle: crate::scene::DEFAULT_SUN_ANGLE,
+            illuminance: crate::scene::DEFAULT_ILLUMINANCE,
         };
         let (a, ta) = new_light(&params, 0);
         let (_, tb) = new_light(&params, 1);

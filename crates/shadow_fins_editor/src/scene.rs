@@ -6,6 +6,7 @@ use std::{path::PathBuf, sync::Arc};
 use bevy::{
     camera::RenderTarget,
     input::mouse::AccumulatedMouseMotion,
+    light::SunDisk,
     prelude::*,
     window::{FileDragAndDrop, PrimaryWindow},
 };
@@ -13,7 +14,7 @@ use bevy_egui::input::EguiWantsInput;
 use bevy_shadow_fins::{FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster};
 use shadow_fins::{
     camera::Camera as CoreCamera,
-    light::{DiskLight, Light},
+    light::{DiskLight, Light, SunLight},
     scene::Scene,
     scenes::SceneId,
 };
@@ -94,10 +95,58 @@ pub struct LightParams {
     pub intensity: f32,
     pub color: [f32; 3],
     pub method: EditorMethod,
-    /// The light is Bevy's own `SpotLight` with `FinShadows` (cone
-    /// [`SPOT_CONE`]; Bevy shades it) instead of the plugin's `FinLight`.
-    pub spot: bool,
+    /// Which light it is: the plugin's `FinLight`, or Bevy's own `SpotLight`
+    /// or `DirectionalLight` with `FinShadows`.
+    pub kind: LightKind,
+    /// The sun's angular diameter, radians (`SunDisk::angular_size`).
+    pub sun_angle: f32,
+    /// The sun's illuminance, lux.
+    pub illuminance: f32,
 }
+
+/// The editor's main light: the plugin's own disk, or one of Bevy's lights
+/// with `FinShadows`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum LightKind {
+    /// `FinLight`: a disk the plugin shades.
+    #[default]
+    FinLight,
+    /// Bevy's `SpotLight` (cone [`SPOT_CONE`]; Bevy shades it): a disk of its `radius`.
+    Spot,
+    /// Bevy's `DirectionalLight` with a `SunDisk`: the sun, as soft as its angular size.
+    Sun,
+}
+
+impl LightKind {
+    pub const ALL: [LightKind; 3] = [LightKind::FinLight, LightKind::Spot, LightKind::Sun];
+
+    /// The name in settings files.
+    pub fn name(self) -> &'static str {
+        match self {
+            LightKind::FinLight => "fin-light",
+            LightKind::Spot => "spot",
+            LightKind::Sun => "sun",
+        }
+    }
+
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.name() == name)
+    }
+
+    pub fn label(self) -> &'static str {
+        match self {
+            LightKind::FinLight => "FinLight (disk)",
+            LightKind::Spot => "Bevy SpotLight",
+            LightKind::Sun => "Bevy sun",
+        }
+    }
+}
+
+/// The editor's sun by default: the real sun's angular diameter
+/// (`SunDisk::EARTH`, 0.53°), at about the illuminance the default disk
+/// light gives the demo's ground.
+pub const DEFAULT_SUN_ANGLE: f32 = 0.00930842;
+pub const DEFAULT_ILLUMINANCE: f32 = 3000.0;
 
 /// The outer cone angle of the editor's spot light, radians (inner: 70% of it).
 pub const SPOT_CONE: f32 = 1.0;
@@ -106,7 +155,16 @@ impl LightParams {
     /// The core crate's light for these parameters (for the ground truth).
     pub fn core_light(&self) -> Option<Light> {
         let direction = self.direction.try_normalize()?;
+        if self.kind == LightKind::Sun {
+            return SunLight::new(direction, self.sun_angular_radius()).ok().map(Light::Sun);
+        }
         DiskLight::new(self.position, direction, self.radius.max(0.0)).ok().map(Light::Disk)
+    }
+
+    /// Half the sun's angular diameter, clamped as the plugin clamps it
+    /// (`[0, 1.4]` rad, NaN → 0).
+    pub fn sun_angular_radius(&self) -> f32 {
+        if self.sun_angle.is_finite() { (self.sun_angle * 0.5).clamp(0.0, 1.4) } else { 0.0 }
     }
 
     /// At `position`, facing along `direction` (−Y when it has no length).
@@ -204,7 +262,9 @@ fn spawn_rig(
         intensity: FinLight::default().intensity,
         color: [1.0, 1.0, 1.0],
         method: EditorMethod::default(),
-        spot: false,
+        kind: LightKind::FinLight,
+        sun_angle: DEFAULT_SUN_ANGLE,
+        illuminance: DEFAULT_ILLUMINANCE,
     };
     let mut settings = FinShadowSettings::default();
     // `--settings`, or the autosave an earlier run left.
@@ -355,14 +415,22 @@ fn sync_light(
     mut commands: Commands,
     params: Res<LightParams>,
     mut lights: Query<
-        (Entity, &mut Transform, &mut FinShadowSettings, Option<&mut FinLight>, Option<&mut SpotLight>),
+        (
+            Entity,
+            &mut Transform,
+            &mut FinShadowSettings,
+            Option<&mut FinLight>,
+            Option<&mut SpotLight>,
+            Option<&mut DirectionalLight>,
+        ),
         With<EditorLight>,
     >,
 ) {
     if !params.is_changed() {
         return;
     }
-    let Ok((entity, mut transform, mut settings, fin, spot)) = lights.single_mut() else { return };
+    let Ok((entity, mut transform, mut settings, fin, spot, directional)) = lights.single_mut() else { return };
+    let finite = |x: f32| if x.is_finite() { x.max(0.0) } else { 0.0 };
     *transform = params.transform();
     let color = Color::srgb(params.color[0], params.color[1], params.color[2]);
     let radius = params.radius.max(0.0);
@@ -373,7 +441,24 @@ fn sync_light(
             if settings.method != method {
                 settings.method = method;
             }
-            if params.spot {
+            if params.kind == LightKind::Sun {
+                let sun = DirectionalLight {
+                    color,
+                    illuminance: finite(params.illuminance),
+                    shadow_maps_enabled: true,
+                    ..default()
+                };
+                let disk = SunDisk { angular_size: 2.0 * params.sun_angular_radius(), intensity: 1.0 };
+                match directional {
+                    Some(mut d) => *d = sun,
+                    None => {
+                        commands.entity(entity).remove::<(PointLight, FinLight, SpotLight)>().insert((sun, FinShadows));
+                    }
+                }
+                commands.entity(entity).insert(disk);
+                return;
+            }
+            if params.kind == LightKind::Spot {
                 let light = SpotLight {
                     color,
                     intensity,
@@ -386,7 +471,10 @@ fn sync_light(
                 match spot {
                     Some(mut s) => *s = light,
                     None => {
-                        commands.entity(entity).remove::<(PointLight, FinLight)>().insert((light, FinShadows));
+                        commands
+                            .entity(entity)
+                            .remove::<(PointLight, FinLight, DirectionalLight, SunDisk)>()
+                            .insert((light, FinShadows));
                     }
                 }
                 return;
@@ -395,20 +483,38 @@ fn sync_light(
             match fin {
                 Some(mut f) => *f = light,
                 None => {
-                    commands.entity(entity).remove::<(PointLight, SpotLight, FinShadows)>().insert(light);
+                    commands
+                        .entity(entity)
+                        .remove::<(PointLight, SpotLight, DirectionalLight, SunDisk, FinShadows)>()
+                        .insert(light);
                 }
             }
         }
         None => {
-            commands.entity(entity).remove::<(FinLight, SpotLight, FinShadows)>().insert(PointLight {
-                color,
-                intensity,
-                range,
-                radius,
-                shadow_maps_enabled: true,
-                soft_shadows_enabled: true,
-                ..default()
-            });
+            // Bevy's PCSS peer. For the sun: Bevy's cascades with PCSS, whose
+            // `soft_shadow_size` is a size in cascade depth units, not an
+            // angle (Bevy's knob; given the sun's angular diameter here).
+            let mut e = commands.entity(entity);
+            e.remove::<(FinLight, SpotLight, PointLight, DirectionalLight, SunDisk, FinShadows)>();
+            if params.kind == LightKind::Sun {
+                e.insert(DirectionalLight {
+                    color,
+                    illuminance: finite(params.illuminance),
+                    shadow_maps_enabled: true,
+                    soft_shadow_size: Some(2.0 * params.sun_angular_radius()),
+                    ..default()
+                });
+            } else {
+                e.insert(PointLight {
+                    color,
+                    intensity,
+                    range,
+                    radius,
+                    shadow_maps_enabled: true,
+                    soft_shadows_enabled: true,
+                    ..default()
+                });
+            }
         }
     }
 }
@@ -444,7 +550,9 @@ mod tests {
                 intensity: 5e5,
                 color: [1.0, 0.5, 0.25],
                 method: EditorMethod::default(),
-                spot: false,
+                kind: LightKind::FinLight,
+                sun_angle: DEFAULT_SUN_ANGLE,
+                illuminance: DEFAULT_ILLUMINANCE,
             })
             .add_message::<LoadScene>()
             .add_systems(Update, load_scene);

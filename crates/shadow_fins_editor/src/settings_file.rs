@@ -8,7 +8,7 @@ use bevy_shadow_fins::{FinMethod, FinShadowSettings};
 use serde::{Deserialize, Serialize};
 use shadow_fins::{oracle::Overlap, refine::Falloff};
 
-use crate::scene::{EditorMethod, LightParams};
+use crate::scene::{EditorMethod, LightKind, LightParams};
 
 /// Everything the editor saves.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -32,9 +32,28 @@ pub struct EditorSettings {
     #[serde(default = "default_coverage_samples")]
     pub coverage_samples: u32,
     /// The light is Bevy's `SpotLight` with `FinShadows` (absent in files from
-    /// before it: the plugin's `FinLight`).
+    /// before it: the plugin's `FinLight`). Read only when `kind` is absent;
+    /// still written, for editors from before `kind`.
     #[serde(default)]
     pub spot: bool,
+    /// `fin-light`, `spot` or `sun` (absent in files from before the sun:
+    /// `spot` says which).
+    #[serde(default)]
+    pub kind: Option<String>,
+    /// The sun's angular diameter, radians.
+    #[serde(default = "default_sun_angle")]
+    pub sun_angle: f32,
+    /// The sun's illuminance, lux.
+    #[serde(default = "default_illuminance")]
+    pub illuminance: f32,
+}
+
+fn default_sun_angle() -> f32 {
+    crate::scene::DEFAULT_SUN_ANGLE
+}
+
+fn default_illuminance() -> f32 {
+    crate::scene::DEFAULT_ILLUMINANCE
 }
 
 fn default_coverage_samples() -> u32 {
@@ -80,7 +99,10 @@ impl EditorSettings {
             falloff: fins.falloff.name().into(),
             overlap: fins.overlap.name().into(),
             coverage_samples: fins.coverage_samples,
-            spot: light.spot,
+            spot: light.kind == LightKind::Spot,
+            kind: Some(light.kind.name().into()),
+            sun_angle: light.sun_angle,
+            illuminance: light.illuminance,
         }
     }
 
@@ -99,7 +121,15 @@ impl EditorSettings {
         if let Some(m) = EditorMethod::ALL.into_iter().find(|m| method_name(*m) == self.method) {
             light.method = m;
         }
-        light.spot = self.spot;
+        light.kind = match &self.kind {
+            // An unknown kind keeps the current light.
+            Some(name) => LightKind::parse(name).unwrap_or(light.kind),
+            None if self.spot => LightKind::Spot,
+            None => LightKind::FinLight,
+        };
+        // At most 80°, as the plugin clamps it; never negative or NaN.
+        light.sun_angle = if self.sun_angle.is_finite() { self.sun_angle.clamp(0.0, 2.8) } else { 0.0 };
+        light.illuminance = if self.illuminance.is_finite() { self.illuminance.max(0.0) } else { light.illuminance };
         *fins = FinShadowSettings {
             layers: self.layers,
             sub_layers: self.sub_layers,
@@ -180,7 +210,9 @@ pub fn check_settings_text(text: &str) {
         intensity: 1e6,
         color: [1.0; 3],
         method: EditorMethod::default(),
-        spot: false,
+        kind: LightKind::FinLight,
+        sun_angle: crate::scene::DEFAULT_SUN_ANGLE,
+        illuminance: crate::scene::DEFAULT_ILLUMINANCE,
     };
     let mut fins = FinShadowSettings::default();
     file.apply(&mut light, &mut fins);
@@ -188,6 +220,8 @@ pub fn check_settings_text(text: &str) {
     assert!(light.radius.is_finite() && light.radius >= 0.0);
     assert!(light.intensity.is_finite() && light.intensity >= 0.0);
     assert!(light.color.iter().all(|c| (0.0..=1.0).contains(c)));
+    assert!(light.sun_angle.is_finite() && (0.0..=2.8).contains(&light.sun_angle));
+    assert!(light.illuminance.is_finite() && light.illuminance >= 0.0);
     assert_eq!(fins, fins.clamped(), "applied settings are within their ranges");
 }
 
@@ -203,7 +237,9 @@ mod tests {
             intensity: 1e6,
             color: [1.0, 0.9, 0.8],
             method: EditorMethod::BevyPcss,
-            spot: false,
+            kind: LightKind::FinLight,
+            sun_angle: 0.02,
+            illuminance: 1500.0,
         }
     }
 
@@ -230,16 +266,25 @@ mod tests {
     }
 
     #[test]
-    fn the_light_kind_is_saved_and_older_files_keep_the_fin_light() {
-        let saved = EditorSettings::capture(&LightParams { spot: true, ..light() }, &FinShadowSettings::default());
-        let (mut l, mut f) = (light(), FinShadowSettings::default());
-        EditorSettings::from_ron(&saved.to_ron(), "x.ron").unwrap().apply(&mut l, &mut f);
-        assert!(l.spot);
-        let older = saved.to_ron().replace("spot: true,", "");
-        assert_ne!(older, saved.to_ron(), "the field must be in the file to be dropped from it");
-        let mut l = LightParams { spot: true, ..light() };
-        EditorSettings::from_ron(&older, "old.ron").unwrap().apply(&mut l, &mut f);
-        assert!(!l.spot);
+    fn the_light_kind_is_saved_and_older_files_keep_their_light() {
+        for kind in LightKind::ALL {
+            let saved = EditorSettings::capture(&LightParams { kind, ..light() }, &FinShadowSettings::default());
+            let (mut l, mut f) = (light(), FinShadowSettings::default());
+            EditorSettings::from_ron(&saved.to_ron(), "x.ron").unwrap().apply(&mut l, &mut f);
+            assert_eq!((l.kind, l.sun_angle, l.illuminance), (kind, 0.02, 1500.0));
+        }
+        // Files from before `kind`: `spot` says which; from before `spot`: the FinLight.
+        let spot =
+            EditorSettings::capture(&LightParams { kind: LightKind::Spot, ..light() }, &FinShadowSettings::default());
+        let before_kind = spot.to_ron().replace("kind: Some(\"spot\"),", "");
+        assert_ne!(before_kind, spot.to_ron(), "the field must be in the file to be dropped from it");
+        let mut l = LightParams { kind: LightKind::Sun, ..light() };
+        let mut f = FinShadowSettings::default();
+        EditorSettings::from_ron(&before_kind, "old.ron").unwrap().apply(&mut l, &mut f);
+        assert_eq!(l.kind, LightKind::Spot);
+        let before_spot = before_kind.replace("spot: true,", "");
+        EditorSettings::from_ron(&before_spot, "older.ron").unwrap().apply(&mut l, &mut f);
+        assert_eq!(l.kind, LightKind::FinLight);
     }
 
     #[test]

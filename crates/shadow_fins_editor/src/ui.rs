@@ -15,7 +15,7 @@ use shadow_fins::{oracle::Overlap, refine::Falloff};
 
 use crate::{
     EditorState,
-    scene::{EditorLight, EditorMethod, LightParams, LoadScene, LoadedScene, SceneSource},
+    scene::{EditorLight, EditorMethod, LightKind, LightParams, LoadScene, LoadedScene, SceneSource},
     settings_file::EditorSettings,
     truth::{AnalysisJob, GroundTruthJob},
     views::{CurrentError, LatestVisibility, ViewKind, view_pixels},
@@ -113,17 +113,42 @@ fn panels(
             ui.heading("Light");
             let mut p = *params;
             ui.horizontal(|ui| {
-                ui.radio_value(&mut p.spot, false, "FinLight (disk)");
-                ui.radio_value(&mut p.spot, true, "Bevy SpotLight")
-                    .on_hover_text("Bevy's own SpotLight with FinShadows: Bevy shades it (cone 1 rad), fins shadow it");
+                for kind in LightKind::ALL {
+                    ui.radio_value(&mut p.kind, kind, kind.label()).on_hover_text(match kind {
+                        LightKind::FinLight => "The plugin's own disk light",
+                        LightKind::Spot => {
+                            "Bevy's own SpotLight with FinShadows: Bevy shades it (cone 1 rad), fins shadow it"
+                        }
+                        LightKind::Sun => {
+                            "Bevy's DirectionalLight with FinShadows, as soft as its SunDisk's angular size \
+                             (orthographic maps fitted to the scene; the position only places the marker)"
+                        }
+                    });
+                }
             });
             vec3_row(ui, "position", &mut p.position, 0.05);
             vec3_row(ui, "direction", &mut p.direction, 0.01);
             ui.small("Shift+drag in the view moves the light; Shift+Ctrl+drag raises it.");
-            ui.add(
-                egui::Slider::new(&mut p.radius, 0.0..=5.0).text("radius").logarithmic(true).smallest_positive(1e-3),
-            );
-            ui.add(egui::Slider::new(&mut p.intensity, 0.0..=1e8).text("intensity (lm)").logarithmic(true));
+            if p.kind == LightKind::Sun {
+                let mut degrees = p.sun_angle.to_degrees();
+                ui.add(
+                    egui::Slider::new(&mut degrees, 0.0..=20.0)
+                        .text("angular size (°)")
+                        .logarithmic(true)
+                        .smallest_positive(0.01),
+                )
+                .on_hover_text("SunDisk::angular_size, the disk's diameter; the real sun is 0.53°");
+                p.sun_angle = degrees.to_radians();
+                ui.add(egui::Slider::new(&mut p.illuminance, 0.0..=1e5).text("illuminance (lx)").logarithmic(true));
+            } else {
+                ui.add(
+                    egui::Slider::new(&mut p.radius, 0.0..=5.0)
+                        .text("radius")
+                        .logarithmic(true)
+                        .smallest_positive(1e-3),
+                );
+                ui.add(egui::Slider::new(&mut p.intensity, 0.0..=1e8).text("intensity (lm)").logarithmic(true));
+            }
             ui.horizontal(|ui| {
                 ui.label("colour");
                 ui.color_edit_button_rgb(&mut p.color);
