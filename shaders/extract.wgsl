@@ -40,6 +40,9 @@ struct ExtractParams {
     axis_u: vec4<f32>,
     axis_v: vec4<f32>,
     axis_n: vec4<f32>,
+    // The maps' region lies within (min x, min y, max x, max y): a sun's maps
+    // fitted to what the cameras see (`sun_fit.rs`); none when min > max.
+    window: vec4<f32>,
 }
 
 struct Instance {
@@ -908,6 +911,10 @@ fn plan_layers() {
     if (!orthographic()) {
         rlo = max(rlo, vec2<f32>(-MAP_LIMIT));
         rhi = min(rhi, vec2<f32>(MAP_LIMIT));
+    }
+    if (params.window.x <= params.window.z) {
+        rlo = max(rlo, params.window.xy);
+        rhi = min(rhi, params.window.zw);
     }
     if (!(rlo.x <= rhi.x && rlo.y <= rhi.y)) {
         rlo = vec2<f32>(0.0);

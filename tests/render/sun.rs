@@ -30,11 +30,17 @@ fn sun_setup(id: SceneId, settings: FinShadowSettings) -> Setup {
     s
 }
 
+/// Maps over the whole scene, as the oracle's (fitted maps are pinned by
+/// `fitting_the_suns_maps_to_the_view_brings_it_closer_to_the_truth`).
+fn unfitted() -> FinShadowSettings {
+    FinShadowSettings { fit_sun_to_views: false, ..settings() }
+}
+
 #[test]
 fn a_fin_shadowed_sun_matches_the_raster_oracle_on_three_scenes() {
     for extraction in [FinExtraction::Gpu, FinExtraction::Cpu] {
         for id in [SceneId::BoxOverPlane, SceneId::NearContact, SceneId::RingPlate] {
-            let setup = sun_setup(id, FinShadowSettings { extraction, ..settings() });
+            let setup = sun_setup(id, FinShadowSettings { extraction, ..unfitted() });
             let shot = render_bevy_lights(&setup);
             save(&shot, &format!("sun_{}_{extraction:?}", id.name()));
             assert_not_trivial(&shot);
@@ -53,7 +59,7 @@ fn a_fin_shadowed_sun_matches_the_raster_oracle_on_three_scenes() {
 
 #[test]
 fn a_sun_of_angular_size_zero_gives_the_hard_shadow() {
-    let mut setup = sun_setup(SceneId::BoxOverPlane, settings());
+    let mut setup = sun_setup(SceneId::BoxOverPlane, unfitted());
     setup.light = setup.light.with_zero_size();
     let shot = render_bevy_lights(&setup);
     assert_not_trivial(&shot);
@@ -93,6 +99,30 @@ fn a_fin_shadowed_sun_is_bevys_light_times_the_visibility() {
     let (mean, p99) = mean_and_p99(errors);
     println!("sun composite vs dark + V·(lit − dark): mean {mean:.4}, p99 {p99:.4} over {n} pixels");
     assert!(mean <= 0.005 && p99 <= 0.02, "mean {mean}, p99 {p99}");
+}
+
+#[test]
+fn fitting_the_suns_maps_to_the_view_brings_it_closer_to_the_truth() {
+    // The box over a ground 20 times wider than it: maps over all of the
+    // ground give the box's shadow a few texels; fitted to what the camera
+    // sees, many more. Judged by the 1024-sample truth.
+    let mut setup = sun_setup(SceneId::BoxOverPlane, settings());
+    let ground = setup.scene.objects.iter().position(|o| o.name == "ground").expect("a ground");
+    let wide = shadow_fins::shapes::plane(200.0, 4);
+    setup.scene.objects[ground] = shadow_fins::scene::SceneObject::new("ground", wide, Default::default()).unwrap();
+    let mut whole = setup.clone();
+    whole.settings.fit_sun_to_views = false;
+    let (fitted, whole) = (render_bevy_lights(&setup), render_bevy_lights(&whole));
+    save(&fitted, "sun_fitted");
+    save(&whole, "sun_whole_scene");
+    assert_not_trivial(&fitted);
+    let ls = LightSpaceScene::new(&setup.scene, setup.light);
+    let truth = GroundTruth::new(&ls, 1024);
+    let expected = per_pixel(&setup, &setup.camera, &ls, |r| truth.visibility(r));
+    let (fitted_error, _) = compare(&fitted.visibility, &expected);
+    let (whole_error, _) = compare(&whole.visibility, &expected);
+    println!("sun vs 1024-sample truth: fitted maps {fitted_error:.4}, whole-scene maps {whole_error:.4}");
+    assert!(fitted_error < 0.5 * whole_error, "fitted {fitted_error} vs whole scene {whole_error}");
 }
 
 #[test]

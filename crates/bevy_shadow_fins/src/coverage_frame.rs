@@ -126,7 +126,7 @@ pub(crate) fn coverage_frame(
     let alloc = allocate_maps(resolution, 1, LIST_WORDS * 4, map_bytes);
     let mut degraded = alloc.degradation;
     let triangles = reference::map_triangles(&ls.casters, &ls.frame, near);
-    let region = reference::covering_region(&triangles, alloc.resolution, &ls.frame);
+    let region = in_frame.covering(triangles.iter().map(|t| t.bounds()), alloc.resolution.clamp(1, 8192));
     let edges = potential_silhouette_edges(scene, &ls, near);
     let index = EdgeIndex::new(&edges, &ls.frame, ls.reference_depth, 1.5 * region.texel);
     let (min, inv_cell, dims) = index.grid();

@@ -28,7 +28,7 @@ use shadow_fins::{
     fins::{Fin, FinShape, FinSide},
     light::{DiskLight, Light, LightFrame, SunLight},
     mesh::{Mesh as CoreMesh, Topology},
-    oracle::{FinShadowModel, MapRegion, RasterMaps},
+    oracle::{FinShadowModel, MapRegion},
     scene::{LightSpaceScene, Scene, SceneObject},
 };
 
@@ -36,7 +36,8 @@ use crate::{
     budget::{FinDegradation, FinDeviceLimits, FinShadowBudget, FinShadowsUnsupported, allocate_maps},
     coverage_frame::{CoverageFrame, coverage_frame},
     gpu_scene::{GpuCapacity, GpuMeshGeometry, GpuScene, GpuSceneBuilder},
-    light::{FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadows, NotFinShadowCaster},
+    light::{FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster},
+    sun_fit,
 };
 
 /// Why a mesh could not be used as a caster (logged once per mesh).
@@ -227,6 +228,8 @@ struct LightSource {
     reach: Reach,
     settings: FinShadowSettings,
     shading: LightShading,
+    /// A sun's maps fitted to what the cameras see (`sun_fit`), in its axes.
+    window: Option<[f32; 4]>,
 }
 
 /// The lights with fin shadows: `FinLight`s, and Bevy `SpotLight`s and
@@ -246,6 +249,7 @@ fn light_sources(
             reach: Reach { range: finite(light.range), cone: None },
             settings: settings.clamped(),
             shading: LightShading::Own { light: *light, transform: *transform },
+            window: None,
         };
         disk(transform, light.effective_radius()).map(source).map_err(|_| entity)
     });
@@ -260,6 +264,7 @@ fn light_sources(
                 reach: Reach { range: finite(spot.range), cone: Some(spot.outer_angle.clamp(0.0, FRAC_PI_2)) },
                 settings,
                 shading: LightShading::Bevy { render_entity: render.id() },
+                window: None,
             };
             Some(disk(transform, finite(spot.radius)).map(source).map_err(|_| entity))
         },
@@ -274,6 +279,7 @@ fn light_sources(
                 reach: Reach { range: 0.0, cone: None },
                 settings,
                 shading: LightShading::Bevy { render_entity: render.id() },
+                window: None,
             }))
         },
     );
@@ -335,6 +341,7 @@ fn update_fin_frames(
     mut directional_lights: DirectionalLights,
     other_lights: Query<(), (With<FinShadows>, Without<SpotLight>, Without<DirectionalLight>, Without<FinLight>)>,
     casters: Query<(Entity, &Mesh3d, &GlobalTransform, Has<NotFinShadowCaster>, Option<&Aabb>)>,
+    views: Query<(&GlobalTransform, &Projection), With<FinShadowView>>,
     mut light_stats: Query<&mut FinLightStats>,
     meshes: Res<Assets<Mesh>>,
     budget: Res<FinShadowBudget>,
@@ -388,7 +395,13 @@ fn update_fin_frames(
     budget.hash(&mut hasher);
     sources.len().hash(&mut hasher);
     meshes_changed.hash(&mut hasher);
-    for (entity, mesh, transform, not_caster, _) in &casters {
+    let mut scene_box = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    for (entity, mesh, transform, not_caster, aabb) in &casters {
+        if let Some(aabb) = aabb {
+            for c in world_corners(aabb, transform).into_iter().filter(|c| c.is_finite()) {
+                scene_box = (scene_box.0.min(c), scene_box.1.max(c));
+            }
+        }
         entity.hash(&mut hasher);
         not_caster.hash(&mut hasher);
         mesh.id().hash(&mut hasher);
@@ -397,6 +410,16 @@ fn update_fin_frames(
         hash_floats(&mut hasher, &transform.to_matrix().to_cols_array());
     }
     let scene_signature = hasher.finish();
+    // Suns fit their maps to the cameras' view of the scene's box.
+    if sources.iter().any(|s| matches!(s.light, Light::Sun(_))) && scene_box.0.x <= scene_box.1.x {
+        let volumes = sun_fit::view_volumes(views.iter(), scene_box);
+        for source in &mut sources {
+            if let (Light::Sun(sun), Some(volumes), true) = (&source.light, &volumes, source.settings.fit_sun_to_views)
+            {
+                source.window = sun_fit::sun_window(volumes, scene_box, sun);
+            }
+        }
+    }
     cache.lights.retain(|e, _| sources.iter().any(|s| s.entity == *e));
 
     let mut scene: Option<CasterScene> = None;
@@ -409,6 +432,7 @@ fn update_fin_frames(
         state.capacity_epoch.hash(&mut hasher);
         source.settings.hash(&mut hasher);
         hash_floats(&mut hasher, &light_key(&source.light));
+        hash_floats(&mut hasher, &source.window.unwrap_or([f32::NAN; 4]));
         hash_floats(&mut hasher, &[source.reach.range, source.reach.cone.unwrap_or(-1.0)]);
         let signature = hasher.finish();
         let previous = frames.0.iter().find(|f| f.light == source.entity);
@@ -431,7 +455,7 @@ fn update_fin_frames(
         cache.generation += 1;
         let generation = cache.generation;
         let state = cache.lights.get_mut(&source.entity).expect("inserted above");
-        let data = light_frame(scene, light, source.reach, source.settings, generation, limits, state);
+        let data = light_frame(scene, light, source.window, source.reach, source.settings, generation, limits, state);
         set_stats(&mut light_stats, source.entity, data.stats);
         next.push(FinLightFrame { light: source.entity, shading: source.shading, data: Arc::new(data) });
     }
@@ -614,6 +638,7 @@ fn out_of_reach(corners: &[Vec3; 8], disk: &DiskLight, reach: Reach) -> bool {
 fn light_frame(
     scene: &CasterScene,
     light: Light,
+    window: Option<[f32; 4]>,
     reach: Reach,
     settings: FinShadowSettings,
     generation: u64,
@@ -624,7 +649,8 @@ fn light_frame(
     let objects = scene.seen_by(&light, reach);
     let unread_bounds = scene.unread_bounds.clone();
     let (frame, extent) = scene.frame_for(&light);
-    let in_frame = InFrame { light, frame, extent };
+    let map_window = window.map(|w| sun_fit::window_in_frame(w, &frame));
+    let in_frame = InFrame { light, frame, extent, map_window };
     if settings.method == FinMethod::Coverage {
         let data = coverage_data(&objects, in_frame, settings, generation, start, unread_bounds, limits);
         warn_degradation(&mut state.warned, data.stats.degraded);
@@ -662,6 +688,7 @@ fn light_frame(
             let alloc = allocate_maps(settings.map_resolution, wanted, MAP_TEXEL_BYTES, limits.map_bytes);
             scene.capacity.layers = alloc.layers;
             scene.max_capacity.layers = most;
+            scene.map_window = in_frame.map_window;
             scene.receiver_depth = receiver_bound.map(|p| frame.to_frame(p).z).fold(0.0, f32::max);
             let stats = FinFrameStats {
                 casters: objects.iter().filter(|o| o.casts_shadows).count(),
@@ -788,11 +815,22 @@ pub(crate) struct InFrame {
     pub frame: LightFrame,
     /// The diagonal of everything drawn.
     pub extent: f32,
+    /// The part of map space the maps need cover at most (a sun's view fit,
+    /// `sun_fit`); `None`: all the casters.
+    pub map_window: Option<(Vec2, Vec2)>,
 }
 
 impl InFrame {
     pub fn light_space(&self, scene: &Scene) -> LightSpaceScene {
         LightSpaceScene::in_frame(scene, self.light, self.frame, self.extent)
+    }
+
+    /// The square of maps at `resolution` over `bounds` (map space), within
+    /// the map window and a perspective map's angle limit.
+    pub fn covering(&self, bounds: impl Iterator<Item = (Vec2, Vec2)>, resolution: u32) -> MapRegion {
+        let limit = self.frame.map_limit(shadow_fins::oracle::RASTER_MAP_LIMIT);
+        let (lo, hi) = self.map_window.unwrap_or((Vec2::NEG_INFINITY, Vec2::INFINITY));
+        MapRegion::covering_within(bounds, resolution, (lo.max(Vec2::splat(-limit)), hi.min(Vec2::splat(limit))))
     }
 }
 
@@ -840,7 +878,8 @@ fn cpu_frame(
         model = FinShadowModel::new(&scene, &ls, settings.method.into(), core);
         alloc.layers = alloc.layers.max(model.plan.len() as u32);
     }
-    let region = RasterMaps::covering_region(&model, alloc.resolution);
+    let bounds = model.casters.iter().map(|c| c.bounds()).chain(model.fins.iter().map(|f| f.bounds()));
+    let region = in_frame.covering(bounds, alloc.resolution);
     let mut degraded = alloc.degradation;
     // What does not fit one buffer is dropped (and said so).
     let mut capped = |buffer: &'static str, n: usize, bytes: u64| {

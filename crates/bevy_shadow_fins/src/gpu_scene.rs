@@ -227,6 +227,8 @@ pub(crate) struct GpuScene {
     /// Deepest light-frame depth of receivers drawn but not read here (their
     /// bounds): the reference plane reaches at least this far.
     pub receiver_depth: f32,
+    /// The maps' region lies within this (map space; a sun's view fit).
+    pub map_window: Option<(Vec2, Vec2)>,
     /// World-space diagonal of the scene's bounds (epsilons; L0 when nothing is in front).
     pub extent: f32,
 }
@@ -329,6 +331,7 @@ impl GpuSceneBuilder {
             max_capacity,
             axes: frame.axes_f64(),
             receiver_depth: 0.0,
+            map_window: None,
             extent,
         }
     }

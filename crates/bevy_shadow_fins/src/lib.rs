@@ -132,6 +132,7 @@ mod gpu_scene;
 mod light;
 mod receivers;
 mod render;
+mod sun_fit;
 
 pub use budget::{FinDegradation, FinShadowBudget};
 pub use extract::{

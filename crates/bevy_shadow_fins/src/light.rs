@@ -151,6 +151,12 @@ pub struct FinShadowSettings {
     /// Light samples per receiver of [`FinMethod::Coverage`], 1..=256
     /// (default 256: MAE about 0.003 against the truth; 64: about 0.01).
     pub coverage_samples: u32,
+    /// A sun's maps cover only what the [`FinShadowView`] cameras see of the
+    /// scene (default), not all of it: the texels go where someone looks. The
+    /// maps follow the cameras in steps: a camera moving a sixteenth of its
+    /// view re-extracts the sun's shadows. Off: maps over everything drawn,
+    /// rebuilt only when the scene or the sun changes. Disk lights ignore it.
+    pub fit_sun_to_views: bool,
 }
 
 impl Default for FinShadowSettings {
@@ -166,6 +172,7 @@ impl Default for FinShadowSettings {
             overlap: core.overlap,
             extraction: FinExtraction::Gpu,
             coverage_samples: 256,
+            fit_sun_to_views: true,
         }
     }
 }

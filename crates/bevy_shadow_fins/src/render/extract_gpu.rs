@@ -161,6 +161,8 @@ struct ExtractParams {
     axis_u: [f32; 4],
     axis_v: [f32; 4],
     axis_n: [f32; 4],
+    /// The maps' region lies within (min x, min y, max x, max y); none when min > max.
+    window: [f32; 4],
 }
 
 pub(super) struct ExtractPipelines {
@@ -290,10 +292,11 @@ pub(super) fn prepare(
         axis_u: v4(scene.axes[0]),
         axis_v: v4(scene.axes[1]),
         axis_n: v4(scene.axes[2]),
+        window: scene.map_window.map_or([1.0, 1.0, -1.0, -1.0], |(lo, hi)| [lo.x, lo.y, hi.x, hi.y]),
     };
     let cap = frame.limit_bytes;
     let uniform = BufferUsages::UNIFORM | BufferUsages::COPY_DST;
-    ensure(&mut buffers.params, device, "fin_extract_params", 144, uniform, cap);
+    ensure(&mut buffers.params, device, "fin_extract_params", size_of::<ExtractParams>() as u64, uniform, cap);
     queue.write_buffer(buffers.params.as_ref().unwrap(), 0, bytemuck::bytes_of(&params));
     let instance_bytes: &[u8] = bytemuck::cast_slice(&scene.instances);
     ensure(&mut buffers.instances, device, "fin_extract_instances", instance_bytes.len() as u64, storage, cap);

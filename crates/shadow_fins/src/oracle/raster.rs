@@ -28,13 +28,20 @@ impl MapRegion {
     /// (map space), clamped to ±`limit` (`LightFrame::map_limit` of
     /// [`RASTER_MAP_LIMIT`]); the unit square when there is nothing to cover.
     pub fn covering(bounds: impl Iterator<Item = (Vec2, Vec2)>, resolution: u32, limit: f32) -> Self {
+        Self::covering_within(bounds, resolution, (Vec2::splat(-limit), Vec2::splat(limit)))
+    }
+
+    /// [`Self::covering`] within any rectangle `window` of map space: a
+    /// renderer fits a sun's maps to what its cameras see this way (casters
+    /// outside still rasterise where they overlap the maps).
+    pub fn covering_within(bounds: impl Iterator<Item = (Vec2, Vec2)>, resolution: u32, window: (Vec2, Vec2)) -> Self {
         let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
         for (a, b) in bounds {
             lo = lo.min(a);
             hi = hi.max(b);
         }
-        lo = lo.max(Vec2::splat(-limit));
-        hi = hi.min(Vec2::splat(limit));
+        lo = lo.max(window.0);
+        hi = hi.min(window.1);
         if !(lo.x <= hi.x && lo.y <= hi.y) {
             (lo, hi) = (Vec2::ZERO, Vec2::ONE);
         }
