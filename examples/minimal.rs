@@ -1,5 +1,6 @@
-//! The drop-in: Bevy's own spot lights with a radius and `FinShadows`, and
-//! every mesh gets physically sized soft shadows from each.
+//! The drop-in: Bevy's own lights with `FinShadows` — two spot lights with a
+//! radius and a dim sun with a `SunDisk` — and every mesh gets physically
+//! sized soft shadows from each.
 //! `cargo run --example minimal --features window`
 use bevy::prelude::*;
 use bevy_shadow_fins::{FinShadowView, FinShadows, ShadowFinsPlugin};
@@ -28,6 +29,13 @@ fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials
             Transform::from_translation(at).looking_at(Vec3::ZERO, Vec3::Z),
         ));
     }
+    // The sun, 3° wide (six times the real one, for a visible penumbra).
+    commands.spawn((
+        DirectionalLight { illuminance: 2000.0, ..default() },
+        bevy::light::SunDisk { angular_size: 3f32.to_radians(), intensity: 1.0 },
+        FinShadows,
+        Transform::default().looking_to(Vec3::new(0.4, -1.0, -0.3), Vec3::Y),
+    ));
     commands.spawn((
         Camera3d::default(),
         FinShadowView::default(),

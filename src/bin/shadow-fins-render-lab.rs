@@ -7,7 +7,9 @@
 //! - `stability`: the extremes; exits 1 if any NaN or Inf reaches the
 //!   visibility buffer;
 //! - `lights`: the frame cost of N fin-shadowed spot lights beside Bevy's own
-//!   shadow maps for the same N lights.
+//!   shadow maps for the same N lights;
+//! - `sun`: a fin-shadowed `DirectionalLight` against the truth and beside
+//!   Bevy's cascades.
 
 use std::{io::Write, path::PathBuf, process::ExitCode};
 
@@ -21,7 +23,7 @@ use shadow_fins::{
     scenes::SceneId,
     shapes,
 };
-use shadow_fins_app::render_lab::{lights, measure, stability};
+use shadow_fins_app::render_lab::{lights, measure, stability, sun};
 use shadow_fins_lab::{
     LabError,
     grid::{Axes, Technique, parse_list},
@@ -78,6 +80,35 @@ enum Command {
         /// Fin maps' and Bevy's shadow maps' resolution.
         #[arg(long, default_value_t = 1024)]
         map_resolution: u32,
+        /// Also write the table here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// A fin-shadowed sun (DirectionalLight) against the truth, beside Bevy's cascades.
+    Sun {
+        /// Built-in scenes, comma-separated (the sun is placed by their disk light).
+        #[arg(long, default_value = "box-over-plane,near-contact,ring-plate,demo")]
+        scenes: String,
+        /// Angular radii in radians, comma-separated; `scene`: the scene's own
+        /// (the disk seen from the origin); 0.00465 is the real sun.
+        #[arg(long, default_value = "scene,0.00465")]
+        angles: String,
+        /// Frames timed per configuration (median reported).
+        #[arg(long, default_value_t = 20)]
+        frames: u32,
+        #[arg(long, default_value_t = 160)]
+        width: u32,
+        #[arg(long, default_value_t = 120)]
+        height: u32,
+        /// Fin maps' and Bevy's cascades' resolution.
+        #[arg(long, default_value_t = 1024)]
+        map_resolution: u32,
+        /// Ground-truth samples on the sun's disk.
+        #[arg(long, default_value_t = 1024)]
+        samples: u32,
+        /// Layers of the fins' maps.
+        #[arg(long, default_value_t = 16)]
+        layers: u32,
         /// Also write the table here.
         #[arg(long)]
         out: Option<PathBuf>,
@@ -161,6 +192,29 @@ fn main() -> ExitCode {
         Command::Lights { scene, counts, frames, width, height, map_resolution, out } => {
             run_lights(&scene, &counts, frames, (width, height), map_resolution, out).map(|()| ExitCode::SUCCESS)
         }
+        Command::Sun { scenes, angles, frames, width, height, map_resolution, samples, layers, out } => {
+            let parsed = parse_sun(&scenes, &angles);
+            parsed
+                .and_then(|(scenes, angles)| {
+                    let run = sun::SunRun {
+                        scenes,
+                        angles,
+                        frames: frames.max(1),
+                        width: width.clamp(1, 4096),
+                        height: height.clamp(1, 4096),
+                        map_resolution,
+                        layers,
+                        samples: samples.clamp(1, 1 << 16),
+                    };
+                    let table = sun::markdown(&sun::run(&run).map_err(usage)?);
+                    println!("{table}");
+                    match &out {
+                        Some(path) => write(path, &table),
+                        None => Ok(()),
+                    }
+                })
+                .map(|()| ExitCode::SUCCESS)
+        }
     };
     result.unwrap_or_else(|e| {
         eprintln!("error: {e}");
@@ -188,6 +242,17 @@ fn run_lights(
         write(path, &table)?;
     }
     Ok(())
+}
+
+/// The sun run's scenes and angles (`scene` or a finite angle in [0, 1.4] rad).
+fn parse_sun(scenes: &str, angles: &str) -> Result<(Vec<SceneId>, Vec<Option<f32>>), LabError> {
+    let scenes = parse_list("scenes", scenes, SceneId::parse).map_err(usage)?;
+    let angles = parse_list("angles", angles, |s| match s {
+        "scene" => Some(None),
+        _ => s.parse::<f32>().ok().filter(|a| (0.0..=1.4).contains(a)).map(Some),
+    })
+    .map_err(usage)?;
+    Ok((scenes, angles))
 }
 
 fn usage(e: String) -> LabError {

@@ -6,13 +6,7 @@
 //! `lights.rs` for colour (8-bit sRGB steps).
 
 use bevy_shadow_fins::{FinExtraction, FinMethod, FinShadowSettings};
-use shadow_fins::{
-    ground_truth::GroundTruth,
-    light::{Light, SunLight},
-    oracle::Method,
-    scene::LightSpaceScene,
-    scenes::SceneId,
-};
+use shadow_fins::{ground_truth::GroundTruth, light::Light, oracle::Method, scene::LightSpaceScene, scenes::SceneId};
 use shadow_fins_app::harness::Setup;
 
 use super::common::*;
@@ -24,9 +18,7 @@ use super::common::*;
 fn sun_setup(id: SceneId, settings: FinShadowSettings) -> Setup {
     let mut s = setup(id, settings);
     let Light::Disk(d) = s.light else { unreachable!("the built-in scenes have disk lights") };
-    let direction = (d.normal + bevy::math::Vec3::new(0.6, 0.0, 0.35)).normalize();
-    let angle = (d.radius / d.center.length().max(1e-3)).atan();
-    s.light = Light::Sun(SunLight::new(direction, angle).expect("valid sun"));
+    s.light = Light::Sun(shadow_fins_app::render_lab::sun::sun_over(&d, None));
     s
 }
 

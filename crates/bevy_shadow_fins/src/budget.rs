@@ -5,8 +5,10 @@
 //! Every buffer the plugin binds must fit the device's
 //! `max_storage_buffer_binding_size` (and `max_buffer_size`). The penumbra maps
 //! are the big one (layers × resolution² × 9 words); past the budget they lose
-//! resolution first, down to [`MIN_DEGRADED_RESOLUTION`], then layers (the
-//! deepest layers merge), then resolution again. The extraction's per-scene
+//! resolution first, down to [`MIN_DEGRADED_RESOLUTION`] — but never so far
+//! that the light's widest penumbra spans fewer than
+//! [`MIN_PENUMBRA_TEXELS`] — then layers (the deepest layers merge), then
+//! resolution again. The extraction's per-scene
 //! buffers that cannot shrink (vertices, faces, the packed geometry) move the
 //! extraction to the CPU when they do not fit; the output buffers (silhouettes,
 //! fins, casters) are capped, and what does not fit is dropped.
@@ -137,13 +139,34 @@ pub(crate) struct MapAllocation {
     pub degradation: Option<FinDegradation>,
 }
 
+/// The fewest texels the widest penumbra (half-width) may span before the
+/// budget takes layers rather than resolution. Layers separate fins of
+/// casters at different depths; a penumbra of a few texels has almost no fin
+/// to separate, and its shadow's error is the texel size. Measured on the
+/// real sun (θ = 4.65 mrad) over the built-in scenes, 128 MiB of maps: 16
+/// layers at 256² gave MAE 0.04–0.11 against the truth, one layer at 1024²
+/// 0.011–0.028 (`shadow-fins-render-lab sun --layers`, BENCHMARKS.md).
+pub const MIN_PENUMBRA_TEXELS: f32 = 4.0;
+
 /// The maps for `layers` layers at `resolution²`, each texel `texel_bytes`,
 /// within `limit` bytes: resolution halves first (not below
-/// [`MIN_DEGRADED_RESOLUTION`]), then layers go, then resolution again.
-pub(crate) fn allocate_maps(resolution: u32, layers: u32, texel_bytes: u64, limit: u64) -> MapAllocation {
+/// [`MIN_DEGRADED_RESOLUTION`], nor below where the widest penumbra —
+/// `penumbra_texels` at `resolution`, `INFINITY` when unknown — would span
+/// fewer than [`MIN_PENUMBRA_TEXELS`]), then layers go, then resolution again.
+pub(crate) fn allocate_maps(
+    resolution: u32,
+    layers: u32,
+    texel_bytes: u64,
+    limit: u64,
+    penumbra_texels: f32,
+) -> MapAllocation {
     let bytes = |r: u32, l: u32| l.max(1) as u64 * (r as u64).pow(2) * texel_bytes;
     let (mut r, mut l) = (resolution.max(MIN_RESOLUTION), layers.max(1));
-    while bytes(r, l) > limit && r / 2 >= MIN_DEGRADED_RESOLUTION.min(resolution) {
+    let penumbra_at = |r: u32| penumbra_texels * r as f32 / resolution.max(1) as f32;
+    while bytes(r, l) > limit
+        && r / 2 >= MIN_DEGRADED_RESOLUTION.min(resolution)
+        && !(penumbra_at(r / 2) < MIN_PENUMBRA_TEXELS)
+    {
         r /= 2;
     }
     while bytes(r, l) > limit && l > 1 {
@@ -193,7 +216,7 @@ mod tests {
 
     #[test]
     fn maps_that_fit_are_not_degraded() {
-        let a = allocate_maps(1024, 4, 36, 1 << 30);
+        let a = allocate_maps(1024, 4, 36, 1 << 30, f32::INFINITY);
         assert_eq!((a.resolution, a.layers, a.degradation), (1024, 4, None));
     }
 
@@ -201,21 +224,40 @@ mod tests {
     fn maps_lose_resolution_first_then_layers() {
         // 16 layers at 1024² of 36-byte texels = 576 MiB; at 256², 36 MiB.
         let limit = 16 << 20;
-        let a = allocate_maps(1024, 16, 36, limit);
+        let a = allocate_maps(1024, 16, 36, limit, f32::INFINITY);
         assert_eq!(a.resolution, 256, "resolution goes down to 256 first");
         assert!(a.layers < 16 && a.layers >= 1);
         assert!(a.layers as u64 * 256 * 256 * 36 <= limit);
         assert!(matches!(a.degradation, Some(FinDegradation::Maps { wanted_layers: 16, .. })));
         // A tiny limit: one layer, and resolution keeps going down, never below 16.
-        let b = allocate_maps(1024, 16, 36, 4096);
+        let b = allocate_maps(1024, 16, 36, 4096, f32::INFINITY);
         assert_eq!(b.layers, 1);
         assert_eq!(b.resolution, 16);
     }
 
     #[test]
     fn a_low_resolution_ask_is_not_raised() {
-        let a = allocate_maps(128, 2, 36, 1 << 30);
+        let a = allocate_maps(128, 2, 36, 1 << 30, f32::INFINITY);
         assert_eq!((a.resolution, a.layers), (128, 2));
+    }
+
+    #[test]
+    fn narrow_penumbrae_keep_their_resolution_and_give_up_layers() {
+        // 16 layers at 1024² do not fit 128 MiB. Penumbrae of 5 texels at
+        // 1024² would span 2.5 at 512²: layers go instead (3 fit at 1024²).
+        let limit = 128 << 20;
+        let narrow = allocate_maps(1024, 16, 36, limit, 5.0);
+        assert_eq!((narrow.resolution, narrow.layers), (1024, 3));
+        // Penumbrae of 20 texels still span 5 at 256²: resolution goes first.
+        let wide = allocate_maps(1024, 16, 36, limit, 20.0);
+        assert_eq!((wide.resolution, wide.layers), (256, 16));
+        // 10 texels: down to 512² (5 texels), then layers (14 of 9 MiB fit).
+        let middle = allocate_maps(1024, 16, 36, limit, 10.0);
+        assert_eq!((middle.resolution, middle.layers), (512, 14));
+        // A hard shadow (no penumbra): resolution is all that matters.
+        assert_eq!(allocate_maps(1024, 16, 36, limit, 0.0).resolution, 1024);
+        // NaN is no estimate: as unknown (INFINITY), resolution goes first.
+        assert_eq!(allocate_maps(1024, 16, 36, limit, f32::NAN).resolution, 256);
     }
 
     #[test]

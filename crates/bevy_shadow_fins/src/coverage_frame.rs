@@ -123,7 +123,8 @@ pub(crate) fn coverage_frame(
     let frame = ls.frame;
     ls.cover_receivers(receiver_bound.map(|p| frame.to_frame(p)));
     let near = near_depth(&ls);
-    let alloc = allocate_maps(resolution, 1, LIST_WORDS * 4, map_bytes);
+    // One list per texel, no layers to trade: resolution is what goes.
+    let alloc = allocate_maps(resolution, 1, LIST_WORDS * 4, map_bytes, f32::INFINITY);
     let mut degraded = alloc.degradation;
     let triangles = reference::map_triangles(&ls.casters, &ls.frame, near);
     let region = in_frame.covering(triangles.iter().map(|t| t.bounds()), alloc.resolution.clamp(1, 8192));

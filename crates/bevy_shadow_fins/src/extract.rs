@@ -580,7 +580,7 @@ impl CasterScene {
     /// The light's frame. A disk's is its own; the sun's origin is put in
     /// front of everything drawn (every mesh's world box, readable or not),
     /// so that every depth is positive (`LightFrame::sun`).
-    fn frame_for(&self, light: &Light) -> (LightFrame, f32) {
+    fn frame_for(&self, light: &Light) -> (LightFrame, (Vec3, Vec3)) {
         let boxes = self.objects.iter().zip(&self.gpu_meshes).map(|(o, m)| {
             let (a, b) = m.bounds;
             let corners: [Vec3; 8] = std::array::from_fn(|k| {
@@ -598,7 +598,7 @@ impl CasterScene {
             .filter(|p| p.is_finite())
             .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));
         let (lo, hi) = if lo.x <= hi.x { (lo, hi) } else { (Vec3::ZERO, Vec3::ONE) };
-        (LightFrame::new(light, lo, hi), (hi - lo).length())
+        (LightFrame::new(light, lo, hi), (lo, hi))
     }
 }
 
@@ -648,9 +648,10 @@ fn light_frame(
     let start = std::time::Instant::now();
     let objects = scene.seen_by(&light, reach);
     let unread_bounds = scene.unread_bounds.clone();
-    let (frame, extent) = scene.frame_for(&light);
+    let (frame, scene_box) = scene.frame_for(&light);
     let map_window = window.map(|w| sun_fit::window_in_frame(w, &frame));
-    let in_frame = InFrame { light, frame, extent, map_window };
+    let in_frame = InFrame { light, frame, extent: (scene_box.1 - scene_box.0).length(), scene_box, map_window };
+    let penumbra_texels = in_frame.widest_penumbra_texels(settings.map_resolution);
     if settings.method == FinMethod::Coverage {
         let data = coverage_data(&objects, in_frame, settings, generation, start, unread_bounds, limits);
         warn_degradation(&mut state.warned, data.stats.degraded);
@@ -682,10 +683,13 @@ fn light_frame(
             // maps hold what the GPU last wanted, at the best resolution that
             // fits, and may grow to the most layers that fit at all.
             let asked = if settings.method == FinMethod::MultiLayer { settings.layers } else { 1 };
-            let most = allocate_maps(settings.map_resolution, asked, MAP_TEXEL_BYTES, limits.map_bytes).layers;
+            let most =
+                allocate_maps(settings.map_resolution, asked, MAP_TEXEL_BYTES, limits.map_bytes, penumbra_texels)
+                    .layers;
             let mut scene = scene;
             let wanted = scene.capacity.layers.min(most);
-            let alloc = allocate_maps(settings.map_resolution, wanted, MAP_TEXEL_BYTES, limits.map_bytes);
+            let alloc =
+                allocate_maps(settings.map_resolution, wanted, MAP_TEXEL_BYTES, limits.map_bytes, penumbra_texels);
             scene.capacity.layers = alloc.layers;
             scene.max_capacity.layers = most;
             scene.map_window = in_frame.map_window;
@@ -813,8 +817,9 @@ pub(crate) const MAP_TEXEL_BYTES: u64 = 9 * 4;
 pub(crate) struct InFrame {
     pub light: Light,
     pub frame: LightFrame,
-    /// The diagonal of everything drawn.
+    /// The diagonal of everything drawn, and its box.
     pub extent: f32,
+    pub scene_box: (Vec3, Vec3),
     /// The part of map space the maps need cover at most (a sun's view fit,
     /// `sun_fit`); `None`: all the casters.
     pub map_window: Option<(Vec2, Vec2)>,
@@ -823,6 +828,31 @@ pub(crate) struct InFrame {
 impl InFrame {
     pub fn light_space(&self, scene: &Scene) -> LightSpaceScene {
         LightSpaceScene::in_frame(scene, self.light, self.frame, self.extent)
+    }
+
+    /// An estimate of the widest penumbra's half-width in texels of maps at
+    /// `resolution`, for the budget's choice between resolution and layers
+    /// (`budget::MIN_PENUMBRA_TEXELS`). The sun's: `tan θ` times the scene
+    /// box's depth along it, over the map window's (or the box's footprint's)
+    /// texel. A disk's widest penumbra comes from the casters nearest to it,
+    /// which only the GPU extraction finds: unknown (`INFINITY`).
+    pub fn widest_penumbra_texels(&self, resolution: u32) -> f32 {
+        let shadow_fins::light::Projection::Orthographic { tan_angle } = self.frame.projection else {
+            return f32::INFINITY;
+        };
+        let (lo, hi) = self.scene_box;
+        let corners: [Vec3; 8] = std::array::from_fn(|k| {
+            let pick = |bit: usize, a: f32, b: f32| if k & bit == 0 { a } else { b };
+            self.frame.to_frame(Vec3::new(pick(1, lo.x, hi.x), pick(2, lo.y, hi.y), pick(4, lo.z, hi.z)))
+        });
+        let (flo, fhi) = corners.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+        let (mut mlo, mut mhi) = (flo.truncate(), fhi.truncate());
+        if let Some((wlo, whi)) = self.map_window {
+            (mlo, mhi) = (mlo.max(wlo), mhi.min(whi));
+        }
+        let texel = (mhi - mlo).max_element() / resolution.max(1) as f32;
+        let width = tan_angle * (fhi.z - flo.z);
+        if texel > 0.0 && width.is_finite() { width / texel } else { f32::INFINITY }
     }
 
     /// The square of maps at `resolution` over `bounds` (map space), within
@@ -871,7 +901,14 @@ fn cpu_frame(
     ls.cover_receivers(receiver_bound.map(|p| frame.to_frame(p)));
     let mut core = settings.core();
     let mut model = FinShadowModel::new(&scene, &ls, settings.method.into(), core);
-    let mut alloc = allocate_maps(settings.map_resolution, model.plan.len() as u32, MAP_TEXEL_BYTES, limits.map_bytes);
+    let penumbra_texels = in_frame.widest_penumbra_texels(settings.map_resolution);
+    let mut alloc = allocate_maps(
+        settings.map_resolution,
+        model.plan.len() as u32,
+        MAP_TEXEL_BYTES,
+        limits.map_bytes,
+        penumbra_texels,
+    );
     if (alloc.layers as usize) < model.plan.len() {
         // Fewer layers fit than the plan made: plan again with that many.
         core.layers = alloc.layers;
