@@ -15,7 +15,7 @@ use shadow_fins::{
     camera::Camera as CoreCamera,
     coverage::{CoverageModel, CoverageSettings, DEPTH_LIST_LENGTH, ReferenceCount},
     glam::Affine3A,
-    light::{DiskLight, Light},
+    light::{DiskLight, Light, SunLight},
     mesh::Mesh,
     metrics::ErrorMetrics,
     oracle::{FinSettings, FinShadowModel, Method, Receiver},
@@ -206,6 +206,40 @@ pub fn cases() -> Vec<Case> {
     let mut s = base();
     s.light = Light::Disk(DiskLight { center: Vec3::new(0.0, 1.5, 0.0), ..disk(&s) });
     out.push(rendered("light-inside-caster", "the light's centre inside the box", s));
+
+    // The sun (a `DirectionalLight` with `FinShadows`, orthographic maps).
+    let sun = |direction: Vec3, angle: f32| {
+        let direction = direction.normalize();
+        Light::Sun(SunLight::new(direction, angle).expect("a valid sun"))
+    };
+    let slanted = Vec3::new(0.3, -1.0, 0.2);
+    let mut s = base();
+    s.light = sun(slanted, 0.0);
+    out.push(rendered("sun-0", "the sun at θ = 0: must be the hard shadow", s));
+    let mut s = base();
+    s.light = sun(slanted, 1.4);
+    out.push(rendered("sun-80deg", "the sun 80° wide (θ = 1.4 rad, the most there is)", s));
+    let mut s = base();
+    s.light = sun(Vec3::new(1.0, -0.035, 0.1), 0.05);
+    out.push(rendered(
+        "sun-grazing",
+        "the sun 2° above the horizon: the ground lit at a glancing angle (its shadows fall out of view; no acne)",
+        s,
+    ));
+    let mut s = base();
+    s.scene = s.scene.translated(offset);
+    s.camera = CoreCamera { position: s.camera.position + offset, target: s.camera.target + offset, ..s.camera };
+    s.light = sun(slanted, 0.1);
+    out.push(rendered("sun-offset-1e5", "the sun over the scene offset by (1e5, 1e5, 1e5)", s));
+    for (name, size) in [("sun-ground-2e4", 2e4f32), ("sun-ground-2e6", 2e6)] {
+        let mut s = base();
+        s.scene.objects[0] = object("ground", shapes::plane(size, 4), Vec3::ZERO);
+        s.far = Some(size);
+        s.light = sun(slanted, 0.1);
+        let what =
+            format!("the sun over a ground {size:.0e} wide, camera far plane {size:.0e} (maps fitted to the view)");
+        out.push(rendered(name, what, s));
+    }
 
     // Receivers 1.5×, 10× and 1000× deeper than the reference plane, in the
     // box's shadow; without the ground, which would put them in its umbra.

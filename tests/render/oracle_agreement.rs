@@ -33,6 +33,7 @@ fn radius_zero_gives_the_hard_shadow() {
     let shot = render(&setup);
     assert_not_trivial(&shot);
     assert!(shot.stats.fins == 0, "radius 0 must build no fins");
+    assert_eq!(shot.stats.layers, 1, "radius 0 needs one layer: the slab is the exact hard shadow");
     let (mad, far) = compare(&shot.visibility, &oracle(&setup, Method::Hard));
     assert!(mad <= 0.01 && far <= 0.03, "hard: {mad} / {far}");
     assert!(shot.visibility.iter().all(|v| *v == 0.0 || *v == 1.0), "radius 0 must give only 0 and 1");

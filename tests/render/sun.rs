@@ -56,6 +56,7 @@ fn a_sun_of_angular_size_zero_gives_the_hard_shadow() {
     let shot = render_bevy_lights(&setup);
     assert_not_trivial(&shot);
     assert_eq!(shot.stats.fins, 0, "θ = 0 must build no fins");
+    assert_eq!(shot.stats.layers, 1, "θ = 0 needs one layer: the slab is the exact hard shadow");
     assert!(shot.visibility.iter().all(|v| *v == 0.0 || *v == 1.0), "θ = 0 must give only 0 and 1");
     let (mad, far) = compare(&shot.visibility, &oracle(&setup, Method::Hard));
     assert!(mad <= 0.01 && far <= 0.03, "hard: {mad} / {far}");

@@ -646,6 +646,10 @@ fn light_frame(
     state: &mut LightState,
 ) -> FinFrameData {
     let start = std::time::Instant::now();
+    // A light of no size casts no fins: one layer's slab is the exact hard
+    // shadow (the min over layers of slabs is the nearest slab), and the
+    // memory of the other layers goes to resolution instead.
+    let settings = if light.is_zero_size() { FinShadowSettings { layers: 1, ..settings } } else { settings };
     let objects = scene.seen_by(&light, reach);
     let unread_bounds = scene.unread_bounds.clone();
     let (frame, scene_box) = scene.frame_for(&light);
