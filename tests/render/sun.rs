@@ -136,3 +136,109 @@ fn a_sun_on_the_coverage_method_matches_the_ground_truth() {
     println!("sun, coverage (64 samples) vs 1024-sample truth: mean {mad:.4}, share > 0.1 = {:.2}%", far * 100.0);
     assert!(mad <= 0.02 && far <= 0.05, "{mad} / {far}");
 }
+
+/// The sun over the box and plane, dimmed so that sun and spot together stay
+/// below white, and one fin-shadowed spot light beside it.
+fn sun_and_spot() -> (Setup, shadow_fins::light::DiskLight) {
+    let mut s = sun_setup(SceneId::BoxOverPlane, settings());
+    s.sun_illuminance = 800.0;
+    s.intensity = 8e4;
+    let Light::Disk(d) = setup(SceneId::BoxOverPlane, settings()).light else { unreachable!("a disk light") };
+    (s, shadow_fins::light::DiskLight { center: d.center + bevy::math::Vec3::new(1.5, 0.0, 0.5), ..d })
+}
+
+#[test]
+fn a_sun_and_a_spot_light_each_match_their_shadow_alone_and_add_up() {
+    // Visibility: each light's layer next to the other equals its layer
+    // alone (float noise, 1e-4). Colour, linear: image(sun + spot) =
+    // dark + V_sun·(lit_sun − dark) + V_spot·(lit_spot − dark), which pins the
+    // composite's directional slot beside a clustered one.
+    let (sun, spot) = sun_and_spot();
+    let mut both = sun.clone();
+    both.extra_spots = vec![spot];
+    let mut spot_alone = sun.clone();
+    spot_alone.light = Light::Disk(spot);
+    spot_alone.spot = true;
+    let unshadowed = |mut s: Setup| {
+        for o in &mut s.scene.objects {
+            o.casts_shadows = false;
+        }
+        s
+    };
+    let mut dark = sun.clone();
+    dark.sun_illuminance = 0.0;
+    let (shot, alone_sun, alone_spot) =
+        (render_bevy_lights(&both), render_bevy_lights(&sun), render_bevy_lights(&spot_alone));
+    let (lit_sun, lit_spot, dark) = (
+        render_bevy_lights(&unshadowed(sun.clone())),
+        render_bevy_lights(&unshadowed(spot_alone.clone())),
+        render_bevy_lights(&dark),
+    );
+    assert_eq!(shot.light_visibility.len(), 2);
+    // Slot order is entity order: the sun was spawned first, but find it by content.
+    let (v_sun, v_spot) = {
+        let (a, b) = (&shot.light_visibility[0], &shot.light_visibility[1]);
+        if compare(a, &alone_sun.visibility).0 <= compare(b, &alone_sun.visibility).0 { (a, b) } else { (b, a) }
+    };
+    assert_not_trivial(&alone_sun);
+    assert_visibility_not_trivial(&alone_spot.visibility);
+    let (mad_sun, _) = compare(v_sun, &alone_sun.visibility);
+    let (mad_spot, _) = compare(v_spot, &alone_spot.visibility);
+    let (apart, _) = compare(&alone_sun.visibility, &alone_spot.visibility);
+    println!("together vs alone: sun {mad_sun:.2e}, spot {mad_spot:.2e}; sun vs spot {apart:.3}");
+    assert!(apart > 0.01, "the two lights cast the same shadow ({apart}): the test would prove nothing");
+    assert!(mad_sun <= 1e-4 && mad_spot <= 1e-4, "sun {mad_sun}, spot {mad_spot}");
+
+    let (sc, ls, lp, dc) = (linear_rgb(&shot), linear_rgb(&lit_sun), linear_rgb(&lit_spot), linear_rgb(&dark));
+    let errors: Vec<f32> = (0..sc.len())
+        .filter(|&i| ls[i][1] + lp[i][1] - dc[i][1] < 0.95 && sc[i][1] < 0.95)
+        .filter(|&i| v_sun[i] < 0.95 || v_spot[i] < 0.95)
+        .map(|i| {
+            let expected = dc[i][1] + v_sun[i] * (ls[i][1] - dc[i][1]) + v_spot[i] * (lp[i][1] - dc[i][1]);
+            (sc[i][1] - expected).abs()
+        })
+        .collect();
+    let n = errors.len();
+    assert!(n > 100, "only {n} shadowed pixels");
+    let (mean, p99) = mean_and_p99(errors);
+    println!("sun + spot vs dark + Σ V·(lit − dark): mean {mean:.4}, p99 {p99:.4} over {n} pixels");
+    // Four 8-bit images: ≤ 4 steps of 0.0088 at worst.
+    assert!(mean <= 0.005 && p99 <= 0.03, "mean {mean}, p99 {p99}");
+}
+
+#[test]
+fn a_sun_on_another_render_layer_is_never_taken_away_from_a_view_that_does_not_see_it() {
+    // The fin-shadowed sun on render layer 1, seen by a second camera on
+    // layer 1; the first camera (layer 0) sees only a plain DirectionalLight
+    // from another direction, without shadows. Bevy leaves the sun out of
+    // the first view's list, so the composite must find nothing to take
+    // away there — not the plain light in the sun's place: the first view's
+    // image is the same with the sun at full and at zero illuminance.
+    use bevy::prelude::*;
+    let mut setup = sun_setup(SceneId::BoxOverPlane, settings());
+    setup.sun_illuminance = 1500.0;
+    setup.extra_cameras = vec![setup.camera];
+    let mut session = shadow_fins_app::harness::Session::new(&setup);
+    let world = session.app.world_mut();
+    let layer_one = bevy::camera::visibility::RenderLayers::layer(1);
+    let sun = world.query_filtered::<Entity, With<DirectionalLight>>().single(world).expect("one sun");
+    world.entity_mut(sun).insert(layer_one.clone());
+    let second = world.query::<(Entity, &Camera)>().iter(world).find(|(_, c)| c.order == 1).expect("camera").0;
+    world.entity_mut(second).insert(layer_one);
+    world.spawn((
+        DirectionalLight { illuminance: 600.0, ..default() },
+        Transform::default().looking_to(Vec3::new(-0.4, -1.0, 0.3), Vec3::Y),
+    ));
+    let with_sun = session.settle(16).expect("render");
+    let world = session.app.world_mut();
+    world.get_mut::<DirectionalLight>(sun).expect("the sun").illuminance = 0.0;
+    let without_sun = session.settle(16).expect("render");
+    let (a, b) = (linear_rgb(&with_sun), linear_rgb(&without_sun));
+    let lit = b.iter().filter(|c| c[1] > 0.05).count();
+    assert!(lit > 1000, "the plain light lights only {lit} pixels: the test would prove nothing");
+    assert_visibility_not_trivial(&with_sun.visibility);
+    let worst = (0..a.len()).map(|i| (a[i][1] - b[i][1]).abs()).fold(0.0, f32::max);
+    println!("sun on another layer: largest |with sun − without| {worst:.4} on the view that does not see it");
+    // One 8-bit step.
+    assert!(worst <= 0.01, "the view is changed by a sun it does not see: {worst}");
+}
