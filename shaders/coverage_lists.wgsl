@@ -69,6 +69,11 @@ fn raster_lists(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
             z = c.min_depth;
         }
         z = clamp(z, c.min_depth, c.max_depth);
+        // A sun's frame may sit in front of only what its cameras see (see
+        // maps.wgsl): depths in front of it clamp to 0, keeping bits ordered.
+        if (params.info.w == 0u) {
+            z = max(z, 0.0);
+        }
         if (!(z > params.light.y)) {
             continue;
         }

@@ -31,8 +31,10 @@ struct ExtractParams {
     // (silhouette capacity, fin capacity, caster capacity, method 0 hard 1 outer-fins 2 single 3 multi)
     capacity: vec4<u32>,
     // (light size: disk radius R or sun tan θ, scene extent, deepest receiver
-    // the CPU knows of besides the casters' vertices, 1 for the sun's
-    // orthographic frame / 0 for a disk's perspective one)
+    // the CPU knows of besides the casters' vertices, projection: 0 a disk's
+    // perspective frame, 1 the sun's orthographic one, 2 the sun's with L0
+    // fixed to z by the CPU — a frame placed at its view window, where far
+    // vertices outside the window are no receivers of it)
     light: vec4<f32>,
     // (refinement, falloff, overlap, generation)
     flags: vec4<u32>,
@@ -200,6 +202,9 @@ fn frame_position(inst: Instance, v: u32) -> vec3<f32> {
 // are built for (every mesh's vertices, and the bounds of meshes drawn but not
 // readable on the CPU).
 fn reference_depth() -> f32 {
+    if (params.light.w > 1.5) {
+        return params.light.z;
+    }
     let deepest = max(order_value(atomicLoad(&control[C_DEEPEST])), params.light.z);
     return select(params.light.y, deepest, deepest > 0.0);
 }

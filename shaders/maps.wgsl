@@ -82,6 +82,12 @@ fn raster_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocatio
             z = c.min_depth;
         }
         z = clamp(z, c.min_depth, c.max_depth);
+        // A sun's frame may sit in front of only what its cameras see: a
+        // caster outside that (it reaches no texel seen) may lie in front of
+        // the origin, and negative depths' bits would not order.
+        if (orthographic(params)) {
+            z = max(z, 0.0);
+        }
         if (z > params.light.y) {
             atomicMin(&maps[texel_index(params, c.layer, x, y)], bitcast<u32>(z));
         }
@@ -223,9 +229,14 @@ fn raster_fin(i: u32, lane: u32, depths: bool) {
     for (var k = lane; k < count; k += WORKGROUP) {
         let x = u32(range.x) + k % w;
         let y = u32(range.z) + k / w;
-        let s = fin_sample(f, texel_center(params, x, y));
+        var s = fin_sample(f, texel_center(params, x, y));
         if (s.x < 0.0) {
             continue;
+        }
+        // As for casters: a sun's fin outside its cameras' window may lie in
+        // front of the origin; keep its depth's bits ordered.
+        if (orthographic(params)) {
+            s.y = max(s.y, 0.0);
         }
         let base = texel_index(params, f.header.z, x, y) + channel;
         let lo = min_key(params, s.x, s.y);

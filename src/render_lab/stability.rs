@@ -264,6 +264,22 @@ pub fn cases() -> Vec<Case> {
     out
 }
 
+/// The scene as the ground truth traces it. A sun's core frame puts its origin
+/// in front of the whole scene, so over a ground 2e6 wide every point lies
+/// ~1.4e6 from it and the truth's receiver lift (1e-5 of that) is 14 units:
+/// the truth itself read every pixel lit. Its rays need no positive depths,
+/// so the truth of a sun works in a frame at the camera's target instead.
+fn truth_frame(setup: &Setup) -> LightSpaceScene {
+    match setup.light {
+        Light::Sun(sun) => {
+            let frame = shadow_fins::light::LightFrame::sun_at(&sun, setup.camera.target.as_dvec3());
+            let extent = setup.scene.bounds().map_or(1.0, |(lo, hi)| (hi - lo).length());
+            LightSpaceScene::in_frame(&setup.scene, setup.light, frame, extent)
+        }
+        Light::Disk(_) => LightSpaceScene::new(&setup.scene, setup.light),
+    }
+}
+
 /// Runs one case with `samples` ground-truth samples (0: no truth), by the
 /// fins (the case's own settings) or, with `coverage`, the coverage method
 /// (256 light samples, depth lists at the case's map size; its row shows
@@ -301,7 +317,7 @@ pub fn run(case: &Case, samples: u32, coverage: bool) -> Outcome {
             count(&shot.visibility, &mut outcome);
             outcome.modelled = Some((shot.stats.silhouettes, shot.stats.fins, shot.stats.layers));
             if samples > 0 {
-                let ls = LightSpaceScene::new(&setup.scene, setup.light);
+                let ls = truth_frame(setup);
                 let receivers = camera_receivers(&setup.camera, setup.width, setup.height, &ls);
                 let (mut method, mut hits) = (vec![], vec![]);
                 for (i, r) in receivers.iter().enumerate() {

@@ -119,9 +119,7 @@ pub(crate) fn coverage_frame(
     map_bytes: u64,
     max_buffer: u64,
 ) -> (CoverageFrame, Option<FinDegradation>, usize) {
-    let mut ls = in_frame.light_space(scene);
-    let frame = ls.frame;
-    ls.cover_receivers(receiver_bound.map(|p| frame.to_frame(p)));
+    let ls = in_frame.light_space(scene, receiver_bound);
     let near = near_depth(&ls);
     // One list per texel, no layers to trade: resolution is what goes.
     let alloc = allocate_maps(resolution, 1, LIST_WORDS * 4, map_bytes, f32::INFINITY);

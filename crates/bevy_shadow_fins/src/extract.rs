@@ -216,7 +216,12 @@ pub(crate) struct MeshCache {
 pub(crate) fn build(app: &mut App) {
     app.init_resource::<FinFrames>().init_resource::<MeshCache>().init_resource::<FinShadowStats>().add_systems(
         PostUpdate,
-        (update_fin_frames, mirror_first_light_stats).chain().after(TransformSystems::Propagate),
+        (update_fin_frames, mirror_first_light_stats)
+            .chain()
+            .after(TransformSystems::Propagate)
+            // A sun's window reads this frame's boxes and camera projections.
+            .after(bevy::camera::visibility::VisibilitySystems::CalculateBounds)
+            .after(bevy::camera::CameraUpdateSystems),
     );
 }
 
@@ -240,7 +245,10 @@ fn light_sources(
     spot_lights: &SpotLights,
     directional_lights: &DirectionalLights,
 ) -> (Vec<LightSource>, Vec<Entity>) {
-    let disk = |t: &GlobalTransform, radius: f32| DiskLight::new(t.translation(), t.forward().as_vec3(), radius);
+    // Not `GlobalTransform::forward`: it panics (debug) on a zero scale; the
+    // core's lights reject a direction of no length instead.
+    let forward = |t: &GlobalTransform| Vec3::from(t.affine().matrix3 * bevy::math::Vec3A::NEG_Z);
+    let disk = |t: &GlobalTransform, radius: f32| DiskLight::new(t.translation(), forward(t), radius);
     let finite = |x: f32| if x.is_finite() && x > 0.0 { x } else { 0.0 };
     let own = fin_lights.iter().map(|(entity, light, settings, transform)| {
         let source = |disk| LightSource {
@@ -272,7 +280,7 @@ fn light_sources(
     let suns = directional_lights.iter().filter(|l| l.6 && !fin_lights.contains(l.0)).filter_map(
         |(entity, _, sun_disk, settings, transform, render, _)| {
             let settings = settings?.clamped();
-            let sun = SunLight::new(transform.forward().as_vec3(), sun_angular_radius(sun_disk)).map_err(|_| entity);
+            let sun = SunLight::new(forward(transform), sun_angular_radius(sun_disk)).map_err(|_| entity);
             Some(sun.map(|sun| LightSource {
                 entity,
                 light: Light::Sun(sun),
@@ -297,10 +305,12 @@ fn light_sources(
 /// The sun's angular radius `θ` from Bevy's `SunDisk::angular_size` (a
 /// diameter): half of it, `SunDisk::EARTH` (what Bevy draws) when the light
 /// has none, clamped to `[0, 1.4]` rad (the core's `SunLight` range; 80°,
-/// far past any sun) and 0 when not finite.
+/// far past any sun), 0 for NaN. (`SunDisk::OFF`, size 0, gives the hard
+/// shadow.)
 pub(crate) fn sun_angular_radius(sun_disk: Option<&SunDisk>) -> f32 {
     let size = sun_disk.map_or(SunDisk::EARTH.angular_size, |d| d.angular_size);
-    if size.is_finite() { (size * 0.5).clamp(0.0, 1.4) } else { 0.0 }
+    // +∞ is "as wide as there is"; NaN is no size.
+    if size.is_nan() { 0.0 } else { (size * 0.5).clamp(0.0, 1.4) }
 }
 
 /// Every `SpotLight`, fin-shadowed (`FinShadows`) or not: mutable, so that
@@ -396,11 +406,17 @@ fn update_fin_frames(
     sources.len().hash(&mut hasher);
     meshes_changed.hash(&mut hasher);
     let mut scene_box = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    // A mesh without an `Aabb` (`NoFrustumCulling`, `NoAutoAabb`) has no box
+    // here: then no sun is fitted to the views, which could cut it out.
+    let mut every_mesh_boxed = true;
     for (entity, mesh, transform, not_caster, aabb) in &casters {
-        if let Some(aabb) = aabb {
-            for c in world_corners(aabb, transform).into_iter().filter(|c| c.is_finite()) {
-                scene_box = (scene_box.0.min(c), scene_box.1.max(c));
+        match aabb {
+            Some(aabb) => {
+                for c in world_corners(aabb, transform).into_iter().filter(|c| c.is_finite()) {
+                    scene_box = (scene_box.0.min(c), scene_box.1.max(c));
+                }
             }
+            None => every_mesh_boxed = false,
         }
         entity.hash(&mut hasher);
         not_caster.hash(&mut hasher);
@@ -411,7 +427,7 @@ fn update_fin_frames(
     }
     let scene_signature = hasher.finish();
     // Suns fit their maps to the cameras' view of the scene's box.
-    if sources.iter().any(|s| matches!(s.light, Light::Sun(_))) && scene_box.0.x <= scene_box.1.x {
+    if every_mesh_boxed && sources.iter().any(|s| matches!(s.light, Light::Sun(_))) && scene_box.0.x <= scene_box.1.x {
         let volumes = sun_fit::view_volumes(views.iter(), scene_box);
         for source in &mut sources {
             if let (Light::Sun(sun), Some(volumes), true) = (&source.light, &volumes, source.settings.fit_sun_to_views)
@@ -653,8 +669,15 @@ fn light_frame(
     let objects = scene.seen_by(&light, reach);
     let unread_bounds = scene.unread_bounds.clone();
     let (frame, scene_box) = scene.frame_for(&light);
+    // A sun fitted to the views works in a frame placed at its window.
+    let fitted = match (light, window) {
+        (Light::Sun(sun), Some(w)) => sun_fit::window_frame(w, scene_box, &sun).map(|(f, l0)| (f, l0, w)),
+        _ => None,
+    };
+    let (frame, reference_depth) = fitted.map_or((frame, None), |(f, l0, _)| (f, Some(l0)));
     let map_window = window.map(|w| sun_fit::window_in_frame(w, &frame));
-    let in_frame = InFrame { light, frame, extent: (scene_box.1 - scene_box.0).length(), scene_box, map_window };
+    let extent = (scene_box.1 - scene_box.0).length();
+    let in_frame = InFrame { light, frame, extent, scene_box, map_window, reference_depth };
     let penumbra_texels = in_frame.widest_penumbra_texels(settings.map_resolution);
     if settings.method == FinMethod::Coverage {
         let data = coverage_data(&objects, in_frame, settings, generation, start, unread_bounds, limits);
@@ -697,7 +720,11 @@ fn light_frame(
             scene.capacity.layers = alloc.layers;
             scene.max_capacity.layers = most;
             scene.map_window = in_frame.map_window;
-            scene.receiver_depth = receiver_bound.map(|p| frame.to_frame(p).z).fold(0.0, f32::max);
+            scene.receiver_depth = match in_frame.reference_depth {
+                Some(l0) => l0,
+                None => receiver_bound.map(|p| frame.to_frame(p).z).fold(0.0, f32::max),
+            };
+            scene.fixed_reference_depth = in_frame.reference_depth.is_some();
             let stats = FinFrameStats {
                 casters: objects.iter().filter(|o| o.casts_shadows).count(),
                 triangles: objects.iter().map(|o| o.mesh.triangle_count()).sum(),
@@ -827,11 +854,23 @@ pub(crate) struct InFrame {
     /// The part of map space the maps need cover at most (a sun's view fit,
     /// `sun_fit`); `None`: all the casters.
     pub map_window: Option<(Vec2, Vec2)>,
+    /// `L0` when the frame fixes it (a sun fitted to the views: the deepest
+    /// point of what the window can show, `sun_fit::window_frame`); `None`:
+    /// the deepest receiver, found from the geometry.
+    pub reference_depth: Option<f32>,
 }
 
 impl InFrame {
-    pub fn light_space(&self, scene: &Scene) -> LightSpaceScene {
-        LightSpaceScene::in_frame(scene, self.light, self.frame, self.extent)
+    /// The scene in this frame, its reference plane `L0` past every receiver:
+    /// the scene's own and `receiver_bound` (meshes drawn but not readable),
+    /// or the window's deepest point for a sun fitted to the views.
+    pub fn light_space(&self, scene: &Scene, receiver_bound: impl Iterator<Item = Vec3>) -> LightSpaceScene {
+        let mut ls = LightSpaceScene::in_frame(scene, self.light, self.frame, self.extent);
+        match self.reference_depth {
+            Some(l0) => ls.reference_depth = l0,
+            None => ls.cover_receivers(receiver_bound.map(|p| self.frame.to_frame(p))),
+        }
+        ls
     }
 
     /// An estimate of the widest penumbra's half-width in texels of maps at
@@ -900,9 +939,7 @@ fn cpu_frame(
     receiver_bound: impl Iterator<Item = Vec3>,
     limits: FrameLimits,
 ) -> FinFrameData {
-    let mut ls = in_frame.light_space(&scene);
-    let frame = ls.frame;
-    ls.cover_receivers(receiver_bound.map(|p| frame.to_frame(p)));
+    let ls = in_frame.light_space(&scene, receiver_bound);
     let mut core = settings.core();
     let mut model = FinShadowModel::new(&scene, &ls, settings.method.into(), core);
     let penumbra_texels = in_frame.widest_penumbra_texels(settings.map_resolution);
@@ -1062,10 +1099,11 @@ mod tests {
         assert_eq!(radius(0.0), 0.0);
         assert_eq!(radius(-1.0), 0.0);
         assert_eq!(radius(f32::NAN), 0.0);
-        assert_eq!(radius(f32::INFINITY), 0.0);
+        assert_eq!(radius(f32::INFINITY), 1.4);
+        assert_eq!(radius(f32::NEG_INFINITY), 0.0);
         assert_eq!(radius(10.0), 1.4);
         // Every clamped value is a valid core sun.
-        for size in [0.0, 0.2, -1.0, f32::NAN, 10.0] {
+        for size in [0.0, 0.2, -1.0, f32::NAN, 10.0, f32::INFINITY] {
             assert!(SunLight::new(Vec3::NEG_Y, radius(size)).is_ok(), "{size}");
         }
     }

@@ -229,6 +229,9 @@ pub(crate) struct GpuScene {
     pub receiver_depth: f32,
     /// The maps' region lies within this (map space; a sun's view fit).
     pub map_window: Option<(Vec2, Vec2)>,
+    /// `receiver_depth` is `L0` itself (a sun fitted to the views), not a
+    /// bound the casters' vertices may raise.
+    pub fixed_reference_depth: bool,
     /// World-space diagonal of the scene's bounds (epsilons; L0 when nothing is in front).
     pub extent: f32,
 }
@@ -332,6 +335,7 @@ impl GpuSceneBuilder {
             axes: frame.axes_f64(),
             receiver_depth: 0.0,
             map_window: None,
+            fixed_reference_depth: false,
             extent,
         }
     }

@@ -54,9 +54,12 @@ impl FinLight {
 ///   lights nothing — is not its shadow there.
 /// - `DirectionalLight` (+ `SunDisk`): the sun, a disk at infinity of half
 ///   the `SunDisk::angular_size` (`SunDisk::EARTH`, 0.53°, when it has none;
-///   at most 80°), through orthographic maps over everything drawn; `0` gives
-///   exactly the hard shadow. Bevy's cascades and contact shadows for it are
-///   off.
+///   at most 80°), through orthographic maps fitted to what the
+///   [`FinShadowView`] cameras see of the scene (out to their far plane;
+///   [`FinShadowSettings::fit_sun_to_views`]); `0` gives exactly the hard
+///   shadow. Bevy's cascades and contact shadows for it are off. Two suns of
+///   the same direction and colour on different render layers are not told
+///   apart by the compositing pass (it finds a sun in a view's list by them).
 /// - `PointLight`, `RectLight`: not modelled yet; said once at run time, and
 ///   they keep Bevy's own shadows.
 ///

@@ -14,7 +14,8 @@
 //!
 //! The window is quantised (sizes in steps of 2^¼, centres on a grid of a
 //! sixteenth of the size) so that a camera moving a little keeps the same
-//! maps, texel for texel: no shimmering edges, no re-extraction every frame.
+//! maps: no re-extraction every frame. (A step moves the texel grid by a
+//! fraction of a texel, so hard-edged penumbrae may shift once per step.)
 //! It is computed in the sun's axes, `(p · u, p · v)`, which depend only on
 //! its direction, so it can be compared between frames before the scene is
 //! collected; [`window_in_frame`] moves it into a frame's map coordinates.
@@ -40,7 +41,13 @@ pub(crate) fn view_volumes<'a>(
             Projection::Orthographic(o) => o.near,
             Projection::Custom(_) => return None,
         };
-        let (position, forward) = (transform.translation(), transform.forward().as_vec3());
+        // Not `GlobalTransform::forward`: it panics (debug) on a zero scale.
+        let forward = (transform.affine().matrix3 * bevy::math::Vec3A::NEG_Z).normalize_or_zero();
+        let position = transform.translation();
+        if !(forward.is_finite() && forward != bevy::math::Vec3A::ZERO) {
+            return None;
+        }
+        let forward = Vec3::from(forward);
         let deepest = box_corners.iter().map(|c| (*c - position).dot(forward)).fold(f32::NEG_INFINITY, f32::max);
         let far = projection.far().min(deepest);
         if !(near.is_finite() && far.is_finite() && position.is_finite()) {
@@ -65,9 +72,12 @@ const FRUSTUM_FACES: [[usize; 4]; 6] =
 const FRUSTUM_EDGES: [[usize; 2]; 12] =
     [[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [7, 4], [0, 4], [1, 5], [2, 6], [3, 7]];
 
-/// Planes `(n, d)` of a convex hexahedron, `n · p ≤ d` inside.
-fn planes(corners: &[Vec3; 8]) -> Vec<(Vec3, f32)> {
-    let centre = corners.iter().copied().sum::<Vec3>() / 8.0;
+/// Planes `(n, d)` of a convex hexahedron, `n · p ≤ d` inside. In f64: a
+/// window's prism is 20 wide and 2e6 long over a wide ground, and the cross
+/// product of its faces' two long, nearly parallel diagonals lost the side
+/// planes' direction in f32 (a plane 1e4 off at the far end).
+fn planes(corners: &[DVec3; 8]) -> Vec<(DVec3, f64)> {
+    let centre = corners.iter().copied().sum::<DVec3>() / 8.0;
     FRUSTUM_FACES
         .iter()
         .filter_map(|f| {
@@ -85,13 +95,15 @@ fn planes(corners: &[Vec3; 8]) -> Vec<(Vec3, f32)> {
 /// of one solid crosses a face plane of the other, or a corner of one lies
 /// in the other, kept when inside both). Empty when they do not meet.
 fn clipped_to_box(frustum: &[Vec3; 8], scene_box: (Vec3, Vec3)) -> Vec<Vec3> {
-    let boxed = corners(scene_box);
-    let (fp, bp) = (planes(frustum), planes(&boxed));
-    let size = (scene_box.1 - scene_box.0).length().max(frustum[0].distance(frustum[6]));
-    let tolerance = 1e-5 * size.max(scene_box.0.abs().max(scene_box.1.abs()).max_element());
-    let inside = |p: Vec3| fp.iter().chain(&bp).all(|(n, d)| n.dot(p) <= d + tolerance);
-    let mut points: Vec<Vec3> = frustum.iter().chain(&boxed).copied().filter(|p| inside(*p)).collect();
-    let mut cross = |solid: &[Vec3; 8], other: &[(Vec3, f32)]| {
+    let frustum = frustum.map(|p| p.as_dvec3());
+    let boxed = hexahedron(scene_box).map(|p| p.as_dvec3());
+    let (fp, bp) = (planes(&frustum), planes(&boxed));
+    // The corners' own f32 rounding, with room.
+    let magnitude = frustum.iter().chain(&boxed).map(|p| p.abs().max_element()).fold(1.0, f64::max);
+    let tolerance = 1e-6 * magnitude;
+    let inside = |p: DVec3| fp.iter().chain(&bp).all(|(n, d)| n.dot(p) <= d + tolerance);
+    let mut points: Vec<DVec3> = frustum.iter().chain(&boxed).copied().filter(|p| inside(*p)).collect();
+    let mut cross = |solid: &[DVec3; 8], other: &[(DVec3, f64)]| {
         for [i, j] in FRUSTUM_EDGES {
             let (a, b) = (solid[i], solid[j]);
             for (n, d) in other {
@@ -105,9 +117,9 @@ fn clipped_to_box(frustum: &[Vec3; 8], scene_box: (Vec3, Vec3)) -> Vec<Vec3> {
             }
         }
     };
-    cross(frustum, &bp);
+    cross(&frustum, &bp);
     cross(&boxed, &fp);
-    points
+    points.into_iter().map(|p| p.as_vec3()).collect()
 }
 
 /// The map window of `sun` over `volumes`, in the sun's axes
@@ -144,6 +156,45 @@ fn quantised(lo: f32, hi: f32) -> (f32, f32) {
     (centre - half, centre + half)
 }
 
+/// The sun's frame for a window from [`sun_window`], and its reference depth
+/// `L0`: the origin at the window's centre, just in front of where the
+/// window's prism (the window extruded along the sun) meets the scene's box,
+/// `L0` at that solid's deepest point. Frame coordinates are then as small as
+/// what the cameras see, not as the whole scene: on a ground 2e6 wide the
+/// scene-wide origin put visible points 1.4e6 away (f32 depths 0.125 apart,
+/// a receiver lift of 14). Every receiver in the window lies within the
+/// solid, so none is beyond `L0` or in front of the origin; casters outside
+/// the prism may be (negative depths), and only reach texels outside the
+/// window. `None` when the prism misses the box.
+pub(crate) fn window_frame(window: [f32; 4], scene_box: (Vec3, Vec3), sun: &SunLight) -> Option<(LightFrame, f32)> {
+    let [u, v, n] = LightFrame::sun(sun, Vec3::ZERO, Vec3::ONE).axes_f64();
+    let box_depths = corners(scene_box).map(|c| c.as_dvec3().dot(n));
+    let (zlo, zhi) = box_depths.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), z| (a.min(*z), b.max(*z)));
+    let at = |x: f32, y: f32, z: f64| (u * x as f64 + v * y as f64 + n * z).as_vec3();
+    let [x0, y0, x1, y1] = window;
+    let prism = [
+        at(x1, y0, zlo),
+        at(x1, y1, zlo),
+        at(x0, y1, zlo),
+        at(x0, y0, zlo),
+        at(x1, y0, zhi),
+        at(x1, y1, zhi),
+        at(x0, y1, zhi),
+        at(x0, y0, zhi),
+    ];
+    let inside = clipped_to_box(&prism, scene_box);
+    let depths = inside.iter().map(|p| p.as_dvec3().dot(n));
+    let (near, far) = depths.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), z| (a.min(z), b.max(z)));
+    if !(near <= far) {
+        return None;
+    }
+    // A margin in front: the solid's points are found in f32.
+    let margin = 1e-3 * (far - near) + 1e-6 * near.abs().max(far.abs()).max(1.0);
+    let centre = (x0 as f64 + x1 as f64) * 0.5 * u + (y0 as f64 + y1 as f64) * 0.5 * v;
+    let frame = LightFrame::sun_at(sun, centre + n * (near - margin));
+    Some((frame, (far - near + 2.0 * margin) as f32))
+}
+
 /// A window from [`sun_window`] in `frame`'s map coordinates (the sun's
 /// frame's `x, y` are the axes' minus its origin's, in f64).
 pub(crate) fn window_in_frame(window: [f32; 4], frame: &LightFrame) -> (Vec2, Vec2) {
@@ -155,6 +206,18 @@ pub(crate) fn window_in_frame(window: [f32; 4], frame: &LightFrame) -> (Vec2, Ve
     (Vec2::new(at(window[0], ou), at(window[1], ov)), Vec2::new(at(window[2], ou), at(window[3], ov)))
 }
 
+/// A box's corners in the frusta's cyclic order (`FRUSTUM_FACES`): its
+/// `z = min` face, then its `z = max` face, each turning the same way. (In
+/// [`corners`]' bit order two "faces" were bow-ties and two were diagonal
+/// planes through the centre: the clip kept a wedge of the box.)
+fn hexahedron((a, b): (Vec3, Vec3)) -> [Vec3; 8] {
+    let face =
+        |z: f32| [Vec3::new(b.x, a.y, z), Vec3::new(b.x, b.y, z), Vec3::new(a.x, b.y, z), Vec3::new(a.x, a.y, z)];
+    let (near, far) = (face(a.z), face(b.z));
+    [near[0], near[1], near[2], near[3], far[0], far[1], far[2], far[3]]
+}
+
+/// The box's corners in bit order (x, y, z): for projecting it.
 fn corners((a, b): (Vec3, Vec3)) -> [Vec3; 8] {
     std::array::from_fn(|k| {
         Vec3::new(
@@ -193,6 +256,36 @@ mod tests {
     }
 
     #[test]
+    fn a_frustum_around_the_box_keeps_all_of_it_and_one_seeing_its_top_keeps_the_top() {
+        // A box 20 wide and 10 tall. A camera far away sees all of it: the
+        // clip keeps the eight corners.
+        let scene = (Vec3::new(-10.0, 0.0, -10.0), Vec3::new(10.0, 10.0, 10.0));
+        let (t, p) = camera(Vec3::new(0.0, 20.0, 100.0), Vec3::ZERO);
+        let all = view_volumes(std::iter::once((&t, &p)), scene).unwrap().remove(0);
+        for c in corners(scene) {
+            assert!(all.iter().any(|q| q.distance(c) < 1e-3), "corner {c} lost: {all:?}");
+        }
+        // A camera seeing only the upper part of the box's front, under a
+        // slanted sun: the window covers the point it looks at.
+        let sun = SunLight::new(Vec3::new(0.6, -1.0, 0.3), 0.01).unwrap();
+        let (t, p) = camera(Vec3::new(0.0, 9.0, 30.0), Vec3::new(0.0, 9.0, 10.0));
+        let volumes = view_volumes(std::iter::once((&t, &p)), scene).unwrap();
+        let w = sun_window(&volumes, scene, &sun).unwrap();
+        let [u, v, _] = LightFrame::sun(&sun, Vec3::ZERO, Vec3::ONE).axes();
+        let seen = Vec3::new(0.0, 9.0, 10.0);
+        let q = Vec2::new(seen.dot(u), seen.dot(v));
+        assert!(q.x >= w[0] && q.x <= w[2] && q.y >= w[1] && q.y <= w[3], "{q} outside {w:?}");
+    }
+
+    #[test]
+    fn a_camera_with_a_zero_scale_gives_up_the_window_instead_of_panicking() {
+        let scene = (Vec3::splat(-1.0), Vec3::splat(1.0));
+        let t = GlobalTransform::from(Transform::from_scale(Vec3::ZERO));
+        let p = Projection::Perspective(PerspectiveProjection::default());
+        assert!(view_volumes(std::iter::once((&t, &p)), scene).is_none());
+    }
+
+    #[test]
     fn a_small_camera_move_keeps_the_window_and_a_large_one_moves_it() {
         let scene = (Vec3::new(-100.0, 0.0, -100.0), Vec3::new(100.0, 2.0, 100.0));
         let sun = SunLight::new(Vec3::new(0.3, -1.0, 0.2), 0.01).unwrap();
@@ -202,6 +295,30 @@ mod tests {
         };
         assert_eq!(window(0.0), window(0.01), "a 1 cm move re-fitted the maps");
         assert_ne!(window(0.0), window(30.0), "a 30 m move kept the maps where they were");
+    }
+
+    #[test]
+    fn a_window_frame_sits_at_what_the_window_shows_however_wide_the_ground() {
+        // A box 2 tall on grounds up to 2e6 wide, the sun slanted: the frame's
+        // origin is just in front of the box's top inside the window, and L0
+        // about the window's depth there — not the ground's far corners (in
+        // f32 the window's long prism lost its side planes at 2e6: the origin
+        // came out 6e5 away).
+        let sun = SunLight::new(Vec3::new(0.3, -1.0, 0.2), 0.1).unwrap();
+        for half in [1e1f32, 1e4, 1e6] {
+            let scene = (Vec3::new(-half, 0.0, -half), Vec3::new(half, 2.0, half));
+            let (t, p) = camera(Vec3::new(3.0, 4.0, 4.5), Vec3::new(0.0, 0.3, 0.0));
+            let volumes = view_volumes(std::iter::once((&t, &p)), scene).unwrap();
+            let window = sun_window(&volumes, scene, &sun).unwrap();
+            let (frame, l0) = window_frame(window, scene, &sun).unwrap();
+            let origin = frame.origin().as_vec3();
+            assert!(origin.length() < 50.0, "{half}: origin {origin} far from the view");
+            assert!(l0 > 0.0 && l0 < 60.0, "{half}: L0 {l0}");
+            // The point the camera looks at is in front of the origin and
+            // not beyond L0.
+            let target = frame.to_frame(Vec3::new(0.0, 0.0, 0.0));
+            assert!(target.z > 0.0 && target.z <= l0, "{half}: target depth {} vs L0 {l0}", target.z);
+        }
     }
 
     #[test]

@@ -135,6 +135,18 @@ impl LightFrame {
         }
     }
 
+    /// Frame of a sun light with its origin where the caller puts it (every
+    /// depth that matters must be positive: a renderer puts it in front of
+    /// the part of the scene its cameras see, so that frame coordinates stay
+    /// as small as that part, not as the whole scene).
+    pub fn sun_at(light: &SunLight, origin: DVec3) -> Self {
+        Self {
+            origin,
+            axes: orthonormal_axes(light.direction.as_dvec3()),
+            projection: Projection::Orthographic { tan_angle: light.angular_radius.tan() },
+        }
+    }
+
     pub fn new(light: &Light, scene_min: Vec3, scene_max: Vec3) -> Self {
         match light {
             Light::Disk(d) => Self::disk(d),

@@ -452,10 +452,11 @@ fn sync_light(
                 match directional {
                     Some(mut d) => *d = sun,
                     None => {
-                        commands.entity(entity).remove::<(PointLight, FinLight, SpotLight)>().insert((sun, FinShadows));
+                        commands.entity(entity).remove::<(PointLight, FinLight, SpotLight)>().insert(sun);
                     }
                 }
-                commands.entity(entity).insert(disk);
+                // Also after Bevy PCSS, which kept the DirectionalLight but not FinShadows.
+                commands.entity(entity).insert((disk, FinShadows));
                 return;
             }
             if params.kind == LightKind::Spot {

@@ -286,7 +286,13 @@ pub(super) fn prepare(
         totals: [scene.instances.len() as u32, vertices, faces, edges],
         layering: [s.sub_layers, layers, scene.capacity.layers, resolution],
         capacity: [scene.capacity.silhouettes, scene.capacity.fins, scene.capacity.casters, method],
-        light: [frame.size, scene.extent, scene.receiver_depth, if frame.orthographic { 1.0 } else { 0.0 }],
+        // w: 0 perspective, 1 orthographic, 2 orthographic with L0 = z fixed (a sun fitted to the views).
+        light: [
+            frame.size,
+            scene.extent,
+            scene.receiver_depth,
+            frame.orthographic as u32 as f32 + scene.fixed_reference_depth as u32 as f32,
+        ],
         flags: [super_params.flags[0], super_params.flags[1], super_params.flags[2], frame.generation as u32],
         origin: v4(frame.origin),
         axis_u: v4(scene.axes[0]),
