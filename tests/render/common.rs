@@ -110,3 +110,27 @@ pub fn assert_visibility_not_trivial(visibility: &[f32]) {
     let lit = visibility.iter().filter(|v| **v > 0.95).count();
     assert!(dark > 50 && lit > 50, "visibility buffer is trivial: {dark} dark, {lit} lit pixels");
 }
+
+/// Per pixel (linear green): |image − (dark + Σ_k V_k·(lit_k − dark))|, the
+/// composite of several fin-shadowed lights against each light's own shadowed
+/// contribution, with `lights` = (V_k, the image of light k alone over casters
+/// that do not cast). Over the pixels where nothing clips at white and some
+/// light's V passes `counted`.
+pub fn composite_sum_errors(
+    image: &Shot,
+    lights: &[(&[f32], &Shot)],
+    dark: &Shot,
+    counted: impl Fn(f32) -> bool,
+) -> Vec<f32> {
+    let (ic, dc) = (linear_rgb(image), linear_rgb(dark));
+    let lit: Vec<Vec<[f32; 3]>> = lights.iter().map(|(_, shot)| linear_rgb(shot)).collect();
+    (0..ic.len())
+        .filter(|&i| lit.iter().map(|l| l[i][1] - dc[i][1]).sum::<f32>() + dc[i][1] < 0.95 && ic[i][1] < 0.95)
+        .filter(|&i| lights.iter().any(|(v, _)| counted(v[i])))
+        .map(|i| {
+            let expected =
+                dc[i][1] + lights.iter().zip(&lit).map(|((v, _), l)| v[i] * (l[i][1] - dc[i][1])).sum::<f32>();
+            (ic[i][1] - expected).abs()
+        })
+        .collect()
+}

@@ -13,7 +13,7 @@ use shadow_fins::{
     oracle::Method,
     scenes::SceneId,
 };
-use shadow_fins_app::harness::{Session, Setup};
+use shadow_fins_app::harness::{Session, Setup, Shot};
 
 use super::common::*;
 
@@ -198,16 +198,9 @@ fn two_lights_composite_to_the_sum_of_their_shadowed_contributions() {
         render_bevy_lights(&unshadowed(b)),
         render_bevy_lights(&dark),
     );
-    let (sc, la, lb, dc) = (linear_rgb(&shot), linear_rgb(&lit_a), linear_rgb(&lit_b), linear_rgb(&dark));
     let (va, vb) = (&shot.light_visibility[0], &shot.light_visibility[1]);
-    let errors: Vec<f32> = (0..sc.len())
-        .filter(|&i| la[i][1] + lb[i][1] - dc[i][1] < 0.95 && sc[i][1] < 0.95)
-        .filter(|&i| (0.05..0.95).contains(&va[i]) || (0.05..0.95).contains(&vb[i]))
-        .map(|i| {
-            let expected = dc[i][1] + va[i] * (la[i][1] - dc[i][1]) + vb[i] * (lb[i][1] - dc[i][1]);
-            (sc[i][1] - expected).abs()
-        })
-        .collect();
+    let lights: [(&[f32], &Shot); 2] = [(va, &lit_a), (vb, &lit_b)];
+    let errors = composite_sum_errors(&shot, &lights, &dark, |v| (0.05..0.95).contains(&v));
     let n = errors.len();
     assert!(n > 100, "only {n} penumbra pixels");
     let (mean, p99) = mean_and_p99(errors);

@@ -7,7 +7,7 @@
 
 use bevy_shadow_fins::{FinExtraction, FinMethod, FinShadowSettings};
 use shadow_fins::{ground_truth::GroundTruth, light::Light, oracle::Method, scene::LightSpaceScene, scenes::SceneId};
-use shadow_fins_app::harness::Setup;
+use shadow_fins_app::harness::{Setup, Shot};
 
 use super::common::*;
 
@@ -189,15 +189,8 @@ fn a_sun_and_a_spot_light_each_match_their_shadow_alone_and_add_up() {
     assert!(apart > 0.01, "the two lights cast the same shadow ({apart}): the test would prove nothing");
     assert!(mad_sun <= 1e-4 && mad_spot <= 1e-4, "sun {mad_sun}, spot {mad_spot}");
 
-    let (sc, ls, lp, dc) = (linear_rgb(&shot), linear_rgb(&lit_sun), linear_rgb(&lit_spot), linear_rgb(&dark));
-    let errors: Vec<f32> = (0..sc.len())
-        .filter(|&i| ls[i][1] + lp[i][1] - dc[i][1] < 0.95 && sc[i][1] < 0.95)
-        .filter(|&i| v_sun[i] < 0.95 || v_spot[i] < 0.95)
-        .map(|i| {
-            let expected = dc[i][1] + v_sun[i] * (ls[i][1] - dc[i][1]) + v_spot[i] * (lp[i][1] - dc[i][1]);
-            (sc[i][1] - expected).abs()
-        })
-        .collect();
+    let lights: [(&[f32], &Shot); 2] = [(v_sun, &lit_sun), (v_spot, &lit_spot)];
+    let errors = composite_sum_errors(&shot, &lights, &dark, |v| v < 0.95);
     let n = errors.len();
     assert!(n > 100, "only {n} shadowed pixels");
     let (mean, p99) = mean_and_p99(errors);
@@ -241,4 +234,36 @@ fn a_sun_on_another_render_layer_is_never_taken_away_from_a_view_that_does_not_s
     println!("sun on another layer: largest |with sun − without| {worst:.4} on the view that does not see it");
     // One 8-bit step.
     assert!(worst <= 0.01, "the view is changed by a sun it does not see: {worst}");
+}
+
+#[test]
+fn a_still_or_slightly_moved_camera_keeps_the_suns_frame_and_a_far_move_rebuilds_it() {
+    // The fitted window is quantised: frames that change nothing keep the
+    // sun's frame (its generation), a camera nudged by a millimetre too; a
+    // camera moved across the scene gets new maps where it now looks.
+    use bevy::prelude::*;
+    let setup = sun_setup(SceneId::BoxOverPlane, settings());
+    let mut session = shadow_fins_app::harness::Session::new(&setup);
+    session.settle(16).expect("render");
+    let generation = |session: &mut shadow_fins_app::harness::Session| {
+        let frames = session.app.world().resource::<bevy_shadow_fins::FinFrames>();
+        frames.0.first().expect("the sun's frame").data.generation
+    };
+    let camera = |world: &mut World| world.query_filtered::<Entity, With<Camera3d>>().single(world).expect("camera");
+    let before = generation(&mut session);
+    for _ in 0..4 {
+        session.update();
+    }
+    assert_eq!(generation(&mut session), before, "nothing moved, yet the sun's frame was rebuilt");
+    let world = session.app.world_mut();
+    let c = camera(world);
+    world.get_mut::<Transform>(c).unwrap().translation.x += 1e-3;
+    session.update();
+    session.update();
+    assert_eq!(generation(&mut session), before, "a 1 mm camera move rebuilt the sun's frame");
+    let world = session.app.world_mut();
+    world.get_mut::<Transform>(c).unwrap().translation += Vec3::new(-4.0, 0.0, -6.0);
+    session.update();
+    session.update();
+    assert_ne!(generation(&mut session), before, "a camera moved across the scene kept maps fitted to its old view");
 }
