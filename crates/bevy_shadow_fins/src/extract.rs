@@ -202,6 +202,9 @@ pub(crate) struct LightState {
     pub(crate) shortfall: Option<FinDegradation>,
     /// The degradation last warned about.
     pub(crate) warned: Option<FinDegradation>,
+    /// A sun's map window in its last frame (`sun_fit::sun_window` keeps it
+    /// while it still fits).
+    window: Option<[f32; 4]>,
 }
 
 #[derive(Resource, Default)]
@@ -432,7 +435,8 @@ fn update_fin_frames(
         for source in &mut sources {
             if let (Light::Sun(sun), Some(volumes), true) = (&source.light, &volumes, source.settings.fit_sun_to_views)
             {
-                source.window = sun_fit::sun_window(volumes, scene_box, sun);
+                let previous = cache.lights.get(&source.entity).and_then(|s| s.window);
+                source.window = sun_fit::sun_window(volumes, scene_box, sun, previous);
             }
         }
     }
@@ -445,6 +449,7 @@ fn update_fin_frames(
         let mut hasher = std::collections::hash_map::DefaultHasher::new();
         scene_signature.hash(&mut hasher);
         let state = cache.lights.entry(source.entity).or_default();
+        state.window = source.window;
         state.capacity_epoch.hash(&mut hasher);
         source.settings.hash(&mut hasher);
         hash_floats(&mut hasher, &light_key(&source.light));

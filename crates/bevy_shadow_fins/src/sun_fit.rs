@@ -125,7 +125,16 @@ fn clipped_to_box(frustum: &[Vec3; 8], scene_box: (Vec3, Vec3)) -> Vec<Vec3> {
 /// The map window of `sun` over `volumes`, in the sun's axes
 /// `[min u, min v, max u, max v]`, cut to the scene box's own footprint and
 /// quantised; `None` when no camera sees the scene.
-pub(crate) fn sun_window(volumes: &[Vec<Vec3>], scene_box: (Vec3, Vec3), sun: &SunLight) -> Option<[f32; 4]> {
+///
+/// Hysteresis: the `previous` window stays while it still covers what the
+/// cameras see and is at most two size steps (2^½) wider than a new one
+/// would be; a camera bobbing across a step boundary keeps its maps.
+pub(crate) fn sun_window(
+    volumes: &[Vec<Vec3>],
+    scene_box: (Vec3, Vec3),
+    sun: &SunLight,
+    previous: Option<[f32; 4]>,
+) -> Option<[f32; 4]> {
     let [u, v, _] = LightFrame::sun(sun, Vec3::ZERO, Vec3::ONE).axes();
     let footprint = |points: &mut dyn Iterator<Item = Vec3>| {
         points.fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), p| {
@@ -141,7 +150,13 @@ pub(crate) fn sun_window(volumes: &[Vec<Vec3>], scene_box: (Vec3, Vec3), sun: &S
     }
     let (x0, x1) = quantised(lo.x, hi.x);
     let (y0, y1) = quantised(lo.y, hi.y);
-    Some([x0, y0, x1, y1])
+    let fresh = [x0, y0, x1, y1];
+    let keep = previous.filter(|p| {
+        let covers = p[0] <= lo.x && p[1] <= lo.y && p[2] >= hi.x && p[3] >= hi.y;
+        let side = |w: &[f32; 4]| (w[2] - w[0]).max(w[3] - w[1]);
+        covers && side(p) <= side(&fresh) * std::f32::consts::SQRT_2 * 1.001
+    });
+    Some(keep.unwrap_or(fresh))
 }
 
 /// `[lo, hi]` widened to a size of a power of 2^¼ and a centre on a grid of
@@ -245,7 +260,7 @@ mod tests {
         let sun = SunLight::new(Vec3::NEG_Y, 0.01).unwrap();
         let (t, p) = camera(Vec3::new(80.0, 3.0, 83.0), Vec3::new(80.0, 0.0, 80.0));
         let volumes = view_volumes(std::iter::once((&t, &p)), scene).unwrap();
-        let w = sun_window(&volumes, scene, &sun).unwrap();
+        let w = sun_window(&volumes, scene, &sun, None).unwrap();
         let (width, height) = (w[2] - w[0], w[3] - w[1]);
         assert!(width < 20.0 && height < 20.0, "window {w:?} is not fitted to the view");
         // It covers what the camera sees: the point it looks at, in the sun's axes.
@@ -270,7 +285,7 @@ mod tests {
         let sun = SunLight::new(Vec3::new(0.6, -1.0, 0.3), 0.01).unwrap();
         let (t, p) = camera(Vec3::new(0.0, 9.0, 30.0), Vec3::new(0.0, 9.0, 10.0));
         let volumes = view_volumes(std::iter::once((&t, &p)), scene).unwrap();
-        let w = sun_window(&volumes, scene, &sun).unwrap();
+        let w = sun_window(&volumes, scene, &sun, None).unwrap();
         let [u, v, _] = LightFrame::sun(&sun, Vec3::ZERO, Vec3::ONE).axes();
         let seen = Vec3::new(0.0, 9.0, 10.0);
         let q = Vec2::new(seen.dot(u), seen.dot(v));
@@ -291,7 +306,7 @@ mod tests {
         let sun = SunLight::new(Vec3::new(0.3, -1.0, 0.2), 0.01).unwrap();
         let window = |x: f32| {
             let (t, p) = camera(Vec3::new(x, 5.0, 8.0), Vec3::new(x, 0.0, 0.0));
-            sun_window(&view_volumes(std::iter::once((&t, &p)), scene).unwrap(), scene, &sun).unwrap()
+            sun_window(&view_volumes(std::iter::once((&t, &p)), scene).unwrap(), scene, &sun, None).unwrap()
         };
         assert_eq!(window(0.0), window(0.01), "a 1 cm move re-fitted the maps");
         assert_ne!(window(0.0), window(30.0), "a 30 m move kept the maps where they were");
@@ -309,7 +324,7 @@ mod tests {
             let scene = (Vec3::new(-half, 0.0, -half), Vec3::new(half, 2.0, half));
             let (t, p) = camera(Vec3::new(3.0, 4.0, 4.5), Vec3::new(0.0, 0.3, 0.0));
             let volumes = view_volumes(std::iter::once((&t, &p)), scene).unwrap();
-            let window = sun_window(&volumes, scene, &sun).unwrap();
+            let window = sun_window(&volumes, scene, &sun, None).unwrap();
             let (frame, l0) = window_frame(window, scene, &sun).unwrap();
             let origin = frame.origin().as_vec3();
             assert!(origin.length() < 50.0, "{half}: origin {origin} far from the view");
@@ -319,6 +334,27 @@ mod tests {
             let target = frame.to_frame(Vec3::new(0.0, 0.0, 0.0));
             assert!(target.z > 0.0 && target.z <= l0, "{half}: target depth {} vs L0 {l0}", target.z);
         }
+    }
+
+    #[test]
+    fn a_window_is_kept_while_it_covers_the_view_and_is_not_much_too_big() {
+        let scene = (Vec3::new(-100.0, 0.0, -100.0), Vec3::new(100.0, 2.0, 100.0));
+        let sun = SunLight::new(Vec3::NEG_Y, 0.01).unwrap();
+        let window = |height: f32, previous| {
+            let (t, p) = camera(Vec3::new(0.0, height, 0.01), Vec3::ZERO);
+            sun_window(&view_volumes(std::iter::once((&t, &p)), scene).unwrap(), scene, &sun, previous).unwrap()
+        };
+        // Find two heights whose fresh windows differ by a size step.
+        let a = window(5.0, None);
+        let b = (1..200).map(|k| 5.0 + k as f32 * 0.01).map(|h| (h, window(h, None))).find(|(_, w)| *w != a);
+        let (h, b) = b.expect("a size step between 5 and 7");
+        // Bobbing back below the boundary keeps the bigger window; growing past it takes a new one.
+        assert_eq!(window(5.0, Some(b)), b, "the wider window covers the lower view: kept");
+        // 10% higher the view is past the smaller window's margin (a sixteenth plus 2%).
+        assert_eq!(window(h * 1.1, Some(a)), window(h * 1.1, None), "the smaller window does not cover: replaced");
+        // A window far too big (the camera came much closer) is replaced.
+        let far = window(40.0, None);
+        assert_eq!(window(5.0, Some(far)), a, "a window 8× too wide is not kept");
     }
 
     #[test]
@@ -339,6 +375,6 @@ mod tests {
         let (t, p) = camera(Vec3::new(0.0, 0.0, 10.0), Vec3::new(0.0, 0.0, 20.0));
         let volumes = view_volumes(std::iter::once((&t, &p)), scene).unwrap();
         assert!(volumes.iter().all(|v| v.is_empty()));
-        assert_eq!(sun_window(&volumes, scene, &sun), None);
+        assert_eq!(sun_window(&volumes, scene, &sun, None), None);
     }
 }
