@@ -69,3 +69,53 @@ fn radius_layers_and_refinement_change_the_read_back() {
     let (mad, _) = compare(&unrefined, &expected);
     assert!(mad <= 0.01, "after the change: mean difference {mad}");
 }
+
+#[test]
+fn a_hidden_mesh_and_one_with_bevys_not_shadow_caster_cast_no_fin_shadow_until_they_do() {
+    // The box over the plane: its shadow is there; `Visibility::Hidden` (the
+    // mesh is not drawn) or Bevy's `NotShadowCaster` takes it away, as
+    // removing the box would; undoing either brings it back exactly.
+    let setup = setup(SceneId::BoxOverPlane, settings());
+    let mut no_box = setup.clone();
+    no_box.scene.objects.retain(|o| o.name != "box");
+    let mut session = harness::Session::new(&setup);
+    let shadowed = session.settle(6).expect("render").visibility;
+    assert_visibility_not_trivial(&shadowed);
+    let unshadowed = render(&no_box).visibility;
+    let world = session.app.world_mut();
+    let mut meshes = world.query::<(Entity, &Mesh3d, &GlobalTransform)>();
+    // The box is the mesh above the ground.
+    let the_box = meshes.iter(world).find(|(_, _, t)| t.translation().y > 1.0).expect("the box").0;
+    for (what, hide, show) in [
+        (
+            "Visibility::Hidden",
+            (|e: &mut EntityWorldMut| {
+                e.insert(Visibility::Hidden);
+            }) as fn(&mut EntityWorldMut),
+            (|e: &mut EntityWorldMut| {
+                e.insert(Visibility::Inherited);
+            }) as fn(&mut EntityWorldMut),
+        ),
+        (
+            "NotShadowCaster",
+            |e: &mut EntityWorldMut| {
+                e.insert(bevy::light::NotShadowCaster);
+            },
+            |e: &mut EntityWorldMut| {
+                e.remove::<bevy::light::NotShadowCaster>();
+            },
+        ),
+    ] {
+        hide(&mut session.app.world_mut().entity_mut(the_box));
+        let hidden = session.settle(6).expect("render").visibility;
+        let (mad, _) = compare(&hidden, &unshadowed);
+        println!("{what}: |V − V without the box| = {mad:.2e}");
+        // A hidden box is not drawn, so it does not receive either: the
+        // pixels where it stood see the ground, as without it.
+        assert!(mad <= 1e-4, "{what}: the box still casts ({mad})");
+        show(&mut session.app.world_mut().entity_mut(the_box));
+        let back = session.settle(6).expect("render").visibility;
+        let (mad, _) = compare(&back, &shadowed);
+        assert!(mad <= 1e-4, "{what}: the shadow did not come back ({mad})");
+    }
+}

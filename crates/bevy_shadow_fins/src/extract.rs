@@ -224,6 +224,7 @@ pub(crate) fn build(app: &mut App) {
             .after(TransformSystems::Propagate)
             // A sun's window reads this frame's boxes and camera projections.
             .after(bevy::camera::visibility::VisibilitySystems::CalculateBounds)
+            .after(bevy::camera::visibility::VisibilitySystems::VisibilityPropagate)
             .after(bevy::camera::CameraUpdateSystems),
     );
 }
@@ -316,6 +317,30 @@ pub(crate) fn sun_angular_radius(sun_disk: Option<&SunDisk>) -> f32 {
     if size.is_nan() { 0.0 } else { (size * 0.5).clamp(0.0, 1.4) }
 }
 
+/// What makes a mesh a caster: drawn (`InheritedVisibility`; a mesh hidden
+/// by it or a parent casts no shadow, as in Bevy's own maps), and neither
+/// `NotFinShadowCaster` nor Bevy's `NotShadowCaster`.
+#[derive(bevy::ecs::query::QueryData)]
+pub(crate) struct CasterFlags {
+    not_fin_caster: Has<NotFinShadowCaster>,
+    not_bevy_caster: Has<bevy::light::NotShadowCaster>,
+    visibility: Option<&'static InheritedVisibility>,
+    aabb: Option<&'static Aabb>,
+}
+
+impl CasterFlagsItem<'_, '_> {
+    fn drawn(&self) -> bool {
+        self.visibility.is_none_or(|v| v.get())
+    }
+
+    fn casts(&self) -> bool {
+        !self.not_fin_caster && !self.not_bevy_caster
+    }
+}
+
+/// Every mesh that may cast or receive.
+type Casters<'w, 's> = Query<'w, 's, (Entity, &'static Mesh3d, &'static GlobalTransform, CasterFlags)>;
+
 /// Every `SpotLight`, fin-shadowed (`FinShadows`) or not: mutable, so that
 /// one that stops being fin-shadowed can be marked changed.
 type SpotLights<'w, 's> = Query<
@@ -353,7 +378,7 @@ fn update_fin_frames(
     mut spot_lights: SpotLights,
     mut directional_lights: DirectionalLights,
     other_lights: Query<(), (With<FinShadows>, Without<SpotLight>, Without<DirectionalLight>, Without<FinLight>)>,
-    casters: Query<(Entity, &Mesh3d, &GlobalTransform, Has<NotFinShadowCaster>, Option<&Aabb>)>,
+    casters: Casters,
     views: Query<(&GlobalTransform, &Projection), With<FinShadowView>>,
     mut light_stats: Query<&mut FinLightStats>,
     meshes: Res<Assets<Mesh>>,
@@ -412,8 +437,14 @@ fn update_fin_frames(
     // A mesh without an `Aabb` (`NoFrustumCulling`, `NoAutoAabb`) has no box
     // here: then no sun is fitted to the views, which could cut it out.
     let mut every_mesh_boxed = true;
-    for (entity, mesh, transform, not_caster, aabb) in &casters {
-        match aabb {
+    for (entity, mesh, transform, caster) in &casters {
+        entity.hash(&mut hasher);
+        let casting = caster.casts();
+        (caster.drawn(), casting).hash(&mut hasher);
+        if !caster.drawn() {
+            continue;
+        }
+        match caster.aabb {
             Some(aabb) => {
                 for c in world_corners(aabb, transform).into_iter().filter(|c| c.is_finite()) {
                     scene_box = (scene_box.0.min(c), scene_box.1.max(c));
@@ -421,8 +452,6 @@ fn update_fin_frames(
             }
             None => every_mesh_boxed = false,
         }
-        entity.hash(&mut hasher);
-        not_caster.hash(&mut hasher);
         mesh.id().hash(&mut hasher);
         // A mesh that finishes loading changes the frame too.
         meshes.contains(mesh.id()).hash(&mut hasher);
@@ -544,15 +573,12 @@ struct CasterScene {
 }
 
 impl CasterScene {
-    #[allow(clippy::type_complexity)]
-    fn collect(
-        casters: &Query<(Entity, &Mesh3d, &GlobalTransform, Has<NotFinShadowCaster>, Option<&Aabb>)>,
-        meshes: &Assets<Mesh>,
-        cache: &mut HashMap<AssetId<Mesh>, CachedMesh>,
-    ) -> Self {
+    fn collect(casters: &Casters, meshes: &Assets<Mesh>, cache: &mut HashMap<AssetId<Mesh>, CachedMesh>) -> Self {
         let mut scene = Self { objects: vec![], gpu_meshes: vec![], bounds: vec![], unread_bounds: vec![] };
-        for (_, mesh3d, transform, not_caster, aabb) in casters {
-            let corners = aabb.map(|b| world_corners(b, transform));
+        // A hidden mesh is not drawn: it neither casts nor receives.
+        for (_, mesh3d, transform, caster) in casters.iter().filter(|c| c.3.drawn()) {
+            let not_caster = !caster.casts();
+            let corners = caster.aabb.map(|b| world_corners(b, transform));
             let Some(mesh) = meshes.get(mesh3d.id()) else {
                 scene.unread_bounds.extend(corners);
                 continue;

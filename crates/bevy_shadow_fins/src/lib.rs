@@ -64,8 +64,10 @@
 //! shadowed, which is why the plugin still sets `DefaultOpaqueRendererMethod`
 //! to deferred (see below) — lifting that needs the forward path, still open.
 //!
-//! Every mesh with a `Mesh3d` casts and receives (opt out with
-//! [`NotFinShadowCaster`] and [`NotFinShadowReceiver`]); materials are
+//! Every drawn mesh with a `Mesh3d` casts and receives (opt out with
+//! [`NotFinShadowCaster`] or Bevy's `NotShadowCaster`, and
+//! [`NotFinShadowReceiver`]; a mesh hidden by `Visibility` casts nothing;
+//! `RenderLayers` are not yet honoured for casters); materials are
 //! unchanged. The plugin makes deferred the default opaque renderer method
 //! (`DefaultOpaqueRendererMethod`), because the fin light is composited from
 //! the G-buffer: 3D cameras that show fin-lit scenes carry [`FinShadowView`],

@@ -235,7 +235,8 @@ pub struct FinShadowView {
     pub light_visibility_targets: Vec<(Entity, Handle<Image>)>,
 }
 
-/// Keeps a mesh from casting fin shadows (like Bevy's `NotShadowCaster`).
+/// Keeps a mesh from casting fin shadows while Bevy's own shadow maps still
+/// see it. Bevy's `NotShadowCaster` keeps it from casting both.
 #[derive(Component, Debug, Clone, Copy, Default, Reflect)]
 #[reflect(Component, Default, Debug, Clone)]
 pub struct NotFinShadowCaster;
