@@ -594,12 +594,16 @@ impl CasterScene {
                 scene.unread_bounds.extend(corners);
                 continue;
             };
-            if let Ok(mut o) = SceneObject::shared("mesh", core.clone(), topology.clone(), transform.affine()) {
-                // Meshes that do not cast still receive: they count for the reference plane.
-                o.casts_shadows = !not_caster;
-                scene.objects.push(o);
-                scene.gpu_meshes.push(geometry.clone());
-                scene.bounds.push(corners);
+            match SceneObject::shared("mesh", core.clone(), topology.clone(), transform.affine()) {
+                Ok(mut o) => {
+                    // Meshes that do not cast still receive: they count for the reference plane.
+                    o.casts_shadows = !not_caster;
+                    scene.objects.push(o);
+                    scene.gpu_meshes.push(geometry.clone());
+                    scene.bounds.push(corners);
+                }
+                // A degenerate transform: Bevy may still draw it; it receives.
+                Err(_) => scene.unread_bounds.extend(corners),
             }
         }
         scene
@@ -925,7 +929,8 @@ impl InFrame {
             (mlo, mhi) = (mlo.max(wlo), mhi.min(whi));
         }
         let texel = (mhi - mlo).max_element() / resolution.max(1) as f32;
-        let width = tan_angle * (fhi.z - flo.z);
+        // A frame fixed at the views' window casts fins no deeper than its L0.
+        let width = tan_angle * self.reference_depth.unwrap_or(fhi.z - flo.z);
         if texel > 0.0 && width.is_finite() { width / texel } else { f32::INFINITY }
     }
 

@@ -203,8 +203,13 @@ pub(crate) fn window_frame(window: [f32; 4], scene_box: (Vec3, Vec3), sun: &SunL
     if !(near <= far) {
         return None;
     }
-    // A margin in front: the solid's points are found in f32.
-    let margin = 1e-3 * (far - near) + 1e-6 * near.abs().max(far.abs()).max(1.0);
+    // A margin on both sides, at least a receiver's lift off its surface
+    // (a texel — a hundredth of the window covers maps of ≥ 100 texels — plus
+    // the surface epsilon, whose floor is 1e-7 of the scene) and the f32
+    // rounding of the solid's points.
+    let side = ((x1 - x0).max(y1 - y0)) as f64;
+    let diagonal = (scene_box.1 - scene_box.0).length() as f64;
+    let margin = 1e-3 * (far - near) + 1e-2 * side + 1e-6 * diagonal + 1e-6 * near.abs().max(far.abs()).max(1.0);
     let centre = (x0 as f64 + x1 as f64) * 0.5 * u + (y0 as f64 + y1 as f64) * 0.5 * v;
     let frame = LightFrame::sun_at(sun, centre + n * (near - margin));
     Some((frame, (far - near + 2.0 * margin) as f32))
