@@ -3,7 +3,7 @@
 // rule), its depth into the texel's near and far k-buffers and the texel's total.
 // One workgroup per (caster, block of LIST_BLOCK texels of its bounding box).
 #import bevy_shadow_fins::coverage_types::{CoverageParams, INF_BITS, WORKGROUP, list_stride, texel_center, owns}
-#import bevy_shadow_fins::fin_types::Caster
+#import bevy_shadow_fins::fin_types::{Caster, caster_depth_at}
 
 @group(0) @binding(0) var<uniform> params: CoverageParams;
 @group(0) @binding(1) var<storage, read_write> lists_rw: array<atomic<u32>>;
@@ -53,7 +53,6 @@ fn raster_lists(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
     }
     let w = u32(range.y - range.x + 1);
     let count = w * u32(range.w - range.z + 1);
-    let n = vec3<f32>(c.normal[0], c.normal[1], c.normal[2]);
     let near_depths = params.counts.y;
     let far_depths = params.counts.z;
     let end = min(count, (item.y + 1u) * LIST_BLOCK);
@@ -64,16 +63,8 @@ fn raster_lists(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
         if (!owns(a, b, d, q)) {
             continue;
         }
-        var z = select(c.offset / dot(n, vec3<f32>(q, 1.0)), (c.offset - n.x * q.x - n.y * q.y) / n.z, params.info.w == 0u);
-        if (z != z || abs(z) > 3.0e38) {
-            z = c.min_depth;
-        }
-        z = clamp(z, c.min_depth, c.max_depth);
-        // A sun's frame may sit in front of only what its cameras see (see
-        // maps.wgsl): depths in front of it clamp to 0, keeping bits ordered.
-        if (params.info.w == 0u) {
-            z = max(z, 0.0);
-        }
+        // w: 1 perspective (disk), 0 orthographic (sun).
+        let z = caster_depth_at(c, q, params.info.w == 0u);
         if (!(z > params.light.y)) {
             continue;
         }

@@ -61,6 +61,26 @@ fn orthographic(params: FinParams) -> bool {
     return params.flags.w == 1u;
 }
 
+// A caster's depth at map point q (`MapTriangle::depth_at`): its plane
+// n·X = offset along the ray X = z (q, 1) under perspective, X = (q, z) under
+// the sun's orthographic projection, kept within the triangle's own depth
+// range (float error near edge-on planes). An orthographic depth clamps at 0:
+// a sun's frame may sit in front of only what its cameras see, a caster
+// outside that (it reaches no texel seen) may lie in front of the origin, and
+// negative depths' bits would not order in the maps' atomics.
+fn caster_depth_at(c: Caster, q: vec2<f32>, orthographic: bool) -> f32 {
+    let n = vec3<f32>(c.normal[0], c.normal[1], c.normal[2]);
+    var z = select(c.offset / dot(n, vec3<f32>(q, 1.0)), (c.offset - n.x * q.x - n.y * q.y) / n.z, orthographic);
+    if (z != z || abs(z) > 3.0e38) {
+        z = c.min_depth;
+    }
+    z = clamp(z, c.min_depth, c.max_depth);
+    if (orthographic) {
+        z = max(z, 0.0);
+    }
+    return z;
+}
+
 fn texel_index(params: FinParams, layer: u32, x: u32, y: u32) -> u32 {
     let res = params.counts.x;
     return ((layer * res + y) * res + x) * CHANNELS;

@@ -3,7 +3,7 @@
 // One workgroup per primitive; its threads stride over the primitive's texels.
 #import bevy_shadow_fins::fin_types::{
     FinParams, Caster, Fin, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, INF_BITS, texel_index, min_key, max_key,
-    texel_center, cross2, orthographic,
+    texel_center, cross2, orthographic, caster_depth_at,
 }
 
 @group(0) @binding(0) var<uniform> params: FinParams;
@@ -60,7 +60,6 @@ fn raster_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocatio
     }
     let w = u32(range.y - range.x + 1);
     let count = w * u32(range.w - range.z + 1);
-    let n = vec3<f32>(c.normal[0], c.normal[1], c.normal[2]);
     for (var k = lane; k < count; k += WORKGROUP) {
         let x = u32(range.x) + k % w;
         let y = u32(range.z) + k / w;
@@ -72,22 +71,7 @@ fn raster_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocatio
         if (!inside) {
             continue;
         }
-        // Perspective: the plane n·X = offset along the ray X = z (q, 1);
-        // orthographic: along X = (q, z) (`MapTriangle::depth_at`).
-        var z = c.offset / dot(n, vec3<f32>(q, 1.0));
-        if (orthographic(params)) {
-            z = (c.offset - n.x * q.x - n.y * q.y) / n.z;
-        }
-        if (z != z || abs(z) > 3.0e38) {
-            z = c.min_depth;
-        }
-        z = clamp(z, c.min_depth, c.max_depth);
-        // A sun's frame may sit in front of only what its cameras see: a
-        // caster outside that (it reaches no texel seen) may lie in front of
-        // the origin, and negative depths' bits would not order.
-        if (orthographic(params)) {
-            z = max(z, 0.0);
-        }
+        let z = caster_depth_at(c, q, orthographic(params));
         if (z > params.light.y) {
             atomicMin(&maps[texel_index(params, c.layer, x, y)], bitcast<u32>(z));
         }

@@ -433,6 +433,8 @@ fn update_fin_frames(
     budget.hash(&mut hasher);
     sources.len().hash(&mut hasher);
     meshes_changed.hash(&mut hasher);
+    // The boxes only matter to suns fitted to the views.
+    let fitting = sources.iter().any(|s| matches!(s.light, Light::Sun(_)) && s.settings.fit_sun_to_views);
     let mut scene_box = (Vec3::INFINITY, Vec3::NEG_INFINITY);
     // A mesh without an `Aabb` (`NoFrustumCulling`, `NoAutoAabb`) has no box
     // here: then no sun is fitted to the views, which could cut it out.
@@ -444,13 +446,13 @@ fn update_fin_frames(
         if !caster.drawn() {
             continue;
         }
-        match caster.aabb {
+        match caster.aabb.filter(|_| fitting) {
             Some(aabb) => {
                 for c in world_corners(aabb, transform).into_iter().filter(|c| c.is_finite()) {
                     scene_box = (scene_box.0.min(c), scene_box.1.max(c));
                 }
             }
-            None => every_mesh_boxed = false,
+            None => every_mesh_boxed &= !fitting,
         }
         mesh.id().hash(&mut hasher);
         // A mesh that finishes loading changes the frame too.
@@ -459,7 +461,7 @@ fn update_fin_frames(
     }
     let scene_signature = hasher.finish();
     // Suns fit their maps to the cameras' view of the scene's box.
-    if every_mesh_boxed && sources.iter().any(|s| matches!(s.light, Light::Sun(_))) && scene_box.0.x <= scene_box.1.x {
+    if fitting && every_mesh_boxed && scene_box.0.x <= scene_box.1.x {
         let volumes = sun_fit::view_volumes(views.iter(), scene_box);
         for source in &mut sources {
             if let (Light::Sun(sun), Some(volumes), true) = (&source.light, &volumes, source.settings.fit_sun_to_views)
@@ -632,17 +634,11 @@ impl CasterScene {
     /// front of everything drawn (every mesh's world box, readable or not),
     /// so that every depth is positive (`LightFrame::sun`).
     fn frame_for(&self, light: &Light) -> (LightFrame, (Vec3, Vec3)) {
-        let boxes = self.objects.iter().zip(&self.gpu_meshes).map(|(o, m)| {
-            let (a, b) = m.bounds;
-            let corners: [Vec3; 8] = std::array::from_fn(|k| {
-                Vec3::new(
-                    if k & 1 == 0 { a.x } else { b.x },
-                    if k & 2 == 0 { a.y } else { b.y },
-                    if k & 4 == 0 { a.z } else { b.z },
-                )
-            });
-            corners.map(|c| o.transform.transform_point3(c))
-        });
+        let boxes = self
+            .objects
+            .iter()
+            .zip(&self.gpu_meshes)
+            .map(|(o, m)| sun_fit::corners(m.bounds).map(|c| o.transform.transform_point3(c)));
         let (lo, hi) = boxes
             .chain(self.unread_bounds.iter().copied())
             .flatten()
@@ -918,11 +914,7 @@ impl InFrame {
         let shadow_fins::light::Projection::Orthographic { tan_angle } = self.frame.projection else {
             return f32::INFINITY;
         };
-        let (lo, hi) = self.scene_box;
-        let corners: [Vec3; 8] = std::array::from_fn(|k| {
-            let pick = |bit: usize, a: f32, b: f32| if k & bit == 0 { a } else { b };
-            self.frame.to_frame(Vec3::new(pick(1, lo.x, hi.x), pick(2, lo.y, hi.y), pick(4, lo.z, hi.z)))
-        });
+        let corners = sun_fit::corners(self.scene_box).map(|c| self.frame.to_frame(c));
         let (flo, fhi) = corners.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
         let (mut mlo, mut mhi) = (flo.truncate(), fhi.truncate());
         if let Some((wlo, whi)) = self.map_window {

@@ -238,7 +238,7 @@ fn hexahedron((a, b): (Vec3, Vec3)) -> [Vec3; 8] {
 }
 
 /// The box's corners in bit order (x, y, z): for projecting it.
-fn corners((a, b): (Vec3, Vec3)) -> [Vec3; 8] {
+pub(crate) fn corners((a, b): (Vec3, Vec3)) -> [Vec3; 8] {
     std::array::from_fn(|k| {
         Vec3::new(
             if k & 1 == 0 { a.x } else { b.x },
