@@ -99,6 +99,40 @@ impl Bvh {
         }
     }
 
+    /// Calls `on_triangle(index, triangle)` (index into the input slice) for
+    /// every triangle in a leaf whose box passes `node_test(min, max)`: a
+    /// traversal for queries wider than a ray (the softened objects of
+    /// single-sample soft shadows test a cone around the shadow ray).
+    pub fn for_each_candidate(
+        &self,
+        mut node_test: impl FnMut(Vec3, Vec3) -> bool,
+        mut on_triangle: impl FnMut(u32, &[Vec3; 3]),
+    ) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut stack = [0u32; 64];
+        let mut sp = 1;
+        while sp > 0 {
+            sp -= 1;
+            let idx = stack[sp] as usize;
+            let node = &self.nodes[idx];
+            if !node_test(node.min, node.max) {
+                continue;
+            }
+            if node.count > 0 {
+                let s = node.index as usize;
+                for k in s..s + node.count as usize {
+                    on_triangle(self.original[k], &self.triangles[k]);
+                }
+            } else if sp + 2 <= stack.len() {
+                stack[sp] = node.index;
+                stack[sp + 1] = idx as u32 + 1;
+                sp += 2;
+            }
+        }
+    }
+
     /// Nearest hit with `t > t_min`.
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, t_min: f32) -> Option<Hit> {
         if self.nodes.is_empty() {

@@ -12,6 +12,8 @@
 //!   silhouette edges;
 //! - [`oracle`]: the method evaluated exactly ([`oracle::AnalyticIndex`]) and as
 //!   light-space maps at a resolution ([`oracle::RasterMaps`]), the GPU's reference;
+//! - [`peers`]: the other papers' methods, measured beside ours (Parker et
+//!   al.'s single-sample soft shadows, Haines' plateaus);
 //! - [`ground_truth`]: many-sample disk visibility through a [`bvh::Bvh`];
 //! - [`metrics`]: error against ground truth over the shadowed region;
 //! - [`scenes`]: procedural scenes mirroring the paper's figures;
@@ -45,6 +47,7 @@ pub mod light;
 pub mod mesh;
 pub mod metrics;
 pub mod oracle;
+pub mod peers;
 pub mod refine;
 pub mod scene;
 pub mod scenes;

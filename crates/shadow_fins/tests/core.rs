@@ -9,6 +9,7 @@ mod core {
     mod ground_truth_closed_form;
     mod hostile_gltf;
     mod multi_layer;
+    mod peers;
     mod silhouette_properties;
     mod stability;
     mod straight_edge;

@@ -1,0 +1,246 @@
+//! Single sample soft shadows (Parker, Shirley, Smits 1998; `001_…`): one
+//! shadow ray per receiver, towards the light's centre, against *softened*
+//! occluders.
+//!
+//! Each occluder is its own opaque inner object wrapped in a semi-opaque
+//! outer shell. The paper sizes the shell so that the shadow's penumbra is as
+//! wide as the real one (its Figure 3): at a distance `t` from the receiver,
+//! along a shadow ray of length `A` to a light of diameter `D`, the shell is
+//! `b = D·t/A` thick (the appendix's `b = D·t₀/‖l − o‖`). A ray passing at a
+//! distance `d < b` from the object gets `τ = d/b` and the visibility
+//! `s = 3τ² − 2τ³` (the Bernstein interpolant of the sinusoid a straight
+//! edge gives, §3); a ray through the object gets 0. Several occluders
+//! combine by thresholding, `s = min(s₁, s₂, …)`, the paper's conservative
+//! choice ("never darker than they should be").
+//!
+//! What is ours, where the paper leaves it open (it gives spheres exactly
+//! and polygons in one sentence):
+//! - **the shell of a triangle**: the points seen from the receiver within
+//!   `b(t)` of the triangle, perpendicular to the ray, at every depth `t`
+//!   of the triangle (a "triangle with rounded corners" whose offset, seen
+//!   along the ray, is `b`, as the appendix asks). Since `d/b = (d/t)·A/D`,
+//!   `τ` is the tangent of the angle from the shadow ray to the nearest
+//!   point of the triangle, over `D/A`: the triangle is projected centrally
+//!   from the receiver onto the plane at unit distance across the ray, and
+//!   `τ` is the distance of the ray from that polygon, over `D/A`;
+//! - **the receiver's own surface**: triangles whose plane holds the
+//!   receiver do not soften its ray. (The paper's receiver is a different
+//!   object; without this a ground plane would darken itself under a
+//!   grazing light, through its own neighbouring triangles.)
+//! - **the sun**: `D/A` is the sun's angular diameter, `2 tan θ`.
+//!
+//! The umbra is the hard shadow of the light's centre, so it is too large
+//! wherever the real shadow has an inner penumbra (the paper says so).
+
+use glam::{Vec2, Vec3};
+
+use crate::{
+    bvh::Bvh,
+    light::Projection,
+    oracle::Receiver,
+    refine::Falloff,
+    scene::{LightSpaceScene, surface_epsilon},
+};
+
+/// One scene under one light, ready for single-sample queries.
+pub struct SingleSampleModel {
+    bvh: Bvh,
+    projection: Projection,
+    extent: f32,
+    reference_depth: f32,
+}
+
+impl SingleSampleModel {
+    pub fn new(light_space: &LightSpaceScene) -> Self {
+        Self {
+            bvh: Bvh::new(&light_space.casters),
+            projection: light_space.frame.projection,
+            extent: light_space.extent,
+            reference_depth: light_space.reference_depth,
+        }
+    }
+
+    /// Visibility of the light from a receiver (light frame), in `[0, 1]`.
+    pub fn visibility(&self, receiver: Receiver) -> f32 {
+        let eps = surface_epsilon(receiver.position, self.extent);
+        let o = receiver.position + receiver.normal * eps;
+        if !o.is_finite() {
+            return 0.0;
+        }
+        // The shadow ray (unit direction `v`, length `a` to the light's
+        // centre) and `D/A`, the shell's thickness per unit of distance.
+        let (v, a, spread) = match self.projection {
+            Projection::Perspective { radius } => {
+                // At or behind the one-sided light's plane: unlit, as the ground truth says.
+                if !(o.z > self.reference_depth * 1e-5) {
+                    return 0.0;
+                }
+                let a = o.length();
+                (-o / a, a, 2.0 * radius / a)
+            }
+            Projection::Orthographic { tan_angle } => {
+                (Vec3::NEG_Z, self.extent * 4.0 + o.z.abs(), 2.0 * tan_angle)
+            }
+        };
+        let t_min = eps;
+        if self.bvh.any_hit(o, v, t_min, a) {
+            return 0.0;
+        }
+        if !(spread > 0.0) || !spread.is_finite() {
+            return 1.0;
+        }
+        let perspective = matches!(self.projection, Projection::Perspective { .. });
+        let (e1, e2) = across(v);
+        // Shared by the box test (which narrows the search as `τ` falls) and the triangle test.
+        let tau = std::cell::Cell::new(1.0f32);
+        let inv_v = v.recip();
+        self.bvh.for_each_candidate(
+            |lo, hi| {
+                // The farthest a box reaches along the ray bounds the shell's
+                // radius over it; a box expanded by that radius that the ray
+                // misses holds no point within the shell.
+                let corners = box_corners(lo, hi);
+                let t_far = corners.iter().map(|c| (*c - o).dot(v)).fold(f32::NEG_INFINITY, f32::max);
+                if t_far <= t_min || (perspective && hi.z <= 0.0) {
+                    return false;
+                }
+                let r = t_far.min(a) * spread * tau.get();
+                slab_hit(lo - Vec3::splat(r), hi + Vec3::splat(r), o, inv_v, 0.0, t_far.min(a))
+            },
+            |_, tri| {
+                let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+                let len = n.length();
+                // The receiver's own plane: no softening of its own ray.
+                if !(len > 0.0) || ((o - tri[0]).dot(n) / len).abs() <= 2.0 * eps {
+                    return;
+                }
+                if let Some(d) = angular_distance(tri, o, v, e1, e2, t_min, perspective) {
+                    tau.set(tau.get().min(d / spread));
+                }
+            },
+        );
+        Falloff::Bernstein.apply(tau.get())
+    }
+}
+
+/// Two unit vectors across the direction `v`.
+fn across(v: Vec3) -> (Vec3, Vec3) {
+    let helper = if v.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
+    let e1 = helper.cross(v).normalize();
+    (e1, v.cross(e1))
+}
+
+fn box_corners(lo: Vec3, hi: Vec3) -> [Vec3; 8] {
+    std::array::from_fn(|i| {
+        Vec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        )
+    })
+}
+
+fn slab_hit(lo: Vec3, hi: Vec3, origin: Vec3, inv: Vec3, t_min: f32, t_max: f32) -> bool {
+    let t0 = (lo - origin) * inv;
+    let t1 = (hi - origin) * inv;
+    let near = t0.min(t1).max_element().max(t_min);
+    let far = t0.max(t1).min_element().min(t_max);
+    near <= far
+}
+
+/// The tangent of the smallest angle between the ray `o + t·v` and a point
+/// of the triangle in front of the receiver (`t > t_min`) and, for a disk
+/// light, in front of the light's plane (`z > 0`); `None` when no part of
+/// the triangle is there.
+fn angular_distance(
+    tri: &[Vec3; 3],
+    o: Vec3,
+    v: Vec3,
+    e1: Vec3,
+    e2: Vec3,
+    t_min: f32,
+    perspective: bool,
+) -> Option<f32> {
+    let mut poly: Vec<Vec3> = tri.to_vec();
+    poly = clip(&poly, |p| (p - o).dot(v) - t_min);
+    if perspective {
+        poly = clip(&poly, |p| p.z);
+    }
+    if poly.len() < 3 {
+        return None;
+    }
+    // Central projection from the receiver onto the plane at unit distance:
+    // convex, since every point is in front of the receiver.
+    let projected: Vec<Vec2> = poly
+        .iter()
+        .map(|p| {
+            let d = *p - o;
+            Vec2::new(d.dot(e1), d.dot(e2)) / d.dot(v)
+        })
+        .collect();
+    Some(distance_to_convex_polygon(&projected))
+}
+
+/// Sutherland–Hodgman: the part of a convex polygon where `side(p) >= 0`.
+fn clip(poly: &[Vec3], side: impl Fn(Vec3) -> f32) -> Vec<Vec3> {
+    let mut out = Vec::with_capacity(poly.len() + 1);
+    for i in 0..poly.len() {
+        let (p, q) = (poly[i], poly[(i + 1) % poly.len()]);
+        let (sp, sq) = (side(p), side(q));
+        if sp >= 0.0 {
+            out.push(p);
+        }
+        if (sp >= 0.0) != (sq >= 0.0) {
+            let t = sp / (sp - sq);
+            out.push(p + (q - p) * t);
+        }
+    }
+    out
+}
+
+/// Distance from the origin to a convex polygon (0 inside).
+fn distance_to_convex_polygon(poly: &[Vec2]) -> f32 {
+    let n = poly.len();
+    let mut inside_sign = 0.0f32;
+    let mut inside = true;
+    let mut best = f32::INFINITY;
+    for i in 0..n {
+        let (a, b) = (poly[i], poly[(i + 1) % n]);
+        let e = b - a;
+        let cross = e.perp_dot(-a);
+        if cross != 0.0 {
+            if inside_sign == 0.0 {
+                inside_sign = cross.signum();
+            } else if cross.signum() != inside_sign {
+                inside = false;
+            }
+        }
+        let t = if e.length_squared() > 0.0 { ((-a).dot(e) / e.length_squared()).clamp(0.0, 1.0) } else { 0.0 };
+        best = best.min((a + e * t).length());
+    }
+    if inside && inside_sign != 0.0 { 0.0 } else { best }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_polygon_around_the_origin_is_at_distance_zero_and_one_beside_it_at_its_gap() {
+        let square = [Vec2::new(-1.0, -1.0), Vec2::new(1.0, -1.0), Vec2::new(1.0, 1.0), Vec2::new(-1.0, 1.0)];
+        assert_eq!(distance_to_convex_polygon(&square), 0.0);
+        let right: Vec<Vec2> = square.iter().map(|p| *p + Vec2::new(3.0, 0.0)).collect();
+        assert!((distance_to_convex_polygon(&right) - 2.0).abs() < 1e-6);
+        // A corner is the nearest point: rounded corners, as the paper's outer triangle.
+        let corner: Vec<Vec2> = square.iter().map(|p| *p + Vec2::new(4.0, 5.0)).collect();
+        assert!((distance_to_convex_polygon(&corner) - 5.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn clipping_keeps_the_part_in_front() {
+        let tri = [Vec3::new(0.0, 0.0, -1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0)];
+        let front = clip(&tri, |p| p.z);
+        assert_eq!(front.len(), 4);
+        assert!(front.iter().all(|p| p.z >= -1e-6));
+    }
+}

@@ -1,0 +1,166 @@
+//! The peer methods pinned against their papers: Parker et al.'s penumbra
+//! widths grow linearly from contact; Haines' plateaus are the hard shadow at
+//! radius 0 and never brighten inside it; both stay finite in `[0, 1]`.
+
+use shadow_fins::{
+    bvh::Bvh,
+    glam::Vec3,
+    light::{DiskLight, Light},
+    oracle::Receiver,
+    peers::{PeerMethod, PeerModel, PlateauModel},
+    scene::{LightSpaceScene, Scene, surface_epsilon},
+    scenes::SceneId,
+};
+
+use super::{
+    common::{ground_receivers, straight_edge_scene},
+    convergence::view_receivers,
+};
+
+/// The light centre's hard shadow by the same ray the peers trace.
+fn hard(ls: &LightSpaceScene, bvh: &Bvh, r: Receiver) -> f32 {
+    let eps = surface_epsilon(r.position, ls.extent);
+    let o = r.position + r.normal * eps;
+    let (dir, t_max) =
+        if ls.frame.is_perspective() { (-o, 1.0) } else { (Vec3::NEG_Z, ls.extent * 4.0 + o.z.abs()) };
+    if ls.frame.is_perspective() && !(o.z > ls.reference_depth * 1e-5) {
+        return 0.0;
+    }
+    if bvh.any_hit(o, dir, eps / dir.length().max(eps), t_max) { 0.0 } else { 1.0 }
+}
+
+/// Width on the ground of the penumbra outside the straight edge of a
+/// half-plane at height `h` (edge at x = 0, light of radius `r` at height
+/// `light_h` over it): from the hard edge (x = 0) to where visibility first
+/// reaches 1, scanned in steps of 1e-4 of the expected width.
+fn outer_penumbra(method: PeerMethod, h: f32, light_h: f32, r: f32) -> (f32, Vec<f32>, Vec<f32>) {
+    let (scene, light) = straight_edge_scene(h, light_h, r);
+    let ls = LightSpaceScene::new(&scene, light);
+    let model = PeerModel::new(method, &scene, &ls);
+    let expected = 2.0 * r * h / (light_h - h);
+    let xs: Vec<f32> = (0..=20000).map(|i| -0.5 * expected + i as f32 * 1e-4 * expected).collect();
+    let points: Vec<Vec3> = xs.iter().map(|x| Vec3::new(*x, 0.0, 0.3)).collect();
+    let v: Vec<f32> = ground_receivers(&ls, &points).into_iter().map(|r| model.visibility(r)).collect();
+    let lit = xs.iter().zip(&v).find(|(x, v)| **x > 0.0 && **v >= 1.0).map_or(f32::INFINITY, |(x, _)| *x);
+    (lit, xs, v)
+}
+
+#[test]
+fn single_sample_penumbra_widths_grow_linearly_from_contact() {
+    // Parker et al. §2–3: zero width at the occluder, `W = D·a/(A − a)` at a
+    // distance `a` below it (their Figure 3), and the umbra is the hard shadow.
+    let (light_h, r) = (4.0, 0.5);
+    let mut widths = vec![];
+    for h in [0.02f32, 0.05, 0.1, 0.2, 0.4] {
+        let expected = 2.0 * r * h / (light_h - h);
+        let (width, xs, v) = outer_penumbra(PeerMethod::SingleSample, h, light_h, r);
+        assert!(
+            (width - expected).abs() <= 0.02 * expected,
+            "height {h}: penumbra {width} wide, the paper's sizing gives {expected}"
+        );
+        for (x, v) in xs.iter().zip(&v) {
+            if *x < -1e-3 * expected {
+                assert_eq!(*v, 0.0, "height {h}: light inside the hard shadow at x = {x}");
+            }
+        }
+        // The Bernstein falloff of τ: half-way across, half the light.
+        let mid = xs.iter().position(|x| *x >= 0.5 * expected).unwrap();
+        assert!((v[mid] - 0.5).abs() < 0.03, "height {h}: visibility {} half-way across", v[mid]);
+        widths.push(width / h);
+    }
+    // Linear from contact: width per unit height changes only by the (A − a) term.
+    let (near, far) = (widths[0], widths[4]);
+    let predicted = (light_h - 0.02) / (light_h - 0.4);
+    assert!((far / near - predicted).abs() < 0.03, "width/height {near} → {far}, expected ratio {predicted}");
+}
+
+#[test]
+fn plateau_cones_are_as_wide_as_the_penumbra_a_point_at_their_height_makes() {
+    let (light_h, r) = (4.0, 0.5);
+    for h in [0.05f32, 0.2, 0.8] {
+        let expected = 2.0 * r * h / (light_h - h);
+        let (width, xs, v) = outer_penumbra(PeerMethod::Plateaus, h, light_h, r);
+        assert!((width - expected).abs() <= 0.02 * expected, "height {h}: plateau {width} wide, expected {expected}");
+        assert!(xs.iter().zip(&v).filter(|(x, _)| **x < -1e-3 * expected).all(|(_, v)| *v == 0.0));
+    }
+}
+
+#[test]
+fn both_peers_at_radius_zero_are_the_hard_shadow_and_never_brighten_inside_it() {
+    for id in SceneId::ALL.into_iter().filter(|s| *s != SceneId::DenseBlob) {
+        let s = id.build();
+        for zero in [true, false] {
+            let light = if zero { s.light.with_zero_size() } else { s.light };
+            let (ls, receivers) = view_receivers(&s.scene, light, &s.camera, 48, 36);
+            let bvh = Bvh::new(&ls.casters);
+            let hard: Vec<f32> = receivers.iter().map(|r| hard(&ls, &bvh, *r)).collect();
+            for method in PeerMethod::ALL {
+                let model = PeerModel::new(method, &s.scene, &ls);
+                let v: Vec<f32> = receivers.iter().map(|r| model.visibility(*r)).collect();
+                // Haines' drop shadow leaves the plane's own triangles out, so a
+                // receiver on a plane edge may see one more or one less caster.
+                let mismatched = v.iter().zip(&hard).filter(|(v, h)| if zero { *v != *h } else { **v > **h }).count();
+                assert!(
+                    mismatched * 500 <= receivers.len(),
+                    "{} {}: {mismatched} of {} receivers {}",
+                    id.name(),
+                    method.name(),
+                    receivers.len(),
+                    if zero { "differ from the hard shadow at radius 0" } else { "brighter than the hard shadow" }
+                );
+                if !zero {
+                    let soft = v.iter().filter(|v| **v > 0.0 && **v < 1.0).count();
+                    assert!(soft > 0, "{} {}: no penumbra at all", id.name(), method.name());
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn the_plateau_plane_is_the_largest_flat_receiver_facing_the_light() {
+    let s = SceneId::BoxOverPlane.build();
+    let ls = LightSpaceScene::new(&s.scene, s.light);
+    let model = PlateauModel::new(&s.scene, &ls);
+    // The ground (y = 0) in the light frame: its normal is world +Y.
+    let up = ls.frame.dir_to_frame(Vec3::Y);
+    assert!(model.plane.normal.dot(up) > 0.999, "plane normal {:?}", model.plane.normal);
+    assert!(ls.frame.to_world(model.plane.point).y.abs() < 1e-4);
+    assert!(model.sheet_count() >= 4, "the box's silhouette makes sheets");
+}
+
+#[test]
+fn peers_stay_finite_in_unit_range_at_the_extremes() {
+    let check = |scene: &Scene, light: Light, camera: &shadow_fins::camera::Camera, what: &str| {
+        let (ls, receivers) = view_receivers(scene, light, camera, 20, 15);
+        assert!(!receivers.is_empty(), "{what}: camera sees nothing");
+        for method in PeerMethod::ALL {
+            let model = PeerModel::new(method, scene, &ls);
+            for r in &receivers {
+                let v = model.visibility(*r);
+                assert!(v.is_finite() && (0.0..=1.0).contains(&v), "{what} {}: visibility {v}", method.name());
+            }
+        }
+    };
+    for id in SceneId::ALL.into_iter().filter(|s| *s != SceneId::DenseBlob) {
+        let s = id.build();
+        let (lo, hi) = s.scene.bounds().unwrap();
+        let size = (hi - lo).length();
+        for factor in [0.0, 1e-6, 1e-3, 1.0, 100.0] {
+            let light = match s.light {
+                Light::Disk(d) => Light::Disk(DiskLight::new(d.center, d.normal, factor * size).unwrap()),
+                sun => sun.with_size_scaled(factor),
+            };
+            check(&s.scene, light, &s.camera, &format!("{} radius {factor}×", id.name()));
+        }
+        let offset = Vec3::new(1e5, -1e5, 1e5);
+        let light = match s.light {
+            Light::Disk(d) => Light::Disk(DiskLight::new(d.center + offset, d.normal, d.radius).unwrap()),
+            sun => sun,
+        };
+        let mut camera = s.camera;
+        camera.position += offset;
+        camera.target += offset;
+        check(&s.scene.translated(offset), light, &camera, &format!("{} offset 1e5", id.name()));
+    }
+}
