@@ -4,6 +4,7 @@ use shadow_fins::{
     coverage::CoverageSettings,
     metrics::ErrorMetrics,
     oracle::{FinSettings, Method, Overlap, Receiver},
+    peers::PeerMethod,
     scene::LightSpaceScene,
 };
 
@@ -43,6 +44,11 @@ impl Config {
         }
     }
 
+    /// Another paper's method, labelled by its lab name.
+    pub fn peer(method: PeerMethod) -> Self {
+        Self { label: method.name().to_string(), measured: Measured::Peer(method), settings: FinSettings::default() }
+    }
+
     pub fn labelled(mut self, label: impl Into<String>) -> Self {
         self.label = label.into();
         self
@@ -62,6 +68,8 @@ pub fn standard_configs(base: FinSettings, coverage_samples: u32) -> Vec<Config>
         Config::new(Method::MultiLayer, paper),
         Config::new(Method::MultiLayer, base),
         Config::coverage(coverage_samples),
+        Config::peer(PeerMethod::SingleSample),
+        Config::peer(PeerMethod::Plateaus),
     ]
 }
 

@@ -9,6 +9,7 @@ use shadow_fins::{
     coverage::{CoverageModel, CoverageWork, ReferenceCount},
     ground_truth::GroundTruth,
     oracle::{FinSettings, FinShadowModel, Receiver},
+    peers::PeerModel,
     scene::{LightSpaceScene, Scene},
 };
 
@@ -104,6 +105,13 @@ pub fn evaluate(
             let evaluate_ms = ms(t);
             let work = WorkPercentiles::of(&work);
             Evaluation { values, prepare_ms, evaluate_ms, silhouettes: model.edges.len(), fins: 0, layers: 0, work }
+        }
+        Measured::Peer(peer) => {
+            let model = PeerModel::new(peer, scene, light_space);
+            let prepare_ms = ms(start);
+            let t = Instant::now();
+            let values = receivers.par_iter().map(|r| model.visibility(*r)).collect();
+            Evaluation { values, prepare_ms, evaluate_ms: ms(t), silhouettes: 0, fins: 0, layers: 0, work: None }
         }
         Measured::Method(method) => {
             let model = FinShadowModel::new(scene, light_space, method, settings);

@@ -46,7 +46,9 @@ enum Command {
         /// CSV of world points: x,y,z or x,y,z,nx,ny,nz (a header line is skipped).
         #[arg(long)]
         points: PathBuf,
-        /// ground-truth, fins, hard, outer-fins or single-layer.
+        /// ground-truth, coverage, fins, hard, outer-fins, single-layer, or a peer
+        /// paper's method: single-sample (Parker et al. 1998) or plateaus
+        /// (Haines 2001; one receiver plane, see `shadow_fins::peers::plateaus`).
         #[arg(long, default_value = "fins")]
         method: String,
         /// Output CSV (default: standard output).
@@ -184,6 +186,9 @@ fn run(command: Command) -> Result<(), LabError> {
             let mut targets = String::from(
                 "| scene | hard MAE | outer-fins MAE | fins 16L paper MAE | fins 16L MAE | beats hard & outer (paper / ours) | umbra over (paper / ours) |\n|---|---|---|---|---|---|---|\n",
             );
+            let mut peers = String::from(
+                "| scene | fins 16L MAE | single-sample MAE / p99 / umbra over / leak | plateaus MAE / p99 / umbra over / leak (receiver plane) |\n|---|---|---|---|\n",
+            );
             for id in ids {
                 let args = SceneArgs {
                     scene: id.name().into(),
@@ -238,6 +243,12 @@ fn run(command: Command) -> Result<(), LabError> {
                     }
                 }
                 let fins_label = format!("fins {}L", settings.layers);
+                if let (Some(f), Some(ss), Some(pl)) = (mae(&fins_label), mae("single-sample"), mae("plateaus")) {
+                    let four = |m: shadow_fins::metrics::ErrorMetrics| {
+                        format!("{:.4} / {:.3} / {:.2}% / {:.2}%", m.mae, m.p99, m.umbra_over * 100.0, m.leak * 100.0)
+                    };
+                    peers += &format!("| {} | {:.4} | {} | {} |\n", id.name(), f.mae, four(ss), four(pl));
+                }
                 let paper_label = format!("fins {}L paper", settings.layers);
                 if let (Some(h), Some(o), Some(p), Some(f)) =
                     (mae("hard"), mae("outer-fins"), mae(&paper_label), mae(&fins_label))
@@ -258,6 +269,9 @@ fn run(command: Command) -> Result<(), LabError> {
                 }
             }
             println!("### Targets\n\n{targets}");
+            println!(
+                "### Peers (other papers' methods; plateaus shade only its receiver plane, other receivers get the hard shadow)\n\n{peers}"
+            );
             println!(
                 "### Accuracy targets of the coverage method ({coverage_label}, against {} ground-truth samples)\n\n{accuracy}",
                 fins.samples

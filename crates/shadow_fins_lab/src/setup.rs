@@ -7,6 +7,7 @@ use shadow_fins::{
     gltf_import::load_gltf,
     light::{DiskLight, Light, SunLight},
     oracle::{FinSettings, Method, Overlap},
+    peers::PeerMethod,
     refine::Falloff,
     scene::Scene,
     scenes::SceneId,
@@ -101,17 +102,20 @@ impl FinArgs {
     }
 }
 
-/// What a run measures: a fin method, the coverage method or the ground truth.
+/// What a run measures: a fin method, the coverage method, a peer paper's
+/// method or the ground truth.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Measured {
     Method(Method),
+    /// Another paper's method (`shadow_fins::peers`).
+    Peer(PeerMethod),
     /// Exact coverage with occluder fusion (`shadow_fins::coverage`).
     Coverage(CoverageSettings),
     GroundTruth,
 }
 
-/// A method name: `ground-truth`, `coverage` (with `samples` light samples)
-/// or a fin method.
+/// A method name: `ground-truth`, `coverage` (with `samples` light samples),
+/// a fin method or a peer method.
 pub fn parse_measured(s: &str, coverage_samples: u32) -> Result<Measured, LabError> {
     match s {
         "ground-truth" => return Ok(Measured::GroundTruth),
@@ -120,9 +124,13 @@ pub fn parse_measured(s: &str, coverage_samples: u32) -> Result<Measured, LabErr
         }
         _ => {}
     }
+    if let Some(peer) = PeerMethod::parse(s) {
+        return Ok(Measured::Peer(peer));
+    }
     Method::parse(s).map(Measured::Method).ok_or_else(|| {
         LabError::Usage(format!(
-            "unknown method '{s}': use ground-truth, coverage, fins, hard, outer-fins or single-layer"
+            "unknown method '{s}': use ground-truth, coverage, fins, hard, outer-fins, single-layer, \
+             single-sample or plateaus"
         ))
     })
 }
