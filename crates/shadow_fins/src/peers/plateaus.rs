@@ -88,10 +88,8 @@ impl ReceiverPlane {
                 best = Some((area, ReceiverPlane { point, normal }));
             }
         }
-        best.map(|(_, p)| p).unwrap_or(ReceiverPlane {
-            point: Vec3::new(0.0, 0.0, light_space.reference_depth),
-            normal: Vec3::NEG_Z,
-        })
+        best.map(|(_, p)| p)
+            .unwrap_or(ReceiverPlane { point: Vec3::new(0.0, 0.0, light_space.reference_depth), normal: Vec3::NEG_Z })
     }
 
     fn height(&self, p: Vec3) -> f32 {
@@ -187,13 +185,18 @@ impl PlateauModel {
         let bounds: Vec<Option<(Vec2, Vec2)>> = sheets
             .iter()
             .map(|s| {
-                Some(((s.p1 - Vec2::splat(s.r1)).min(s.p2 - Vec2::splat(s.r2)), (s.p1 + Vec2::splat(s.r1)).max(s.p2 + Vec2::splat(s.r2))))
+                Some((
+                    (s.p1 - Vec2::splat(s.r1)).min(s.p2 - Vec2::splat(s.r2)),
+                    (s.p1 + Vec2::splat(s.r1)).max(s.p2 + Vec2::splat(s.r2)),
+                ))
             })
             .collect();
         let (lo, hi) = bounds
             .iter()
             .flatten()
-            .fold((Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)), |(lo, hi), (a, b)| (lo.min(*a), hi.max(*b)));
+            .fold((Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)), |(lo, hi), (a, b)| {
+                (lo.min(*a), hi.max(*b))
+            });
         let (lo, size) = if lo.x <= hi.x { (lo, (hi - lo).max(Vec2::splat(1e-20))) } else { (Vec2::ZERO, Vec2::ONE) };
         let side = ((sheets.len() as f32).sqrt() * 2.0).clamp(1.0, 512.0) as usize;
         let grid = CellGrid::build(lo, size, [side, side], &bounds);
@@ -306,7 +309,10 @@ mod tests {
                 })
                 .fold(f32::INFINITY, f32::min);
             let closed = sheet_tau(&s, q);
-            assert!((closed - dense).abs() <= 1e-3 * dense.max(1.0), "closed {closed} vs dense {dense} for {s:?} at {q}");
+            assert!(
+                (closed - dense).abs() <= 1e-3 * dense.max(1.0),
+                "closed {closed} vs dense {dense} for {s:?} at {q}"
+            );
         }
     }
 

@@ -78,9 +78,7 @@ impl SingleSampleModel {
                 let a = o.length();
                 (-o / a, a, 2.0 * radius / a)
             }
-            Projection::Orthographic { tan_angle } => {
-                (Vec3::NEG_Z, self.extent * 4.0 + o.z.abs(), 2.0 * tan_angle)
-            }
+            Projection::Orthographic { tan_angle } => (Vec3::NEG_Z, self.extent * 4.0 + o.z.abs(), 2.0 * tan_angle),
         };
         let t_min = eps;
         if self.bvh.any_hit(o, v, t_min, a) {

@@ -21,8 +21,7 @@ use super::{
 fn hard(ls: &LightSpaceScene, bvh: &Bvh, r: Receiver) -> f32 {
     let eps = surface_epsilon(r.position, ls.extent);
     let o = r.position + r.normal * eps;
-    let (dir, t_max) =
-        if ls.frame.is_perspective() { (-o, 1.0) } else { (Vec3::NEG_Z, ls.extent * 4.0 + o.z.abs()) };
+    let (dir, t_max) = if ls.frame.is_perspective() { (-o, 1.0) } else { (Vec3::NEG_Z, ls.extent * 4.0 + o.z.abs()) };
     if ls.frame.is_perspective() && !(o.z > ls.reference_depth * 1e-5) {
         return 0.0;
     }
