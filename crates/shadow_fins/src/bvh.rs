@@ -50,7 +50,7 @@ impl Bvh {
     /// True when the segment `origin + t·dir`, `t ∈ (t_min, t_max)`, hits any triangle.
     pub fn any_hit(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> bool {
         let mut hit = false;
-        self.for_each_hit(origin, dir, t_min, t_max, || {
+        self.for_each_hit(origin, dir, t_min, t_max, |_| {
             hit = true;
             true
         });
@@ -62,15 +62,25 @@ impl Bvh {
     /// coverage method needs at one reference point of the light.
     pub fn count_hits(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> u32 {
         let mut hits = 0;
-        self.for_each_hit(origin, dir, t_min, t_max, || {
+        self.for_each_hit(origin, dir, t_min, t_max, |_| {
             hits += 1;
             false
         });
         hits
     }
 
-    /// Calls `on_hit` for every triangle the segment crosses, until it says stop.
-    fn for_each_hit(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32, mut on_hit: impl FnMut() -> bool) {
+    /// Calls `on_hit(index)` (index into the input slice) for every triangle
+    /// the segment crosses: which occluders block one ray (the penumbra
+    /// wedges' per-silhouette shadow-volume pass).
+    pub fn for_each_hit_index(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32, mut on_hit: impl FnMut(u32)) {
+        self.for_each_hit(origin, dir, t_min, t_max, |index| {
+            on_hit(index);
+            false
+        });
+    }
+
+    /// Calls `on_hit(index)` for every triangle the segment crosses, until it says stop.
+    fn for_each_hit(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32, mut on_hit: impl FnMut(u32) -> bool) {
         if self.nodes.is_empty() {
             return;
         }
@@ -86,8 +96,9 @@ impl Bvh {
             }
             if node.count > 0 {
                 let s = node.index as usize;
-                for tri in &self.triangles[s..s + node.count as usize] {
-                    if intersect(tri, origin, dir).is_some_and(|t| t > t_min && t < t_max) && on_hit() {
+                for k in s..s + node.count as usize {
+                    let tri = &self.triangles[k];
+                    if intersect(tri, origin, dir).is_some_and(|t| t > t_min && t < t_max) && on_hit(self.original[k]) {
                         return;
                     }
                 }

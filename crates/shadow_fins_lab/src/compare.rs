@@ -68,9 +68,10 @@ pub fn standard_configs(base: FinSettings, coverage_samples: u32) -> Vec<Config>
         Config::new(Method::MultiLayer, paper),
         Config::new(Method::MultiLayer, base),
         Config::coverage(coverage_samples),
-        Config::peer(PeerMethod::SingleSample),
-        Config::peer(PeerMethod::Plateaus),
     ]
+    .into_iter()
+    .chain(PeerMethod::ALL.map(Config::peer))
+    .collect()
 }
 
 /// A measured configuration.

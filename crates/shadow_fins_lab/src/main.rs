@@ -12,6 +12,7 @@ use clap::{Parser, Subcommand};
 use shadow_fins::{
     glam::Vec3,
     oracle::{FinSettings, Method, Receiver},
+    peers::PeerMethod,
     scene::LightSpaceScene,
     scenes::SceneId,
 };
@@ -47,8 +48,10 @@ enum Command {
         #[arg(long)]
         points: PathBuf,
         /// ground-truth, coverage, fins, hard, outer-fins, single-layer, or a peer
-        /// paper's method: single-sample (Parker et al. 1998) or plateaus
-        /// (Haines 2001; one receiver plane, see `shadow_fins::peers::plateaus`).
+        /// paper's method: single-sample (Parker et al. 1998), plateaus
+        /// (Haines 2001; one receiver plane, see `shadow_fins::peers::plateaus`),
+        /// penumbra-wedges (Assarsson, Akenine-Möller 2002) or wedge-blending
+        /// (Forest, Barthe, Paulin 2006).
         #[arg(long, default_value = "fins")]
         method: String,
         /// Output CSV (default: standard output).
@@ -186,8 +189,13 @@ fn run(command: Command) -> Result<(), LabError> {
             let mut targets = String::from(
                 "| scene | hard MAE | outer-fins MAE | fins 16L paper MAE | fins 16L MAE | beats hard & outer (paper / ours) | umbra over (paper / ours) |\n|---|---|---|---|---|---|---|\n",
             );
-            let mut peers = String::from(
-                "| scene | fins 16L MAE | single-sample MAE / p99 / umbra over / leak | plateaus MAE / p99 / umbra over / leak (receiver plane) |\n|---|---|---|---|\n",
+            let mut peers = format!(
+                "| scene | fins {}L MAE |{}\n|---|---|{}\n",
+                settings.layers,
+                PeerMethod::ALL
+                    .map(|m| format!(" {} ({}) MAE / p99 / umbra over / leak |", m.name(), m.paper()))
+                    .concat(),
+                "---|".repeat(PeerMethod::ALL.len())
             );
             for id in ids {
                 let args = SceneArgs {
@@ -243,11 +251,20 @@ fn run(command: Command) -> Result<(), LabError> {
                     }
                 }
                 let fins_label = format!("fins {}L", settings.layers);
-                if let (Some(f), Some(ss), Some(pl)) = (mae(&fins_label), mae("single-sample"), mae("plateaus")) {
-                    let four = |m: shadow_fins::metrics::ErrorMetrics| {
-                        format!("{:.4} / {:.3} / {:.2}% / {:.2}%", m.mae, m.p99, m.umbra_over * 100.0, m.leak * 100.0)
+                if let Some(f) = mae(&fins_label) {
+                    let four = |m: Option<shadow_fins::metrics::ErrorMetrics>| {
+                        m.map_or(" – |".to_string(), |m| {
+                            format!(
+                                " {:.4} / {:.3} / {:.2}% / {:.2}% |",
+                                m.mae,
+                                m.p99,
+                                m.umbra_over * 100.0,
+                                m.leak * 100.0
+                            )
+                        })
                     };
-                    peers += &format!("| {} | {:.4} | {} | {} |\n", id.name(), f.mae, four(ss), four(pl));
+                    let cells = PeerMethod::ALL.map(|m| four(mae(m.name()))).concat();
+                    peers += &format!("| {} | {:.4} |{cells}\n", id.name(), f.mae);
                 }
                 let paper_label = format!("fins {}L paper", settings.layers);
                 if let (Some(h), Some(o), Some(p), Some(f)) =
@@ -270,7 +287,7 @@ fn run(command: Command) -> Result<(), LabError> {
             }
             println!("### Targets\n\n{targets}");
             println!(
-                "### Peers (other papers' methods; plateaus shade only its receiver plane, other receivers get the hard shadow)\n\n{peers}"
+                "### Peers (other papers' methods; plateaus shade only their receiver plane, other receivers get the hard shadow)\n\n{peers}"
             );
             println!(
                 "### Accuracy targets of the coverage method ({coverage_label}, against {} ground-truth samples)\n\n{accuracy}",

@@ -17,9 +17,18 @@ fn visibility_writes_one_row_per_point_and_methods_agree_where_they_must() {
     let points = temp("points.csv");
     // Under the box's shadow centre (umbra), and far away (lit).
     std::fs::write(&points, "x,y,z,nx,ny,nz\n-0.24,0,-0.16,0,1,0\n4,0,4,0,1,0\n").unwrap();
-    for method in
-        ["ground-truth", "fins", "hard", "outer-fins", "single-layer", "coverage", "single-sample", "plateaus"]
-    {
+    for method in [
+        "ground-truth",
+        "fins",
+        "hard",
+        "outer-fins",
+        "single-layer",
+        "coverage",
+        "single-sample",
+        "plateaus",
+        "penumbra-wedges",
+        "wedge-blending",
+    ] {
         let out =
             lab(&["visibility", "--scene", "box-over-plane", "--points", points.to_str().unwrap(), "--method", method]);
         assert!(out.status.success(), "{method}: {}", String::from_utf8_lossy(&out.stderr));
@@ -112,7 +121,9 @@ fn image_writes_a_png_strip_that_is_not_blank() {
             && table.contains("| fins 16L |")
             && table.contains("| fins 16L paper |")
             && table.contains("| single-sample |")
-            && table.contains("| plateaus |"),
+            && table.contains("| plateaus |")
+            && table.contains("| penumbra-wedges |")
+            && table.contains("| wedge-blending |"),
         "{table}"
     );
     let bytes = std::fs::read(&png).unwrap();

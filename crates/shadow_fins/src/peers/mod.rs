@@ -5,13 +5,16 @@
 //! - [`single_sample`]: Parker, Shirley, Smits, *Single Sample Soft Shadows*
 //!   (1998): one ray per receiver against softened occluders;
 //! - [`plateaus`]: Haines, *Soft Planar Shadows Using Plateaus* (2001): a
-//!   receiver plane's texture of drop shadow, cones and sheets.
+//!   receiver plane's texture of drop shadow, cones and sheets;
+//! - [`wedges`]: penumbra wedges (Assarsson, Akenine-Möller 2002), plain and
+//!   with Forest, Barthe, Paulin's blending of overlapping penumbrae (2006).
 //!
 //! Each model answers [`PeerModel::visibility`] for a receiver in the light
 //! frame, like the fin oracle's indices and the ground truth.
 
 pub mod plateaus;
 pub mod single_sample;
+pub mod wedges;
 
 use crate::{
     oracle::Receiver,
@@ -20,6 +23,7 @@ use crate::{
 
 pub use plateaus::{PlateauModel, ReceiverPlane};
 pub use single_sample::SingleSampleModel;
+pub use wedges::{WedgeBlending, WedgeModel};
 
 /// A peer method, by the name the lab's `--method` takes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -28,15 +32,22 @@ pub enum PeerMethod {
     SingleSample,
     /// Haines 2001 (one receiver plane).
     Plateaus,
+    /// Penumbra wedges, occluded areas added (Assarsson, Akenine-Möller 2002).
+    PenumbraWedges,
+    /// Penumbra wedges with Forest et al.'s blending (2006).
+    WedgeBlending,
 }
 
 impl PeerMethod {
-    pub const ALL: [PeerMethod; 2] = [PeerMethod::SingleSample, PeerMethod::Plateaus];
+    pub const ALL: [PeerMethod; 4] =
+        [PeerMethod::SingleSample, PeerMethod::Plateaus, PeerMethod::PenumbraWedges, PeerMethod::WedgeBlending];
 
     pub fn name(self) -> &'static str {
         match self {
             PeerMethod::SingleSample => "single-sample",
             PeerMethod::Plateaus => "plateaus",
+            PeerMethod::PenumbraWedges => "penumbra-wedges",
+            PeerMethod::WedgeBlending => "wedge-blending",
         }
     }
 
@@ -45,6 +56,8 @@ impl PeerMethod {
         match self {
             PeerMethod::SingleSample => "Parker, Shirley, Smits 1998",
             PeerMethod::Plateaus => "Haines 2001",
+            PeerMethod::PenumbraWedges => "Assarsson, Akenine-Möller 2002",
+            PeerMethod::WedgeBlending => "Forest, Barthe, Paulin 2006",
         }
     }
 
@@ -57,6 +70,7 @@ impl PeerMethod {
 pub enum PeerModel {
     SingleSample(SingleSampleModel),
     Plateaus(PlateauModel),
+    Wedges(WedgeModel),
 }
 
 impl PeerModel {
@@ -64,6 +78,8 @@ impl PeerModel {
         match method {
             PeerMethod::SingleSample => PeerModel::SingleSample(SingleSampleModel::new(light_space)),
             PeerMethod::Plateaus => PeerModel::Plateaus(PlateauModel::new(scene, light_space)),
+            PeerMethod::PenumbraWedges => PeerModel::Wedges(WedgeModel::new(scene, light_space, WedgeBlending::Add)),
+            PeerMethod::WedgeBlending => PeerModel::Wedges(WedgeModel::new(scene, light_space, WedgeBlending::Forest)),
         }
     }
 
@@ -72,6 +88,7 @@ impl PeerModel {
         let v = match self {
             PeerModel::SingleSample(m) => m.visibility(receiver),
             PeerModel::Plateaus(m) => m.visibility(receiver),
+            PeerModel::Wedges(m) => m.visibility(receiver),
         };
         // NaN in, 0 out: never a NaN on screen.
         if v > 0.0 { v.min(1.0) } else { 0.0 }

@@ -1,19 +1,22 @@
 //! The peer methods pinned against their papers: Parker et al.'s penumbra
 //! widths grow linearly from contact; Haines' plateaus are the hard shadow at
-//! radius 0 and never brighten inside it; both stay finite in `[0, 1]`.
+//! radius 0 and never brighten inside it; penumbra wedges are exact for one
+//! straight edge, and Forest et al.'s blending beats plain wedge addition on
+//! a cube of spheres (their Figure 1); all stay finite in `[0, 1]`.
 
 use shadow_fins::{
     bvh::Bvh,
     glam::Vec3,
     light::{DiskLight, Light},
     oracle::Receiver,
-    peers::{PeerMethod, PeerModel, PlateauModel},
-    scene::{LightSpaceScene, Scene, surface_epsilon},
+    peers::{PeerMethod, PeerModel, PlateauModel, WedgeBlending, WedgeModel},
+    scene::{LightSpaceScene, Scene, SceneObject, surface_epsilon},
     scenes::SceneId,
+    shapes,
 };
 
 use super::{
-    common::{ground_receivers, straight_edge_scene},
+    common::{down_light, ground, ground_receivers, ground_truth, straight_edge_scene},
     convergence::view_receivers,
 };
 
@@ -85,7 +88,7 @@ fn plateau_cones_are_as_wide_as_the_penumbra_a_point_at_their_height_makes() {
 }
 
 #[test]
-fn both_peers_at_radius_zero_are_the_hard_shadow_and_never_brighten_inside_it() {
+fn peers_at_radius_zero_are_the_hard_shadow_and_never_brighten_inside_it() {
     for id in SceneId::ALL.into_iter().filter(|s| *s != SceneId::DenseBlob) {
         let s = id.build();
         for zero in [true, false] {
@@ -98,6 +101,14 @@ fn both_peers_at_radius_zero_are_the_hard_shadow_and_never_brighten_inside_it() 
                 let v: Vec<f32> = receivers.iter().map(|r| model.visibility(*r)).collect();
                 // Haines' drop shadow leaves the plane's own triangles out, so a
                 // receiver on a plane edge may see one more or one less caster.
+                // Penumbra wedges have an inner penumbra: only the outer-only
+                // methods promise never to brighten the hard shadow.
+                let outer_only = matches!(method, PeerMethod::SingleSample | PeerMethod::Plateaus);
+                if !zero && !outer_only {
+                    let soft = v.iter().filter(|v| **v > 0.0 && **v < 1.0).count();
+                    assert!(soft > 0, "{} {}: no penumbra at all", id.name(), method.name());
+                    continue;
+                }
                 let mismatched = v.iter().zip(&hard).filter(|(v, h)| if zero { *v != *h } else { **v > **h }).count();
                 assert!(
                     mismatched * 500 <= receivers.len(),
@@ -162,4 +173,70 @@ fn peers_stay_finite_in_unit_range_at_the_extremes() {
         camera.target += offset;
         check(&s.scene.translated(offset), light, &camera, &format!("{} offset 1e5", id.name()));
     }
+}
+
+#[test]
+fn penumbra_wedges_are_exact_for_one_straight_edge() {
+    // One silhouette whose outline from every receiver is its outline from
+    // the light's centre: the wedges integrate the occluded disk segment
+    // exactly, inner and outer penumbra alike, with or without blending.
+    let (h, light_h, r) = (0.5, 4.0, 0.6);
+    let (scene, light) = straight_edge_scene(h, light_h, r);
+    let width = 2.0 * r * h / (light_h - h);
+    // Off the plane through the light's centre and the edge (x = 0), where
+    // the shadow-volume ray grazes the edge and its side is undecided.
+    let points: Vec<Vec3> = (0..=80).map(|i| Vec3::new(((i as f32 + 0.37) / 40.0 - 1.0) * width, 0.0, 0.3)).collect();
+    let truth = ground_truth(&scene, light, 4096, &points);
+    let ls = LightSpaceScene::new(&scene, light);
+    for blending in [WedgeBlending::Add, WedgeBlending::Forest] {
+        let model = WedgeModel::new(&scene, &ls, blending);
+        let v: Vec<f32> = ground_receivers(&ls, &points).into_iter().map(|r| model.visibility(r)).collect();
+        let mae = v.iter().zip(&truth).map(|(a, b)| (a - b).abs()).sum::<f32>() / v.len() as f32;
+        assert!(mae <= 0.01, "{blending:?}: MAE {mae} against 4096-sample truth");
+        // Both halves of the penumbra: dark under the occluder, lit beyond.
+        assert!(v[10] < 0.3 && v[70] > 0.7 && v[40] > 0.3 && v[40] < 0.7, "{blending:?}: {:?}", &v[..]);
+    }
+}
+
+#[test]
+fn forest_blending_beats_plain_wedge_addition_on_a_cube_of_spheres() {
+    // Their Figure 1: a cube of spheres, whose penumbrae overlap everywhere
+    // under it. Adding the silhouettes' occluded areas counts the overlaps
+    // twice (too dark); the blending takes them off.
+    let sphere = std::sync::Arc::new(shapes::uv_sphere(0.25, 12, 24));
+    let topology = std::sync::Arc::new(shadow_fins::mesh::Topology::build(&sphere));
+    let mut objects = vec![ground()];
+    for i in 0..3 {
+        for j in 0..3 {
+            for k in 0..3 {
+                let p = Vec3::new((i as f32 - 1.0) * 0.7, 1.2 + j as f32 * 0.7, (k as f32 - 1.0) * 0.7);
+                let t = shadow_fins::glam::Affine3A::from_translation(p);
+                objects.push(
+                    SceneObject::shared(format!("sphere-{i}-{j}-{k}"), sphere.clone(), topology.clone(), t).unwrap(),
+                );
+            }
+        }
+    }
+    let scene = Scene::new(objects);
+    let light = down_light(Vec3::new(0.0, 6.0, 0.0), 1.2);
+    let points: Vec<Vec3> = (0..32 * 32)
+        .map(|i| Vec3::new((i % 32) as f32 / 31.0 * 3.6 - 1.8, 0.0, (i / 32) as f32 / 31.0 * 3.6 - 1.8))
+        .collect();
+    let truth = ground_truth(&scene, light, 1024, &points);
+    let ls = LightSpaceScene::new(&scene, light);
+    let errors = |blending| {
+        let model = WedgeModel::new(&scene, &ls, blending);
+        let v: Vec<f32> = ground_receivers(&ls, &points).into_iter().map(|r| model.visibility(r)).collect();
+        let n = v.len() as f32;
+        let mae = v.iter().zip(&truth).map(|(a, b)| (a - b).abs()).sum::<f32>() / n;
+        let bias = v.iter().zip(&truth).map(|(a, b)| a - b).sum::<f32>() / n;
+        (mae, bias)
+    };
+    let (add, add_bias) = errors(WedgeBlending::Add);
+    let (forest, forest_bias) = errors(WedgeBlending::Forest);
+    assert!(add_bias < -0.02, "plain wedges should over-darken the overlaps: bias {add_bias}");
+    assert!(
+        forest < 0.75 * add,
+        "blending MAE {forest} (bias {forest_bias}) should beat plain addition {add} (bias {add_bias})"
+    );
 }
