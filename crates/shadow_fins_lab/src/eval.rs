@@ -107,7 +107,7 @@ pub fn evaluate(
             Evaluation { values, prepare_ms, evaluate_ms, silhouettes: model.edges.len(), fins: 0, layers: 0, work }
         }
         Measured::Peer(peer) => {
-            let model = PeerModel::new(peer, scene, light_space);
+            let model = PeerModel::for_receivers(peer, scene, light_space, receivers);
             let prepare_ms = ms(start);
             let t = Instant::now();
             let values = receivers.par_iter().map(|r| model.visibility(*r)).collect();

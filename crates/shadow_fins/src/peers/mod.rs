@@ -6,12 +6,16 @@
 //!   (1998): one ray per receiver against softened occluders;
 //! - [`plateaus`]: Haines, *Soft Planar Shadows Using Plateaus* (2001): a
 //!   receiver plane's texture of drop shadow, cones and sheets;
+//! - [`convolution`]: Annen et al., *Real-Time, All-Frequency Shadows in
+//!   Dynamic Scenes* (2008): convolution shadow maps with CSM-Z average
+//!   blocker depth, summed-area tables or mipmaps;
 //! - [`wedges`]: penumbra wedges (Assarsson, Akenine-Möller 2002), plain and
 //!   with Forest, Barthe, Paulin's blending of overlapping penumbrae (2006).
 //!
 //! Each model answers [`PeerModel::visibility`] for a receiver in the light
 //! frame, like the fin oracle's indices and the ground truth.
 
+pub mod convolution;
 pub mod plateaus;
 pub mod single_sample;
 pub mod wedges;
@@ -21,6 +25,7 @@ use crate::{
     scene::{LightSpaceScene, Scene},
 };
 
+pub use convolution::{ConvolutionModel, ConvolutionSettings, Prefilter};
 pub use plateaus::{PlateauModel, ReceiverPlane};
 pub use single_sample::SingleSampleModel;
 pub use wedges::{WedgeBlending, WedgeModel};
@@ -36,11 +41,21 @@ pub enum PeerMethod {
     PenumbraWedges,
     /// Penumbra wedges with Forest et al.'s blending (2006).
     WedgeBlending,
+    /// Convolution soft shadows, summed-area tables (Annen et al. 2008).
+    Convolution,
+    /// Convolution soft shadows, mipmaps.
+    ConvolutionMipmap,
 }
 
 impl PeerMethod {
-    pub const ALL: [PeerMethod; 4] =
-        [PeerMethod::SingleSample, PeerMethod::Plateaus, PeerMethod::PenumbraWedges, PeerMethod::WedgeBlending];
+    pub const ALL: [PeerMethod; 6] = [
+        PeerMethod::SingleSample,
+        PeerMethod::Plateaus,
+        PeerMethod::PenumbraWedges,
+        PeerMethod::WedgeBlending,
+        PeerMethod::Convolution,
+        PeerMethod::ConvolutionMipmap,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -48,6 +63,8 @@ impl PeerMethod {
             PeerMethod::Plateaus => "plateaus",
             PeerMethod::PenumbraWedges => "penumbra-wedges",
             PeerMethod::WedgeBlending => "wedge-blending",
+            PeerMethod::Convolution => "convolution",
+            PeerMethod::ConvolutionMipmap => "convolution-mipmap",
         }
     }
 
@@ -58,6 +75,7 @@ impl PeerMethod {
             PeerMethod::Plateaus => "Haines 2001",
             PeerMethod::PenumbraWedges => "Assarsson, Akenine-Möller 2002",
             PeerMethod::WedgeBlending => "Forest, Barthe, Paulin 2006",
+            PeerMethod::Convolution | PeerMethod::ConvolutionMipmap => "Annen et al. 2008",
         }
     }
 
@@ -71,15 +89,46 @@ pub enum PeerModel {
     SingleSample(SingleSampleModel),
     Plateaus(PlateauModel),
     Wedges(WedgeModel),
+    Convolution(Box<ConvolutionModel>),
 }
 
 impl PeerModel {
+    /// Prepared for any receiver (convolution shadow maps cover every caster).
     pub fn new(method: PeerMethod, scene: &Scene, light_space: &LightSpaceScene) -> Self {
+        Self::prepare(method, scene, light_space, None)
+    }
+
+    /// Prepared for these receivers: convolution shadow maps fitted to them,
+    /// as a renderer fits its maps to the view; the others as [`Self::new`].
+    pub fn for_receivers(
+        method: PeerMethod,
+        scene: &Scene,
+        light_space: &LightSpaceScene,
+        receivers: &[Receiver],
+    ) -> Self {
+        Self::prepare(method, scene, light_space, Some(receivers))
+    }
+
+    fn prepare(
+        method: PeerMethod,
+        scene: &Scene,
+        light_space: &LightSpaceScene,
+        receivers: Option<&[Receiver]>,
+    ) -> Self {
         match method {
             PeerMethod::SingleSample => PeerModel::SingleSample(SingleSampleModel::new(light_space)),
             PeerMethod::Plateaus => PeerModel::Plateaus(PlateauModel::new(scene, light_space)),
             PeerMethod::PenumbraWedges => PeerModel::Wedges(WedgeModel::new(scene, light_space, WedgeBlending::Add)),
             PeerMethod::WedgeBlending => PeerModel::Wedges(WedgeModel::new(scene, light_space, WedgeBlending::Forest)),
+            PeerMethod::Convolution | PeerMethod::ConvolutionMipmap => {
+                let prefilter =
+                    if method == PeerMethod::Convolution { Prefilter::SummedArea } else { Prefilter::Mipmap };
+                let settings = ConvolutionSettings { prefilter, ..Default::default() };
+                PeerModel::Convolution(Box::new(match receivers {
+                    Some(r) => ConvolutionModel::fitted(light_space, settings, r),
+                    None => ConvolutionModel::new(light_space, settings),
+                }))
+            }
         }
     }
 
@@ -89,6 +138,7 @@ impl PeerModel {
             PeerModel::SingleSample(m) => m.visibility(receiver),
             PeerModel::Plateaus(m) => m.visibility(receiver),
             PeerModel::Wedges(m) => m.visibility(receiver),
+            PeerModel::Convolution(m) => m.visibility(receiver),
         };
         // NaN in, 0 out: never a NaN on screen.
         if v > 0.0 { v.min(1.0) } else { 0.0 }
