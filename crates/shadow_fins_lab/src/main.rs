@@ -50,8 +50,9 @@ enum Command {
         /// ground-truth, coverage, fins, hard, outer-fins, single-layer, or a peer
         /// paper's method: single-sample (Parker et al. 1998), plateaus
         /// (Haines 2001; one receiver plane, see `shadow_fins::peers::plateaus`),
-        /// penumbra-wedges (Assarsson, Akenine-Möller 2002) or wedge-blending
-        /// (Forest, Barthe, Paulin 2006).
+        /// penumbra-wedges (Assarsson, Akenine-Möller 2002), wedge-blending
+        /// (Forest, Barthe, Paulin 2006), convolution or convolution-mipmap
+        /// (Annen et al. 2008: 512² maps, order 4, summed-area tables or mipmaps).
         #[arg(long, default_value = "fins")]
         method: String,
         /// Output CSV (default: standard output).

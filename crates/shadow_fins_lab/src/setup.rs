@@ -130,7 +130,7 @@ pub fn parse_measured(s: &str, coverage_samples: u32) -> Result<Measured, LabErr
     Method::parse(s).map(Measured::Method).ok_or_else(|| {
         LabError::Usage(format!(
             "unknown method '{s}': use ground-truth, coverage, fins, hard, outer-fins, single-layer, \
-             single-sample, plateaus, penumbra-wedges or wedge-blending"
+             single-sample, plateaus, penumbra-wedges, wedge-blending, convolution or convolution-mipmap"
         ))
     })
 }

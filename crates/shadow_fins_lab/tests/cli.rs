@@ -123,7 +123,8 @@ fn image_writes_a_png_strip_that_is_not_blank() {
             && table.contains("| single-sample |")
             && table.contains("| plateaus |")
             && table.contains("| penumbra-wedges |")
-            && table.contains("| wedge-blending |"),
+            && table.contains("| wedge-blending |")
+            && table.contains("| convolution |"),
         "{table}"
     );
     let bytes = std::fs::read(&png).unwrap();
