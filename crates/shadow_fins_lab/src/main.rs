@@ -22,6 +22,7 @@ use shadow_fins_lab::{
     compare::{Comparison, Config, compare, markdown_table, standard_configs},
     eval::evaluate,
     picture::{Column, Picture, strip as strip_picture},
+    plot::{Point, pareto_plot},
     setup::{FinArgs, SceneArgs, parse_measured, parse_vec3},
 };
 
@@ -198,6 +199,8 @@ fn run(command: Command) -> Result<(), LabError> {
                     .concat(),
                 "---|".repeat(PeerMethod::ALL.len())
             );
+            // Per configuration over all scenes: (MAE sum, total ms, scenes).
+            let mut overall: Vec<(String, f64, f64, u32)> = vec![];
             for id in ids {
                 let args = SceneArgs {
                     scene: id.name().into(),
@@ -215,6 +218,15 @@ fn run(command: Command) -> Result<(), LabError> {
                 std::io::stdout().flush().ok();
                 if let Some(dir) = &images {
                     strip(&c).save_png(&dir.join(format!("{}.png", id.name())))?;
+                }
+                for r in &c.rows {
+                    let i = overall.iter().position(|o| o.0 == r.config.label).unwrap_or_else(|| {
+                        overall.push((r.config.label.clone(), 0.0, 0.0, 0));
+                        overall.len() - 1
+                    });
+                    overall[i].1 += r.metrics.mae as f64;
+                    overall[i].2 += r.evaluation.total_ms();
+                    overall[i].3 += 1;
                 }
                 let row = |label: &str| c.rows.iter().find(|r| r.config.label == label);
                 let mae = |label: &str| row(label).map(|r| r.metrics);
@@ -287,6 +299,27 @@ fn run(command: Command) -> Result<(), LabError> {
                 }
             }
             println!("### Targets\n\n{targets}");
+            let mut table = String::from(
+                "| method | mean MAE over the scenes | CPU ms, all scenes (prepare + evaluate) |\n|---|---|---|\n",
+            );
+            let points: Vec<Point> = overall
+                .iter()
+                .map(|(label, mae, ms, n)| {
+                    let n = (*n).max(1) as f64;
+                    table += &format!("| {label} | {:.4} | {ms:.0} |\n", mae / n);
+                    Point { series: method_family(label).to_string(), time_ms: *ms, error: mae / n }
+                })
+                .collect();
+            println!(
+                "### Speed against accuracy, every method ({} threads; Bevy's own shadows are in the rendered lab)\n\n{table}",
+                rayon::current_num_threads()
+            );
+            if let Some(dir) = &images {
+                let path = dir.join("pareto.png");
+                pareto_plot("every method: mean MAE vs CPU time", "CPU ms, all scenes (log)", "mean MAE", &points)
+                    .save_png(&path)?;
+                eprintln!("wrote {}", path.display());
+            }
             println!(
                 "### Peers (other papers' methods; plateaus shade only their receiver plane, other receivers get the hard shadow)\n\n{peers}"
             );
@@ -307,6 +340,19 @@ fn run(command: Command) -> Result<(), LabError> {
         }
     }
     Ok(())
+}
+
+/// The method a configuration's label belongs to (one colour per method on the plot).
+fn method_family(label: &str) -> &str {
+    if label.starts_with("fins") {
+        if label.contains("paper") { "fins (paper)" } else { "fins (ours)" }
+    } else if label.starts_with("coverage") {
+        "coverage"
+    } else if label.starts_with("convolution") {
+        "convolution"
+    } else {
+        label
+    }
 }
 
 fn title(name: &str, light: &shadow_fins::light::Light, fins: &FinArgs) -> String {

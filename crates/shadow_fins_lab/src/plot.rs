@@ -36,8 +36,8 @@ pub fn pareto_front(points: &[Point]) -> Vec<usize> {
     front
 }
 
-/// Distinct colours for up to eight series, then they repeat.
-pub const PALETTE: [[u8; 3]; 8] = [
+/// Distinct colours for up to twelve series, then they repeat.
+pub const PALETTE: [[u8; 3]; 12] = [
     [230, 90, 70],
     [240, 190, 60],
     [90, 200, 110],
@@ -46,6 +46,10 @@ pub const PALETTE: [[u8; 3]; 8] = [
     [230, 230, 230],
     [60, 210, 210],
     [240, 130, 190],
+    [150, 150, 90],
+    [250, 150, 60],
+    [120, 120, 250],
+    [170, 230, 140],
 ];
 
 const AXIS: [u8; 3] = [150, 150, 160];
