@@ -119,3 +119,46 @@ fn a_hidden_mesh_and_one_with_bevys_not_shadow_caster_cast_no_fin_shadow_until_t
         assert!(mad <= 1e-4, "{what}: the shadow did not come back ({mad})");
     }
 }
+
+#[test]
+fn a_caster_on_no_layer_of_the_lights_casts_no_fin_shadow_until_they_share_one() {
+    // Bevy's shadow maps take a caster only when its `RenderLayers` meet the
+    // light's; fin shadows do the same. The camera sees layers 0 and 1, so
+    // the box on layer 1 is drawn (and receives) but, for a spot on layer 0,
+    // casts as a `NotShadowCaster` box does; the spot on both layers brings
+    // the shadow back exactly.
+    use bevy::camera::visibility::RenderLayers;
+    let mut setup = setup(SceneId::BoxOverPlane, settings());
+    setup.spot = true;
+    let mut session = harness::Session::new(&setup);
+    let world = session.app.world_mut();
+    let cameras: Vec<Entity> = world.query_filtered::<Entity, With<Camera3d>>().iter(world).collect();
+    for camera in cameras {
+        world.entity_mut(camera).insert(RenderLayers::from_layers(&[0, 1]));
+    }
+    let shadowed = session.settle(6).expect("render").visibility;
+    assert_visibility_not_trivial(&shadowed);
+    let world = session.app.world_mut();
+    let the_box = world
+        .query::<(Entity, &Mesh3d, &GlobalTransform)>()
+        .iter(world)
+        .find(|(_, _, t)| t.translation().y > 1.0)
+        .expect("the box")
+        .0;
+    let spot = world.query_filtered::<Entity, With<SpotLight>>().single(world).expect("one spot");
+    world.entity_mut(the_box).insert(bevy::light::NotShadowCaster);
+    let not_casting = session.settle(6).expect("render").visibility;
+    let (gone, _) = compare(&not_casting, &shadowed);
+    assert!(gone > 0.005, "the box's shadow is too small to tell ({gone})");
+    let world = session.app.world_mut();
+    world.entity_mut(the_box).remove::<bevy::light::NotShadowCaster>();
+    world.entity_mut(the_box).insert(RenderLayers::layer(1));
+    let off_layer = session.settle(6).expect("render").visibility;
+    let (mad, _) = compare(&off_layer, &not_casting);
+    println!("box on layer 1, spot on 0: |V − V not casting| = {mad:.2e}");
+    assert!(mad <= 1e-4, "a box on no layer of the light's still casts ({mad})");
+    session.app.world_mut().entity_mut(spot).insert(RenderLayers::from_layers(&[0, 1]));
+    let back = session.settle(6).expect("render").visibility;
+    let (mad, _) = compare(&back, &shadowed);
+    assert!(mad <= 1e-4, "sharing a layer did not bring the shadow back ({mad})");
+}

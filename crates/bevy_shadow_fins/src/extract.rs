@@ -17,7 +17,7 @@ use std::{
 
 use bevy::{
     asset::AssetId,
-    camera::primitives::Aabb,
+    camera::{primitives::Aabb, visibility::RenderLayers},
     light::SunDisk,
     math::DVec3,
     mesh::{Indices, Mesh, PrimitiveTopology, VertexAttributeValues},
@@ -239,6 +239,9 @@ struct LightSource {
     shading: LightShading,
     /// A sun's maps fitted to what the cameras see (`sun_fit`), in its axes.
     window: Option<[f32; 4]>,
+    /// The light's `RenderLayers`: only casters on a layer it shares cast
+    /// for it, as in Bevy's own shadow maps.
+    layers: RenderLayers,
 }
 
 /// The lights with fin shadows: `FinLight`s, and Bevy `SpotLight`s and
@@ -262,6 +265,7 @@ fn light_sources(
             settings: settings.clamped(),
             shading: LightShading::Own { light: *light, transform: *transform },
             window: None,
+            layers: RenderLayers::default(),
         };
         disk(transform, light.effective_radius()).map(source).map_err(|_| entity)
     });
@@ -277,6 +281,7 @@ fn light_sources(
                 settings,
                 shading: LightShading::Bevy { render_entity: render.id() },
                 window: None,
+                layers: RenderLayers::default(),
             };
             Some(disk(transform, finite(spot.radius)).map(source).map_err(|_| entity))
         },
@@ -292,6 +297,7 @@ fn light_sources(
                 settings,
                 shading: LightShading::Bevy { render_entity: render.id() },
                 window: None,
+                layers: RenderLayers::default(),
             }))
         },
     );
@@ -326,6 +332,7 @@ pub(crate) struct CasterFlags {
     not_bevy_caster: Has<bevy::light::NotShadowCaster>,
     visibility: Option<&'static InheritedVisibility>,
     aabb: Option<&'static Aabb>,
+    layers: Option<&'static RenderLayers>,
 }
 
 impl CasterFlagsItem<'_, '_> {
@@ -335,6 +342,19 @@ impl CasterFlagsItem<'_, '_> {
 
     fn casts(&self) -> bool {
         !self.not_fin_caster && !self.not_bevy_caster
+    }
+
+    /// The mesh's `RenderLayers` (layer 0 without the component, as in Bevy).
+    fn layers(&self) -> RenderLayers {
+        self.layers.cloned().unwrap_or_default()
+    }
+}
+
+/// Hashes a `RenderLayers` (it has no `Hash`) by its layers.
+fn hash_layers(layers: &RenderLayers, hasher: &mut impl Hasher) {
+    layers.iter().count().hash(hasher);
+    for layer in layers.iter() {
+        layer.hash(hasher);
     }
 }
 
@@ -379,6 +399,7 @@ fn update_fin_frames(
     mut directional_lights: DirectionalLights,
     other_lights: Query<(), (With<FinShadows>, Without<SpotLight>, Without<DirectionalLight>, Without<FinLight>)>,
     casters: Casters,
+    light_layers: Query<&RenderLayers>,
     views: Query<(&GlobalTransform, &Projection), With<FinShadowView>>,
     mut light_stats: Query<&mut FinLightStats>,
     meshes: Res<Assets<Mesh>>,
@@ -403,6 +424,11 @@ fn update_fin_frames(
         );
     }
     let (mut sources, invalid) = light_sources(&fin_lights, &spot_lights, &directional_lights);
+    for source in &mut sources {
+        if let Ok(layers) = light_layers.get(source.entity) {
+            source.layers = layers.clone();
+        }
+    }
     // A light with no finite position or direction shadows nothing and takes
     // no share of the budget.
     for entity in invalid {
@@ -443,6 +469,7 @@ fn update_fin_frames(
         entity.hash(&mut hasher);
         let casting = caster.casts();
         (caster.drawn(), casting).hash(&mut hasher);
+        hash_layers(&caster.layers(), &mut hasher);
         if !caster.drawn() {
             continue;
         }
@@ -486,6 +513,7 @@ fn update_fin_frames(
         hash_floats(&mut hasher, &light_key(&source.light));
         hash_floats(&mut hasher, &source.window.unwrap_or([f32::NAN; 4]));
         hash_floats(&mut hasher, &[source.reach.range, source.reach.cone.unwrap_or(-1.0)]);
+        hash_layers(&source.layers, &mut hasher);
         let signature = hasher.finish();
         let previous = frames.0.iter().find(|f| f.light == source.entity);
         if let Some(previous) = previous
@@ -507,7 +535,8 @@ fn update_fin_frames(
         cache.generation += 1;
         let generation = cache.generation;
         let state = cache.lights.get_mut(&source.entity).expect("inserted above");
-        let data = light_frame(scene, light, source.window, source.reach, source.settings, generation, limits, state);
+        let sees = LightSees { reach: source.reach, layers: &source.layers };
+        let data = light_frame(scene, light, source.window, sees, source.settings, generation, limits, state);
         set_stats(&mut light_stats, source.entity, data.stats);
         next.push(FinLightFrame { light: source.entity, shading: source.shading, data: Arc::new(data) });
     }
@@ -569,6 +598,8 @@ struct CasterScene {
     /// Each object's world bounding box corners (from Bevy's `Aabb`), for
     /// the lights' range culling; `None` is never culled.
     bounds: Vec<Option<[Vec3; 8]>>,
+    /// Each object's `RenderLayers`.
+    layers: Vec<RenderLayers>,
     /// World bounds of meshes drawn but unreadable here (render-world only,
     /// invalid): receivers all the same, so the reference plane must cover them.
     unread_bounds: Vec<[Vec3; 8]>,
@@ -576,7 +607,8 @@ struct CasterScene {
 
 impl CasterScene {
     fn collect(casters: &Casters, meshes: &Assets<Mesh>, cache: &mut HashMap<AssetId<Mesh>, CachedMesh>) -> Self {
-        let mut scene = Self { objects: vec![], gpu_meshes: vec![], bounds: vec![], unread_bounds: vec![] };
+        let mut scene =
+            Self { objects: vec![], gpu_meshes: vec![], bounds: vec![], layers: vec![], unread_bounds: vec![] };
         // A hidden mesh is not drawn: it neither casts nor receives.
         for (_, mesh3d, transform, caster) in casters.iter().filter(|c| c.3.drawn()) {
             let not_caster = !caster.casts();
@@ -603,6 +635,7 @@ impl CasterScene {
                     scene.objects.push(o);
                     scene.gpu_meshes.push(geometry.clone());
                     scene.bounds.push(corners);
+                    scene.layers.push(caster.layers());
                 }
                 // A degenerate transform: Bevy may still draw it; it receives.
                 Err(_) => scene.unread_bounds.extend(corners),
@@ -611,18 +644,22 @@ impl CasterScene {
         scene
     }
 
-    /// The objects as one light sees them: casters out of its reach (beyond
-    /// its range, outside its cone, or wholly behind its disk) cast nothing
-    /// for it, but still receive.
-    fn seen_by(&self, light: &Light, reach: Reach) -> Vec<SceneObject> {
-        // The sun lights everything in front of it: no caster is out of its reach.
-        let Light::Disk(disk) = light else { return self.objects.clone() };
+    /// The objects as one light sees them: casters on no layer of the
+    /// light's, or out of its reach (beyond its range, outside its cone, or
+    /// wholly behind its disk) cast nothing for it, but still receive.
+    fn seen_by(&self, light: &Light, sees: LightSees) -> Vec<SceneObject> {
         self.objects
             .iter()
             .zip(&self.bounds)
-            .map(|(o, bounds)| {
+            .zip(&self.layers)
+            .map(|((o, bounds), layers)| {
                 let mut o = o.clone();
-                if o.casts_shadows && bounds.is_some_and(|b| out_of_reach(&b, disk, reach)) {
+                // The sun lights everything in front of it: no caster is out of its reach.
+                let out = match light {
+                    Light::Disk(disk) => bounds.is_some_and(|b| out_of_reach(&b, disk, sees.reach)),
+                    Light::Sun(_) => false,
+                };
+                if o.casts_shadows && (out || !layers.intersects(sees.layers)) {
                     o.casts_shadows = false;
                 }
                 o
@@ -647,6 +684,13 @@ impl CasterScene {
         let (lo, hi) = if lo.x <= hi.x { (lo, hi) } else { (Vec3::ZERO, Vec3::ONE) };
         (LightFrame::new(light, lo, hi), (lo, hi))
     }
+}
+
+/// What a light's shadow sees of the scene: where it lights and its layers.
+#[derive(Debug, Clone, Copy)]
+struct LightSees<'a> {
+    reach: Reach,
+    layers: &'a RenderLayers,
 }
 
 /// Where a light can light: its range (0: unbounded) and, for a spot, the
@@ -686,7 +730,7 @@ fn light_frame(
     scene: &CasterScene,
     light: Light,
     window: Option<[f32; 4]>,
-    reach: Reach,
+    sees: LightSees,
     settings: FinShadowSettings,
     generation: u64,
     limits: FrameLimits,
@@ -697,7 +741,7 @@ fn light_frame(
     // shadow (the min over layers of slabs is the nearest slab), and the
     // memory of the other layers goes to resolution instead.
     let settings = if light.is_zero_size() { FinShadowSettings { layers: 1, ..settings } } else { settings };
-    let objects = scene.seen_by(&light, reach);
+    let objects = scene.seen_by(&light, sees);
     let unread_bounds = scene.unread_bounds.clone();
     let (frame, scene_box) = scene.frame_for(&light);
     // A sun fitted to the views works in a frame placed at its window.

@@ -67,7 +67,8 @@
 //! Every drawn mesh with a `Mesh3d` casts and receives (opt out with
 //! [`NotFinShadowCaster`] or Bevy's `NotShadowCaster`, and
 //! [`NotFinShadowReceiver`]; a mesh hidden by `Visibility` casts nothing;
-//! `RenderLayers` are not yet honoured for casters); materials are
+//! a mesh casts only for lights whose `RenderLayers` it shares, as in Bevy's
+//! own shadow maps — without the component both are on layer 0); materials are
 //! unchanged. The plugin makes deferred the default opaque renderer method
 //! (`DefaultOpaqueRendererMethod`), because the fin light is composited from
 //! the G-buffer: 3D cameras that show fin-lit scenes carry [`FinShadowView`],
