@@ -225,6 +225,13 @@ fn a_light_on_another_render_layer_is_shadowed_where_bevy_lights_it_and_never_ta
     let layer_one = bevy::camera::visibility::RenderLayers::layer(1);
     let spot = world.query_filtered::<Entity, With<SpotLight>>().single(world).expect("one spot light");
     world.entity_mut(spot).insert(layer_one.clone());
+    // The meshes on both layers: drawn by the first camera, and casters for
+    // the light, which (like Bevy's shadow maps) takes casters only on a
+    // layer it shares.
+    let meshes: Vec<Entity> = world.query_filtered::<Entity, With<Mesh3d>>().iter(world).collect();
+    for mesh in meshes {
+        world.entity_mut(mesh).insert(bevy::camera::visibility::RenderLayers::from_layers(&[0, 1]));
+    }
     let second = world.query::<(Entity, &Camera)>().iter(world).find(|(_, c)| c.order == 1).expect("second camera").0;
     world.entity_mut(second).insert(layer_one);
     let hidden = session.settle(16).expect("render");

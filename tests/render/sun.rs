@@ -216,6 +216,13 @@ fn a_sun_on_another_render_layer_is_never_taken_away_from_a_view_that_does_not_s
     let layer_one = bevy::camera::visibility::RenderLayers::layer(1);
     let sun = world.query_filtered::<Entity, With<DirectionalLight>>().single(world).expect("one sun");
     world.entity_mut(sun).insert(layer_one.clone());
+    // The meshes on both layers: drawn by the first camera, and casters for
+    // the light, which (like Bevy's shadow maps) takes casters only on a
+    // layer it shares.
+    let meshes: Vec<Entity> = world.query_filtered::<Entity, With<Mesh3d>>().iter(world).collect();
+    for mesh in meshes {
+        world.entity_mut(mesh).insert(bevy::camera::visibility::RenderLayers::from_layers(&[0, 1]));
+    }
     let second = world.query::<(Entity, &Camera)>().iter(world).find(|(_, c)| c.order == 1).expect("camera").0;
     world.entity_mut(second).insert(layer_one);
     world.spawn((

@@ -183,12 +183,15 @@ impl Prefiltered {
         Prefiltered::Mipmap { channels, levels }
     }
 
-    /// Average of each channel over the texel-space rectangle `[lo, hi]`
-    /// (clamped to the map; it must overlap it), into `out`.
-    fn average(&self, lo: Vec2, hi: Vec2, out: &mut [f64]) {
+    /// Average of each channel over the texel-space rectangle `[lo, hi]`,
+    /// into `out`; what lies outside the map counts as `empty` texels
+    /// (summed-area tables), or as the map's border (mipmaps, whose border
+    /// the region's padding keeps empty).
+    fn average(&self, lo: Vec2, hi: Vec2, empty: &[f64], out: &mut [f64]) {
         match self {
             Prefiltered::SummedArea { res, channels, table } => {
                 let r = *res as f32;
+                let full = ((hi.x - lo.x) as f64 * (hi.y - lo.y) as f64).max(1e-12);
                 let (lo, hi) = (lo.clamp(Vec2::ZERO, Vec2::splat(r)), hi.clamp(Vec2::ZERO, Vec2::splat(r)));
                 let (lo, hi) = (lo.as_dvec2(), hi.as_dvec2().max(lo.as_dvec2() + 1e-6));
                 let w = res + 1;
@@ -203,11 +206,11 @@ impl Prefiltered {
                         + t(i, j + 1) * (1.0 - a) * b
                         + t(i + 1, j + 1) * a * b
                 };
-                let area = (hi.x - lo.x) * (hi.y - lo.y);
+                let inside = ((hi.x - lo.x) * (hi.y - lo.y)).min(full);
                 for (ch, o) in out.iter_mut().enumerate().take(*channels) {
-                    *o = (corner(hi.x, hi.y, ch) - corner(lo.x, hi.y, ch) - corner(hi.x, lo.y, ch)
-                        + corner(lo.x, lo.y, ch))
-                        / area;
+                    let sum = corner(hi.x, hi.y, ch) - corner(lo.x, hi.y, ch) - corner(hi.x, lo.y, ch)
+                        + corner(lo.x, lo.y, ch);
+                    *o = (sum + (full - inside) * empty[ch]) / full;
                 }
             }
             Prefiltered::Mipmap { channels, levels } => {
@@ -248,6 +251,8 @@ pub struct ConvolutionModel {
     pub settings: ConvolutionSettings,
     pub region: MapRegion,
     maps: Prefiltered,
+    /// The basis of an empty texel (the far plane).
+    empty: Vec<f64>,
     frame: LightFrame,
     /// Depth normalisation: `span · (z − near) / (far − near)`.
     near: f32,
@@ -310,9 +315,15 @@ impl ConvolutionModel {
         let triangles: Vec<MapTriangle> =
             light_space.casters.iter().flat_map(|t| MapTriangle::clipped(t, &frame, near_clip, perspective)).collect();
         let limit = frame.map_limit(RASTER_MAP_LIMIT);
+        // Padded by the widest search rectangle, so that a receiver's
+        // kernel beyond the casters sees empty texels, not the map's edge.
+        let nearest = triangles.iter().map(|t| t.min_depth).filter(|z| *z > near_clip).fold(f32::INFINITY, f32::min);
+        let pad =
+            if nearest.is_finite() { frame.penumbra_half_width(nearest, light_space.reference_depth) } else { 0.0 };
+        let pad = if pad.is_finite() { pad.min(limit) } else { 0.0 };
         let bounds = triangles.iter().map(|t| {
             let [a, b, c] = t.corners;
-            (a.min(b).min(c), a.max(b).max(c))
+            (a.min(b).min(c) - Vec2::splat(pad), a.max(b).max(c) + Vec2::splat(pad))
         });
         let (lo, hi) = window.map_or((Vec2::splat(-limit), Vec2::splat(limit)), |(lo, hi)| {
             (lo.max(Vec2::splat(-limit)), hi.min(Vec2::splat(limit)))
@@ -342,11 +353,7 @@ impl ConvolutionModel {
         let near = if near.is_finite() && near < far { near } else { far * 0.5 };
         let span = depth_span(order);
         let normalise = |z: f32| ((z - near) / (far - near)).clamp(0.0, 1.0) * span;
-        let mut texels = vec![0.0f32; res * res * channels];
-        for (i, &d) in depth.iter().enumerate() {
-            // Empty texels hold the far plane: nothing in front of any receiver.
-            let z = if d.is_finite() { normalise(d) } else { span };
-            let t = &mut texels[i * channels..(i + 1) * channels];
+        let basis = |z: f32, t: &mut [f32]| {
             t[0] = z;
             for k in 1..=order {
                 let (s, co) = (c(k) * z).sin_cos();
@@ -357,7 +364,14 @@ impl ConvolutionModel {
                 t[1 + 2 * m + k] = z * co;
                 t[1 + 3 * m + k] = z * s;
             }
+        };
+        let mut texels = vec![0.0f32; res * res * channels];
+        for (i, &d) in depth.iter().enumerate() {
+            // Empty texels hold the far plane: nothing in front of any receiver.
+            basis(if d.is_finite() { normalise(d) } else { span }, &mut texels[i * channels..(i + 1) * channels]);
         }
+        let mut empty = vec![0.0f32; channels];
+        basis(span, &mut empty);
         let maps = match settings.prefilter {
             Prefilter::SummedArea => Prefiltered::summed_area(res, channels, &texels),
             Prefilter::Mipmap => Prefiltered::mipmap(res, channels, texels),
@@ -366,6 +380,7 @@ impl ConvolutionModel {
             settings,
             region,
             maps,
+            empty: empty.iter().map(|v| *v as f64).collect(),
             frame,
             near,
             far,
@@ -388,7 +403,7 @@ impl ConvolutionModel {
         if !(hi.x > 0.0 && hi.y > 0.0 && lo.x < r && lo.y < r) {
             return None;
         }
-        self.maps.average(lo, hi, scratch);
+        self.maps.average(lo, hi, &self.empty, scratch);
         let m = self.settings.order as usize;
         let d = (d - self.shift) as f64;
         let (mut complement, mut numerator) = (0.5, 0.5 * scratch[0]);
@@ -474,7 +489,7 @@ mod tests {
         let mut out = [0.0f64];
         // A fractional rectangle, integrated by fine sampling.
         let (lo, hi) = (Vec2::new(1.3, 2.6), Vec2::new(5.1, 6.9));
-        maps.average(lo, hi, &mut out);
+        maps.average(lo, hi, &[0.0], &mut out);
         let n = 400;
         let mut sum = 0.0f64;
         for i in 0..n {

@@ -134,13 +134,19 @@ impl PeerModel {
 
     /// Visibility of the light from a receiver (light frame), in `[0, 1]`.
     pub fn visibility(&self, receiver: Receiver) -> f32 {
-        let v = match self {
+        let v = self.unclamped_visibility(receiver);
+        // NaN in, 0 out: never a NaN on screen.
+        if v > 0.0 { v.min(1.0) } else { 0.0 }
+    }
+
+    /// The model's own answer, before [`Self::visibility`]'s guard: each
+    /// model keeps it finite and in `[0, 1]` itself (what the tests pin).
+    pub fn unclamped_visibility(&self, receiver: Receiver) -> f32 {
+        match self {
             PeerModel::SingleSample(m) => m.visibility(receiver),
             PeerModel::Plateaus(m) => m.visibility(receiver),
             PeerModel::Wedges(m) => m.visibility(receiver),
             PeerModel::Convolution(m) => m.visibility(receiver),
-        };
-        // NaN in, 0 out: never a NaN on screen.
-        if v > 0.0 { v.min(1.0) } else { 0.0 }
+        }
     }
 }

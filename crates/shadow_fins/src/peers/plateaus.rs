@@ -3,7 +3,7 @@
 //! silhouette vertex and edge, cones and sheets whose darkness is their
 //! depth, so that where two overlap the darkest wins (the depth test).
 //!
-//! The texture, exactly (§2):
+//! The texture (§2; the sheets' shape between unequal cones is ours, below):
 //! - the plane is white; the casters' hard drop shadow (the light's centre
 //!   projected through them onto the plane) is black, in front of everything;
 //! - each silhouette vertex `v` at distance `a` from the plane (along the
@@ -14,7 +14,10 @@
 //!   smallest `τ` for which `q` lies in the convex hull of the two disks of
 //!   radius `τ·r₁` and `τ·r₂` — the hull is the union of the disks between
 //!   them, centre and radius interpolated linearly, so
-//!   `τ = min over u ∈ [0, 1] of |q − p(u)| / r(u)`, found in closed form;
+//!   `τ = min over u ∈ [0, 1] of |q − p(u)| / r(u)`, found in closed form
+//!   (Haines joins unequal cones by bilinear sheets between their tangent
+//!   edges; the hull of the scaled disks is the same surface when the radii
+//!   are equal, and a cone-like one between them otherwise);
 //! - darkest wins: `s = min` over all cones and sheets, and 0 in the drop shadow.
 //!
 //! What Haines leaves as "some constant factor" we size physically, the
@@ -35,7 +38,8 @@ use glam::{Vec2, Vec3};
 
 use crate::{
     bvh::Bvh,
-    cell_grid::CellGrid,
+    cell_grid::{CellGrid, cell_range},
+    coverage::index::MAX_ENTRIES,
     light::Projection,
     oracle::{FinExtractor, Receiver},
     refine::Falloff,
@@ -198,7 +202,23 @@ impl PlateauModel {
                 (lo.min(*a), hi.max(*b))
             });
         let (lo, size) = if lo.x <= hi.x { (lo, (hi - lo).max(Vec2::splat(1e-20))) } else { (Vec2::ZERO, Vec2::ONE) };
-        let side = ((sheets.len() as f32).sqrt() * 2.0).clamp(1.0, 512.0) as usize;
+        let mut side = ((sheets.len() as f32).sqrt() * 2.0).clamp(1.0, 512.0) as usize;
+        // Wide sheets (a large light) cover many cells: coarser cells until
+        // the lists fit, as the coverage index does.
+        loop {
+            let entries: usize = bounds
+                .iter()
+                .flatten()
+                .map(|(a, b)| {
+                    let (x0, x1, y0, y1) = cell_range(lo, size, [side, side], *a, *b);
+                    (x1 - x0 + 1) * (y1 - y0 + 1)
+                })
+                .sum();
+            if entries <= MAX_ENTRIES || side == 1 {
+                break;
+            }
+            side = (side / 2).max(1);
+        }
         let grid = CellGrid::build(lo, size, [side, side], &bounds);
         Self {
             plane,

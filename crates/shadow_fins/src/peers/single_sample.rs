@@ -24,7 +24,8 @@
 //!   from the receiver onto the plane at unit distance across the ray, and
 //!   `τ` is the distance of the ray from that polygon, over `D/A`;
 //! - **the receiver's own surface**: triangles whose plane holds the
-//!   receiver do not soften its ray. (The paper's receiver is a different
+//!   receiver (its own surface, and any face seen edge-on from it) do not
+//!   soften its ray. (The paper's receiver is a different
 //!   object; without this a ground plane would darken itself under a
 //!   grazing light, through its own neighbouring triangles.)
 //! - **the sun**: `D/A` is the sun's angular diameter, `2 tan θ`.

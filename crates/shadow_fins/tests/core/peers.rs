@@ -117,7 +117,7 @@ fn peers_at_radius_zero_are_the_hard_shadow_and_never_brighten_inside_it() {
                 // Convolution shadow maps test one 512² map with a depth
                 // shift: a texel's worth of the hard shadow's outline and
                 // the contact where the shift lets light under a caster.
-                let allowed = if filtered { receivers.len() / 25 } else { receivers.len() / 500 };
+                let allowed = if filtered { receivers.len() / 40 } else { receivers.len() / 500 };
                 assert!(
                     mismatched <= allowed,
                     "{} {}: {mismatched} of {} receivers {}",
@@ -155,7 +155,7 @@ fn peers_stay_finite_in_unit_range_at_the_extremes() {
         for method in PeerMethod::ALL {
             let model = PeerModel::new(method, scene, &ls);
             for r in &receivers {
-                let v = model.visibility(*r);
+                let v = model.unclamped_visibility(*r);
                 assert!(v.is_finite() && (0.0..=1.0).contains(&v), "{what} {}: visibility {v}", method.name());
             }
         }
@@ -272,18 +272,23 @@ fn convolution_penumbra_of_a_straight_edge_is_a_filtered_step_centred_on_the_har
     // Planar, parallel occluder and receiver: the configuration where the
     // convolution is exact (Soler and Sillion, as the paper says) up to the
     // ringing suppression's sharpening.
+    // The ground casts too, or only receives: past the casters the kernel
+    // must see empty texels, not the edge of the map.
     let (h, light_h, r) = (0.5, 4.0, 0.6);
-    let (scene, light) = straight_edge_scene(h, light_h, r);
+    let (mut scene, light) = straight_edge_scene(h, light_h, r);
     let width = 2.0 * r * h / (light_h - h);
     let points: Vec<Vec3> = (0..=80).map(|i| Vec3::new(((i as f32 + 0.37) / 40.0 - 1.0) * width, 0.0, 0.3)).collect();
     let truth = ground_truth(&scene, light, 4096, &points);
-    let ls = LightSpaceScene::new(&scene, light);
-    for prefilter in [Prefilter::SummedArea, Prefilter::Mipmap] {
+    for (ground_casts, prefilter) in
+        [(true, Prefilter::SummedArea), (true, Prefilter::Mipmap), (false, Prefilter::SummedArea)]
+    {
+        scene.objects[0].casts_shadows = ground_casts;
+        let ls = LightSpaceScene::new(&scene, light);
         let receivers = ground_receivers(&ls, &points);
         let model = ConvolutionModel::fitted(&ls, ConvolutionSettings { prefilter, ..Default::default() }, &receivers);
         let v: Vec<f32> = receivers.into_iter().map(|r| model.visibility(r)).collect();
         let mae = v.iter().zip(&truth).map(|(a, b)| (a - b).abs()).sum::<f32>() / v.len() as f32;
-        assert!(mae <= 0.05, "{prefilter:?}: MAE {mae} against the truth");
+        assert!(mae <= 0.05, "{prefilter:?}, ground casts {ground_casts}: MAE {mae} against the truth");
         assert!((v[40] - 0.5).abs() < 0.15, "{prefilter:?}: {} under the edge", v[40]);
         // Mipmaps average coarse levels in (their Figure 8): a little light in the umbra.
         let umbra = if prefilter == Prefilter::SummedArea { 0.0 } else { 0.02 };
