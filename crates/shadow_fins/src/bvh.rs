@@ -81,33 +81,14 @@ impl Bvh {
 
     /// Calls `on_hit(index)` for every triangle the segment crosses, until it says stop.
     fn for_each_hit(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32, mut on_hit: impl FnMut(u32) -> bool) {
-        if self.nodes.is_empty() {
-            return;
-        }
         let inv = dir.recip();
-        let mut stack = [0u32; 64];
-        let mut sp = 1;
-        while sp > 0 {
-            sp -= 1;
-            let idx = stack[sp] as usize;
-            let node = &self.nodes[idx];
-            if !slab_hit(node, origin, inv, t_min, t_max) {
-                continue;
-            }
-            if node.count > 0 {
-                let s = node.index as usize;
-                for k in s..s + node.count as usize {
-                    let tri = &self.triangles[k];
-                    if intersect(tri, origin, dir).is_some_and(|t| t > t_min && t < t_max) && on_hit(self.original[k]) {
-                        return;
-                    }
-                }
-            } else if sp + 2 <= stack.len() {
-                stack[sp] = node.index;
-                stack[sp + 1] = idx as u32 + 1;
-                sp += 2;
-            }
-        }
+        self.traverse(
+            |node| slab_hit(node, origin, inv, t_min, t_max),
+            |k| {
+                intersect(&self.triangles[k], origin, dir).is_some_and(|t| t > t_min && t < t_max)
+                    && on_hit(self.original[k])
+            },
+        );
     }
 
     /// Calls `on_triangle(index, triangle)` (index into the input slice) for
@@ -119,6 +100,18 @@ impl Bvh {
         mut node_test: impl FnMut(Vec3, Vec3) -> bool,
         mut on_triangle: impl FnMut(u32, &[Vec3; 3]),
     ) {
+        self.traverse(
+            |node| node_test(node.min, node.max),
+            |k| {
+                on_triangle(self.original[k], &self.triangles[k]);
+                false
+            },
+        );
+    }
+
+    /// Depth-first over the nodes that pass `node_test`, calling
+    /// `on_triangle(stored index)` for their leaves' triangles until it says stop.
+    fn traverse(&self, mut node_test: impl FnMut(&Node) -> bool, mut on_triangle: impl FnMut(usize) -> bool) {
         if self.nodes.is_empty() {
             return;
         }
@@ -128,13 +121,15 @@ impl Bvh {
             sp -= 1;
             let idx = stack[sp] as usize;
             let node = &self.nodes[idx];
-            if !node_test(node.min, node.max) {
+            if !node_test(node) {
                 continue;
             }
             if node.count > 0 {
                 let s = node.index as usize;
                 for k in s..s + node.count as usize {
-                    on_triangle(self.original[k], &self.triangles[k]);
+                    if on_triangle(k) {
+                        return;
+                    }
                 }
             } else if sp + 2 <= stack.len() {
                 stack[sp] = node.index;
