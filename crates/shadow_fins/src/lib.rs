@@ -12,8 +12,10 @@
 //!   silhouette edges;
 //! - [`oracle`]: the method evaluated exactly ([`oracle::AnalyticIndex`]) and as
 //!   light-space maps at a resolution ([`oracle::RasterMaps`]), the GPU's reference;
-//! - [`peers`]: the other papers' methods, measured beside ours (Parker et
-//!   al.'s single-sample soft shadows, Haines' plateaus);
+//! - [`peers`]: the other four papers' methods, measured beside ours (Parker
+//!   et al.'s single-sample soft shadows, Haines' plateaus, penumbra wedges
+//!   with and without Forest et al.'s blending, Annen et al.'s convolution
+//!   soft shadows);
 //! - [`ground_truth`]: many-sample disk visibility through a [`bvh::Bvh`];
 //! - [`metrics`]: error against ground truth over the shadowed region;
 //! - [`scenes`]: procedural scenes mirroring the paper's figures;
