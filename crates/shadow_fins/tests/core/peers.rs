@@ -180,6 +180,21 @@ fn peers_stay_finite_in_unit_range_at_the_extremes() {
         camera.position += offset;
         camera.target += offset;
         check(&s.scene.translated(offset), light, &camera, &format!("{} offset 1e5", id.name()));
+        // Millimetres and kilometres: the whole scene, light and camera scaled.
+        for scale in [1e-3f32, 1e3] {
+            let mut scene = s.scene.clone();
+            for o in &mut scene.objects {
+                o.transform = shadow_fins::glam::Affine3A::from_scale(Vec3::splat(scale)) * o.transform;
+            }
+            let light = match s.light {
+                Light::Disk(d) => Light::Disk(DiskLight::new(d.center * scale, d.normal, d.radius * scale).unwrap()),
+                sun => sun,
+            };
+            let mut camera = s.camera;
+            camera.position *= scale;
+            camera.target *= scale;
+            check(&scene, light, &camera, &format!("{} scaled {scale}", id.name()));
+        }
     }
 }
 
