@@ -162,3 +162,41 @@ fn a_caster_on_no_layer_of_the_lights_casts_no_fin_shadow_until_they_share_one()
     let (mad, _) = compare(&back, &shadowed);
     assert!(mad <= 1e-4, "sharing a layer did not bring the shadow back ({mad})");
 }
+
+#[test]
+fn a_still_scene_is_not_walked_again_and_a_moved_caster_moves_its_shadow() {
+    // Change detection: once settled, frames in which nothing changed do not
+    // walk the meshes (`FinCasterScans` stays), and moving the box is seen:
+    // its shadow is then the one a fresh app renders with the box there.
+    let setup = setup(SceneId::BoxOverPlane, settings());
+    let offset = Vec3::new(0.4, 0.0, -0.3);
+    let mut moved = setup.clone();
+    for o in moved.scene.objects.iter_mut().filter(|o| o.name == "box") {
+        o.transform.translation += bevy::math::Vec3A::from(offset);
+    }
+    let expected = render(&moved).visibility;
+    let mut session = harness::Session::new(&setup);
+    let before = session.settle(6).expect("render").visibility;
+    assert_visibility_not_trivial(&before);
+    let scans = |session: &harness::Session| session.app.world().resource::<bevy_shadow_fins::FinCasterScans>().0;
+    let settled = scans(&session);
+    for _ in 0..5 {
+        session.update();
+    }
+    assert_eq!(scans(&session), settled, "a still scene was walked again");
+    let world = session.app.world_mut();
+    let the_box = world
+        .query::<(Entity, &Mesh3d, &GlobalTransform)>()
+        .iter(world)
+        .find(|(_, _, t)| t.translation().y > 1.0)
+        .expect("the box")
+        .0;
+    world.get_mut::<Transform>(the_box).expect("a transform").translation += offset;
+    let after = session.settle(6).expect("render").visibility;
+    assert!(scans(&session) > settled, "the move was not seen");
+    let (mad, _) = compare(&after, &expected);
+    let (changed, _) = compare(&after, &before);
+    println!("moved box: |V − V fresh| = {mad:.2e}, |V − V before| = {changed:.3}");
+    assert!(changed > 0.005, "the shadow did not move ({changed})");
+    assert!(mad <= 1e-3, "the moved shadow differs from a fresh render ({mad})");
+}

@@ -207,6 +207,72 @@ pub(crate) struct LightState {
     window: Option<[f32; 4]>,
 }
 
+/// How many times the frame builder has walked every mesh to sign the
+/// casters. It walks only in frames where a caster changed — moved, appeared,
+/// went, was hidden or shown, changed its layers or shadow flags or its box,
+/// or a mesh asset changed —, so a still scene costs no walk however many
+/// entities it holds (issue 16's "big scenes that move"; a diagnostic).
+#[derive(Resource, Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FinCasterScans(pub u64);
+
+/// The casters' signature and world box, kept between frames in which no
+/// caster changed.
+#[derive(Default)]
+struct CasterSignature {
+    /// `None` before the first walk.
+    signature: Option<u64>,
+    scene_box: (Vec3, Vec3),
+    every_mesh_boxed: bool,
+    /// Whether the walk gathered the boxes (only when a sun is fitted to views).
+    fitting: bool,
+    /// Bumped when a mesh asset's content changes (same id, new triangles).
+    mesh_epoch: u64,
+}
+
+/// What tells the frame builder that a caster changed since the last frame.
+#[derive(bevy::ecs::system::SystemParam)]
+struct CasterChanges<'w, 's> {
+    #[allow(clippy::type_complexity)]
+    changed: Query<
+        'w,
+        's,
+        (),
+        (
+            With<Mesh3d>,
+            Or<(
+                Changed<GlobalTransform>,
+                Changed<Mesh3d>,
+                Changed<InheritedVisibility>,
+                Changed<RenderLayers>,
+                Changed<Aabb>,
+                Added<bevy::light::NotShadowCaster>,
+                Added<NotFinShadowCaster>,
+            )>,
+        ),
+    >,
+    removed_meshes: RemovedComponents<'w, 's, Mesh3d>,
+    removed_not_shadow: RemovedComponents<'w, 's, bevy::light::NotShadowCaster>,
+    removed_not_fin: RemovedComponents<'w, 's, NotFinShadowCaster>,
+    removed_layers: RemovedComponents<'w, 's, RenderLayers>,
+    removed_boxes: RemovedComponents<'w, 's, Aabb>,
+    scans: ResMut<'w, FinCasterScans>,
+    kept: Local<'s, CasterSignature>,
+}
+
+impl CasterChanges<'_, '_> {
+    /// True when some caster changed since the last call (the removal
+    /// readers are drained either way).
+    fn any(&mut self) -> bool {
+        let mut removed = false;
+        removed |= self.removed_meshes.read().count() > 0;
+        removed |= self.removed_not_shadow.read().count() > 0;
+        removed |= self.removed_not_fin.read().count() > 0;
+        removed |= self.removed_layers.read().count() > 0;
+        removed |= self.removed_boxes.read().count() > 0;
+        removed || !self.changed.is_empty()
+    }
+}
+
 #[derive(Resource, Default)]
 pub(crate) struct MeshCache {
     meshes: HashMap<AssetId<Mesh>, CachedMesh>,
@@ -217,16 +283,20 @@ pub(crate) struct MeshCache {
 }
 
 pub(crate) fn build(app: &mut App) {
-    app.init_resource::<FinFrames>().init_resource::<MeshCache>().init_resource::<FinShadowStats>().add_systems(
-        PostUpdate,
-        (update_fin_frames, mirror_first_light_stats)
-            .chain()
-            .after(TransformSystems::Propagate)
-            // A sun's window reads this frame's boxes and camera projections.
-            .after(bevy::camera::visibility::VisibilitySystems::CalculateBounds)
-            .after(bevy::camera::visibility::VisibilitySystems::VisibilityPropagate)
-            .after(bevy::camera::CameraUpdateSystems),
-    );
+    app.init_resource::<FinFrames>()
+        .init_resource::<MeshCache>()
+        .init_resource::<FinShadowStats>()
+        .init_resource::<FinCasterScans>()
+        .add_systems(
+            PostUpdate,
+            (update_fin_frames, mirror_first_light_stats)
+                .chain()
+                .after(TransformSystems::Propagate)
+                // A sun's window reads this frame's boxes and camera projections.
+                .after(bevy::camera::visibility::VisibilitySystems::CalculateBounds)
+                .after(bevy::camera::visibility::VisibilitySystems::VisibilityPropagate)
+                .after(bevy::camera::CameraUpdateSystems),
+        );
 }
 
 /// A light asking for fin shadows, as the frame builder sees it.
@@ -399,6 +469,7 @@ fn update_fin_frames(
     mut directional_lights: DirectionalLights,
     other_lights: Query<(), (With<FinShadows>, Without<SpotLight>, Without<DirectionalLight>, Without<FinLight>)>,
     casters: Casters,
+    mut changes: CasterChanges,
     light_layers: Query<&RenderLayers>,
     views: Query<(&GlobalTransform, &Projection), With<FinShadowView>>,
     mut light_stats: Query<&mut FinLightStats>,
@@ -411,12 +482,16 @@ fn update_fin_frames(
     mut frames: ResMut<FinFrames>,
 ) {
     let mut meshes_changed = false;
+    // Any mesh event (one finishing loading, too) changes what casts.
+    let mut mesh_event = false;
     for event in mesh_events.read() {
+        mesh_event = true;
         if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
             cache.meshes.remove(id);
             meshes_changed = true;
         }
     }
+    let casters_changed = changes.any() || mesh_event;
     if !other_lights.is_empty() {
         warn_once!(
             "fin shadows: FinShadows on a PointLight or RectLight is not modelled yet; those lights keep \
@@ -453,39 +528,58 @@ fn update_fin_frames(
         }
         return;
     }
+    // The boxes only matter to suns fitted to the views.
+    let fitting = sources.iter().any(|s| matches!(s.light, Light::Sun(_)) && s.settings.fit_sun_to_views);
+    let kept = &mut *changes.kept;
+    if meshes_changed {
+        kept.mesh_epoch += 1;
+    }
+    // The casters' part of every frame's signature: walked only when a
+    // caster changed (change detection), not every frame.
+    if casters_changed || kept.signature.is_none() || kept.fitting != fitting {
+        changes.scans.0 += 1;
+        let mut hasher = std::collections::hash_map::DefaultHasher::new();
+        kept.mesh_epoch.hash(&mut hasher);
+        let mut scene_box = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        // A mesh without an `Aabb` (`NoFrustumCulling`, `NoAutoAabb`) has no box
+        // here: then no sun is fitted to the views, which could cut it out.
+        let mut every_mesh_boxed = true;
+        for (entity, mesh, transform, caster) in &casters {
+            entity.hash(&mut hasher);
+            let casting = caster.casts();
+            (caster.drawn(), casting).hash(&mut hasher);
+            hash_layers(&caster.layers(), &mut hasher);
+            if !caster.drawn() {
+                continue;
+            }
+            match caster.aabb.filter(|_| fitting) {
+                Some(aabb) => {
+                    for c in world_corners(aabb, transform).into_iter().filter(|c| c.is_finite()) {
+                        scene_box = (scene_box.0.min(c), scene_box.1.max(c));
+                    }
+                }
+                None => every_mesh_boxed &= !fitting,
+            }
+            mesh.id().hash(&mut hasher);
+            // A mesh that finishes loading changes the frame too.
+            meshes.contains(mesh.id()).hash(&mut hasher);
+            hash_floats(&mut hasher, &transform.to_matrix().to_cols_array());
+        }
+        *kept = CasterSignature {
+            signature: Some(hasher.finish()),
+            scene_box,
+            every_mesh_boxed,
+            fitting,
+            mesh_epoch: kept.mesh_epoch,
+        };
+    }
+    let (scene_box, every_mesh_boxed) = (kept.scene_box, kept.every_mesh_boxed);
     // What every light's frame depends on: the casters, the budget and how
     // many lights share it. Hashed once; each light adds its own part.
     let mut hasher = std::collections::hash_map::DefaultHasher::new();
     budget.hash(&mut hasher);
     sources.len().hash(&mut hasher);
-    meshes_changed.hash(&mut hasher);
-    // The boxes only matter to suns fitted to the views.
-    let fitting = sources.iter().any(|s| matches!(s.light, Light::Sun(_)) && s.settings.fit_sun_to_views);
-    let mut scene_box = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-    // A mesh without an `Aabb` (`NoFrustumCulling`, `NoAutoAabb`) has no box
-    // here: then no sun is fitted to the views, which could cut it out.
-    let mut every_mesh_boxed = true;
-    for (entity, mesh, transform, caster) in &casters {
-        entity.hash(&mut hasher);
-        let casting = caster.casts();
-        (caster.drawn(), casting).hash(&mut hasher);
-        hash_layers(&caster.layers(), &mut hasher);
-        if !caster.drawn() {
-            continue;
-        }
-        match caster.aabb.filter(|_| fitting) {
-            Some(aabb) => {
-                for c in world_corners(aabb, transform).into_iter().filter(|c| c.is_finite()) {
-                    scene_box = (scene_box.0.min(c), scene_box.1.max(c));
-                }
-            }
-            None => every_mesh_boxed &= !fitting,
-        }
-        mesh.id().hash(&mut hasher);
-        // A mesh that finishes loading changes the frame too.
-        meshes.contains(mesh.id()).hash(&mut hasher);
-        hash_floats(&mut hasher, &transform.to_matrix().to_cols_array());
-    }
+    kept.signature.hash(&mut hasher);
     let scene_signature = hasher.finish();
     // Suns fit their maps to the cameras' view of the scene's box.
     if fitting && every_mesh_boxed && scene_box.0.x <= scene_box.1.x {

@@ -29,7 +29,9 @@
 //! angular size, through orthographic maps), or the plugin's own
 //! [`FinLight`] (a disk lighting the half-space it faces). Up to [`MAX_FIN_LIGHTS`] at once, any mix, each with
 //! its own [`FinShadowSettings`] (method, layers, maps), its own frame
-//! rebuilt only when it, a caster, the budget or the set of lights changed,
+//! rebuilt only when it, a caster, the budget or the set of lights changed
+//! (casters by Bevy's change detection: a still scene's meshes are not
+//! walked at all, [`FinCasterScans`]),
 //! its own visibility layer per camera and its own [`FinLightStats`]. A light
 //! only sees the casters in its range and in front of its disk: a light that
 //! sees none runs no extraction or map pass (its visibility pass writes 1). The
@@ -139,7 +141,8 @@ mod sun_fit;
 
 pub use budget::{FinDegradation, FinShadowBudget};
 pub use extract::{
-    FinFrameStats, FinFrames, FinLightFrame, FinLightStats, FinSceneError, FinShadowStats, MAX_FIN_LIGHTS,
+    FinCasterScans, FinFrameStats, FinFrames, FinLightFrame, FinLightStats, FinSceneError, FinShadowStats,
+    MAX_FIN_LIGHTS,
 };
 pub use light::{
     FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster,
