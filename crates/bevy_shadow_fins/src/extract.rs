@@ -210,8 +210,9 @@ pub(crate) struct LightState {
 /// How many times the frame builder has walked every mesh to sign the
 /// casters. It walks only in frames where a caster changed — moved, appeared,
 /// went, was hidden or shown, changed its layers or shadow flags or its box,
-/// or a mesh asset changed —, so a still scene costs no walk however many
-/// entities it holds (issue 16's "big scenes that move"; a diagnostic).
+/// or a mesh asset changed —, so a still scene costs no hashing walk however
+/// many entities it holds (Bevy's change ticks are still checked per
+/// entity; issue 16's "big scenes that move"; a diagnostic).
 #[derive(Resource, Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct FinCasterScans(pub u64);
 
@@ -244,7 +245,9 @@ struct CasterChanges<'w, 's> {
                 Changed<Mesh3d>,
                 Changed<InheritedVisibility>,
                 Changed<RenderLayers>,
-                Changed<Aabb>,
+                // Bevy rewrites a skinned mesh's box every frame; fin casters
+                // are its bind pose for now, so that box is not a change.
+                (Changed<Aabb>, Without<bevy::camera::visibility::DynamicSkinnedMeshBounds>),
                 Added<bevy::light::NotShadowCaster>,
                 Added<NotFinShadowCaster>,
             )>,
@@ -255,6 +258,8 @@ struct CasterChanges<'w, 's> {
     removed_not_fin: RemovedComponents<'w, 's, NotFinShadowCaster>,
     removed_layers: RemovedComponents<'w, 's, RenderLayers>,
     removed_boxes: RemovedComponents<'w, 's, Aabb>,
+    removed_transforms: RemovedComponents<'w, 's, GlobalTransform>,
+    removed_visibility: RemovedComponents<'w, 's, InheritedVisibility>,
     scans: ResMut<'w, FinCasterScans>,
     kept: Local<'s, CasterSignature>,
 }
@@ -269,6 +274,8 @@ impl CasterChanges<'_, '_> {
         removed |= self.removed_not_fin.read().count() > 0;
         removed |= self.removed_layers.read().count() > 0;
         removed |= self.removed_boxes.read().count() > 0;
+        removed |= self.removed_transforms.read().count() > 0;
+        removed |= self.removed_visibility.read().count() > 0;
         removed || !self.changed.is_empty()
     }
 }
@@ -551,6 +558,11 @@ fn update_fin_frames(
             hash_layers(&caster.layers(), &mut hasher);
             if !caster.drawn() {
                 continue;
+            }
+            // The box culls casters by a light's range and cone, fitted or not.
+            if let Some(b) = caster.aabb {
+                hash_floats(&mut hasher, &[b.center.x, b.center.y, b.center.z]);
+                hash_floats(&mut hasher, &[b.half_extents.x, b.half_extents.y, b.half_extents.z]);
             }
             match caster.aabb.filter(|_| fitting) {
                 Some(aabb) => {

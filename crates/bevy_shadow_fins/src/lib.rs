@@ -31,7 +31,7 @@
 //! its own [`FinShadowSettings`] (method, layers, maps), its own frame
 //! rebuilt only when it, a caster, the budget or the set of lights changed
 //! (casters by Bevy's change detection: a still scene's meshes are not
-//! walked at all, [`FinCasterScans`]),
+//! walked and hashed, [`FinCasterScans`]),
 //! its own visibility layer per camera and its own [`FinLightStats`]. A light
 //! only sees the casters in its range and in front of its disk: a light that
 //! sees none runs no extraction or map pass (its visibility pass writes 1). The
