@@ -214,8 +214,15 @@ fn build(nodes: &mut Vec<Node>, order: &mut [u32], first: usize, tris: &[[Vec3; 
 
 #[inline]
 fn slab_hit(node: &Node, origin: Vec3, inv: Vec3, t_min: f32, t_max: f32) -> bool {
-    let t0 = (node.min - origin) * inv;
-    let t1 = (node.max - origin) * inv;
+    ray_hits_box(node.min, node.max, origin, inv, t_min, t_max)
+}
+
+/// Slab test: does the ray `origin + t·dir`, `t ∈ [t_min, t_max]`, meet the
+/// box `[min, max]`? `inv` is `dir.recip()`.
+#[inline]
+pub fn ray_hits_box(min: Vec3, max: Vec3, origin: Vec3, inv: Vec3, t_min: f32, t_max: f32) -> bool {
+    let t0 = (min - origin) * inv;
+    let t1 = (max - origin) * inv;
     // NaN (0 · ∞ on a slab boundary) must not reject: min/max ignore NaN operands.
     let near = t0.min(t1).max_element().max(t_min);
     let far = t0.max(t1).min_element().min(t_max);

@@ -30,6 +30,14 @@ pub use plateaus::{PlateauModel, ReceiverPlane};
 pub use single_sample::SingleSampleModel;
 pub use wedges::{WedgeBlending, WedgeModel};
 
+/// Two unit vectors across the unit direction `n` (with `n`, an orthonormal
+/// frame): the plateaus' plane axes, the single-sample ray's cross-section.
+pub(crate) fn across(n: glam::Vec3) -> (glam::Vec3, glam::Vec3) {
+    let helper = if n.x.abs() < 0.9 { glam::Vec3::X } else { glam::Vec3::Y };
+    let e1 = helper.cross(n).normalize();
+    (e1, n.cross(e1))
+}
+
 /// A peer method, by the name the lab's `--method` takes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum PeerMethod {

@@ -42,6 +42,7 @@ use crate::{
     coverage::index::MAX_ENTRIES,
     light::Projection,
     oracle::{FinExtractor, Receiver},
+    peers::across,
     refine::Falloff,
     scene::{LightSpaceScene, Scene, surface_epsilon},
 };
@@ -291,12 +292,6 @@ fn sheet_tau(s: &Sheet, q: Vec2) -> f32 {
         }
     }
     best
-}
-
-fn across(n: Vec3) -> (Vec3, Vec3) {
-    let helper = if n.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
-    let e1 = helper.cross(n).normalize();
-    (e1, n.cross(e1))
 }
 
 #[cfg(test)]

@@ -36,9 +36,10 @@
 use glam::{Vec2, Vec3};
 
 use crate::{
-    bvh::Bvh,
+    bvh::{Bvh, ray_hits_box},
     light::Projection,
     oracle::Receiver,
+    peers::across,
     refine::Falloff,
     scene::{LightSpaceScene, surface_epsilon},
 };
@@ -104,7 +105,7 @@ impl SingleSampleModel {
                     return false;
                 }
                 let r = t_far.min(a) * spread * tau.get();
-                slab_hit(lo - Vec3::splat(r), hi + Vec3::splat(r), o, inv_v, 0.0, t_far.min(a))
+                ray_hits_box(lo - Vec3::splat(r), hi + Vec3::splat(r), o, inv_v, 0.0, t_far.min(a))
             },
             |_, tri| {
                 let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
@@ -122,13 +123,6 @@ impl SingleSampleModel {
     }
 }
 
-/// Two unit vectors across the direction `v`.
-fn across(v: Vec3) -> (Vec3, Vec3) {
-    let helper = if v.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
-    let e1 = helper.cross(v).normalize();
-    (e1, v.cross(e1))
-}
-
 fn box_corners(lo: Vec3, hi: Vec3) -> [Vec3; 8] {
     std::array::from_fn(|i| {
         Vec3::new(
@@ -137,14 +131,6 @@ fn box_corners(lo: Vec3, hi: Vec3) -> [Vec3; 8] {
             if i & 4 == 0 { lo.z } else { hi.z },
         )
     })
-}
-
-fn slab_hit(lo: Vec3, hi: Vec3, origin: Vec3, inv: Vec3, t_min: f32, t_max: f32) -> bool {
-    let t0 = (lo - origin) * inv;
-    let t1 = (hi - origin) * inv;
-    let near = t0.min(t1).max_element().max(t_min);
-    let far = t0.max(t1).min_element().min(t_max);
-    near <= far
 }
 
 /// The tangent of the smallest angle between the ray `o + t·v` and a point

@@ -81,19 +81,14 @@ pub enum WedgeBlending {
     Forest,
 }
 
-/// One outline edge of a patch, light frame: endpoints and the third vertex
-/// of its face in the patch.
-#[derive(Debug, Clone, Copy)]
-struct OutlineEdge {
-    a: Vec3,
-    b: Vec3,
-    third: Vec3,
-    patch: u32,
-}
-
 /// One scene under one light, ready for penumbra-wedge queries.
 pub struct WedgeModel {
-    edges: Vec<OutlineEdge>,
+    /// The patches' outline edges, light frame, each with the third vertex
+    /// of its face in the patch (the coverage method's edge record, so the
+    /// same footprint index bins them).
+    edges: Vec<CoverageEdge>,
+    /// Per edge: its patch.
+    edge_patch: Vec<u32>,
     index: EdgeIndex,
     /// Every caster in a patch, with its patch: the shadow-volume pass.
     bvh: Bvh,
@@ -237,7 +232,7 @@ impl WedgeModel {
     pub fn new(scene: &Scene, light_space: &LightSpaceScene, blending: WedgeBlending) -> Self {
         let mut ex = FinExtractor::default();
         ex.extract_silhouettes(scene, light_space);
-        let mut edges = Vec::new();
+        let (mut edges, mut edge_patch) = (Vec::new(), Vec::new());
         let mut caster_patch = Vec::with_capacity(light_space.casters.len());
         let mut triangles = Vec::with_capacity(light_space.casters.len());
         let mut face_base = 0usize;
@@ -263,15 +258,15 @@ impl WedgeModel {
                         continue;
                     }
                     let v = |j: usize| to_frame.point(topology.positions[face[(i + j) % 3] as usize]);
-                    edges.push(OutlineEdge { a: v(0), b: v(1), third: v(2), patch });
+                    edges.push(CoverageEdge { a: v(0), b: v(1), third: [v(2); 2], faces: 1 });
+                    edge_patch.push(patch);
                 }
             }
         }
-        let coverage_edges: Vec<CoverageEdge> =
-            edges.iter().map(|e| CoverageEdge { a: e.a, b: e.b, third: [e.third; 2], faces: 1 }).collect();
-        let index = EdgeIndex::new(&coverage_edges, &light_space.frame, light_space.reference_depth, 0.0);
+        let index = EdgeIndex::new(&edges, &light_space.frame, light_space.reference_depth, 0.0);
         Self {
             edges,
+            edge_patch,
             index,
             bvh: Bvh::new(&triangles),
             caster_patch,
@@ -332,18 +327,14 @@ impl WedgeModel {
             .cell(self.frame.map(p))
             .iter()
             .copied()
-            .filter(|&id| {
-                let e = &self.edges[id as usize];
-                let ce = CoverageEdge { a: e.a, b: e.b, third: [e.third; 2], faces: 1 };
-                self.index.may_reach(id, &ce, p, &self.frame)
-            })
+            .filter(|&id| self.index.may_reach(id, &self.edges[id as usize], p, &self.frame))
             .collect();
         // Silhouettes in patch order, as a GPU blends them one after another.
-        ids.sort_unstable_by_key(|&id| (self.edges[id as usize].patch, id));
+        ids.sort_unstable_by_key(|&id| (self.edge_patch[id as usize], id));
         let quadrant_area = 0.25 * std::f32::consts::PI * radius * radius;
         let mut silhouettes: Vec<(u32, Occlusion)> = Vec::new();
         let mut start = 0;
-        let mut patches: Vec<u32> = ids.iter().map(|&id| self.edges[id as usize].patch).collect();
+        let mut patches: Vec<u32> = ids.iter().map(|&id| self.edge_patch[id as usize]).collect();
         patches.dedup();
         for &b in &blocked {
             if !patches.contains(&b) {
@@ -352,7 +343,7 @@ impl WedgeModel {
         }
         patches.sort_unstable();
         for patch in patches {
-            let end = start + ids[start..].iter().take_while(|&&id| self.edges[id as usize].patch == patch).count();
+            let end = start + ids[start..].iter().take_while(|&&id| self.edge_patch[id as usize] == patch).count();
             let occluded_centre = blocked.contains(&patch);
             let base = if occluded_centre { 1.0 } else { 0.0 };
             let mut occ = Occlusion { area: [base * quadrant_area; 4], rect: [Rect::EMPTY; 4] };
@@ -360,11 +351,10 @@ impl WedgeModel {
             let mut pieces: Vec<(usize, Vec2, Vec2)> = Vec::new();
             for &id in &ids[start..end] {
                 let e = &self.edges[id as usize];
-                let ce = CoverageEdge { a: e.a, b: e.b, third: [e.third; 2], faces: 1 };
-                let Some((qa, qb)) = ce.clipped(near, p.z) else { continue };
+                let Some((qa, qb)) = e.clipped(near, p.z) else { continue };
                 // Outer half-wedge (+1) when going from the centre across
                 // the edge enters the face's side of the plane through p.
-                let sign = -side(p, e.a, e.b, centre) * side(p, e.a, e.b, e.third);
+                let sign = -side(p, e.a, e.b, centre) * side(p, e.a, e.b, e.third[0]);
                 if sign == 0.0 {
                     continue;
                 }
