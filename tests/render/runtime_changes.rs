@@ -26,6 +26,12 @@ fn run(app: &mut App, slot: &harness::Slot, frames: u32) -> Vec<f32> {
     harness::unpad(WIDTH, HEIGHT, &data).map(f32::from_le_bytes).collect()
 }
 
+/// The box of `SceneId::BoxOverPlane`: the mesh above the ground.
+fn the_box(world: &mut World) -> Entity {
+    let mut meshes = world.query::<(Entity, &Mesh3d, &GlobalTransform)>();
+    meshes.iter(world).find(|(_, _, t)| t.translation().y > 1.0).expect("the box").0
+}
+
 #[test]
 fn radius_layers_and_refinement_change_the_read_back() {
     let mut s = setup(SceneId::RingPlate, settings());
@@ -83,9 +89,7 @@ fn a_hidden_mesh_and_one_with_bevys_not_shadow_caster_cast_no_fin_shadow_until_t
     assert_visibility_not_trivial(&shadowed);
     let unshadowed = render(&no_box).visibility;
     let world = session.app.world_mut();
-    let mut meshes = world.query::<(Entity, &Mesh3d, &GlobalTransform)>();
-    // The box is the mesh above the ground.
-    let the_box = meshes.iter(world).find(|(_, _, t)| t.translation().y > 1.0).expect("the box").0;
+    let the_box = the_box(world);
     for (what, hide, show) in [
         (
             "Visibility::Hidden",
@@ -139,12 +143,7 @@ fn a_caster_on_no_layer_of_the_lights_casts_no_fin_shadow_until_they_share_one()
     let shadowed = session.settle(6).expect("render").visibility;
     assert_visibility_not_trivial(&shadowed);
     let world = session.app.world_mut();
-    let the_box = world
-        .query::<(Entity, &Mesh3d, &GlobalTransform)>()
-        .iter(world)
-        .find(|(_, _, t)| t.translation().y > 1.0)
-        .expect("the box")
-        .0;
+    let the_box = the_box(world);
     let spot = world.query_filtered::<Entity, With<SpotLight>>().single(world).expect("one spot");
     world.entity_mut(the_box).insert(bevy::light::NotShadowCaster);
     let not_casting = session.settle(6).expect("render").visibility;
@@ -185,12 +184,7 @@ fn a_still_scene_is_not_walked_again_and_a_moved_caster_moves_its_shadow() {
     }
     assert_eq!(scans(&session), settled, "a still scene was walked again");
     let world = session.app.world_mut();
-    let the_box = world
-        .query::<(Entity, &Mesh3d, &GlobalTransform)>()
-        .iter(world)
-        .find(|(_, _, t)| t.translation().y > 1.0)
-        .expect("the box")
-        .0;
+    let the_box = the_box(world);
     world.get_mut::<Transform>(the_box).expect("a transform").translation += offset;
     let after = session.settle(6).expect("render").visibility;
     assert!(scans(&session) > settled, "the move was not seen");

@@ -45,7 +45,7 @@
 use glam::{Vec2, Vec3};
 
 use crate::{
-    light::{LightFrame, Projection},
+    light::LightFrame,
     oracle::{MapRegion, MapTriangle, RASTER_MAP_LIMIT, Receiver},
     scene::{LightSpaceScene, surface_epsilon},
 };
@@ -444,8 +444,7 @@ impl ConvolutionModel {
             None => s,
         };
         // Radius 0 keeps the point lookup's test.
-        if matches!(self.frame.projection, Projection::Perspective { radius } | Projection::Orthographic { tan_angle: radius } if radius == 0.0)
-        {
+        if self.frame.size() == 0.0 {
             return if s >= 0.5 { 1.0 } else { 0.0 };
         }
         s
