@@ -303,6 +303,7 @@ pub fn replace_light(world: &mut World, setup: &Setup) -> Option<Entity> {
             With<FinLight>,
             With<PointLight>,
             With<DirectionalLight>,
+            With<RectLight>,
             (With<SpotLight>, Without<ExtraSpot>),
         )>>()
         .iter(world)
@@ -322,6 +323,19 @@ pub fn replace_light(world: &mut World, setup: &Setup) -> Option<Entity> {
             let disk = SunDisk { angular_size: 2.0 * sun.angular_radius, intensity: 1.0 };
             let transform = light_transform(Vec3::ZERO, sun.direction);
             return Some(world.spawn((sun_light, disk, FinShadows, setup.settings, transform)).id());
+        }
+        Light::Rect(r) => {
+            let rect = RectLight {
+                intensity: setup.intensity,
+                range: light_range(setup, r.center),
+                width: 2.0 * r.half_extents.x,
+                height: 2.0 * r.half_extents.y,
+                ..default()
+            };
+            // Bevy's rectangle spans local X (width) and Y and faces −Z.
+            let rotation = Quat::from_mat3(&Mat3::from_cols(r.tangent, r.tangent.cross(r.normal), -r.normal));
+            let transform = Transform::from_translation(r.center).with_rotation(rotation);
+            return Some(world.spawn((rect, FinShadows, setup.settings, transform)).id());
         }
     };
     let transform = light_transform(d.center, d.normal);
@@ -367,10 +381,7 @@ fn light_range(setup: &Setup, center: Vec3) -> f32 {
 /// A fin-shadowed Bevy spot light of the setup's intensity and this radius
 /// (its range covers the scene from the first light).
 fn spot_light(setup: &Setup, radius: f32) -> (SpotLight, FinShadows) {
-    let center = match setup.light {
-        Light::Disk(d) => d.center,
-        Light::Sun(_) => Vec3::ZERO,
-    };
+    let center = setup.light.planar().map_or(Vec3::ZERO, |(c, _)| c);
     let spot = SpotLight {
         intensity: setup.intensity,
         range: light_range(setup, center) * 2.0,

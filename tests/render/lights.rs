@@ -29,7 +29,7 @@ fn spot_setup() -> Setup {
 fn disk(setup: &Setup) -> DiskLight {
     match setup.light {
         Light::Disk(d) => d,
-        Light::Sun(_) => unreachable!("the built-in scenes have disk lights"),
+        Light::Sun(_) | Light::Rect(_) => unreachable!("the built-in scenes have disk lights"),
     }
 }
 

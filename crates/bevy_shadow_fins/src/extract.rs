@@ -763,6 +763,11 @@ impl CasterScene {
                 // The sun lights everything in front of it: no caster is out of its reach.
                 let out = match light {
                     Light::Disk(disk) => bounds.is_some_and(|b| out_of_reach(&b, disk, sees.reach)),
+                    // A rectangle reaches what its bounding disk reaches.
+                    Light::Rect(r) => bounds.is_some_and(|b| {
+                        let disk = DiskLight { center: r.center, normal: r.normal, radius: r.bounding_radius() };
+                        out_of_reach(&b, &disk, sees.reach)
+                    }),
                     Light::Sun(_) => false,
                 };
                 if o.casts_shadows && (out || !layers.intersects(sees.layers)) {
@@ -1205,11 +1210,21 @@ fn cpu_frame(
 }
 
 /// The numbers a light's frame depends on.
-fn light_key(light: &Light) -> [f32; 7] {
+fn light_key(light: &Light) -> [f32; 12] {
+    // The first entry is the kind, so that no two kinds share a key.
     match light {
-        Light::Disk(d) => [d.center.x, d.center.y, d.center.z, d.normal.x, d.normal.y, d.normal.z, d.radius],
-        // A sun's NaN centre keeps it apart from any disk.
-        Light::Sun(s) => [f32::NAN, 0.0, 0.0, s.direction.x, s.direction.y, s.direction.z, s.angular_radius],
+        Light::Disk(d) => {
+            let (c, n) = (d.center, d.normal);
+            [0.0, c.x, c.y, c.z, n.x, n.y, n.z, d.radius, 0.0, 0.0, 0.0, 0.0]
+        }
+        Light::Rect(r) => {
+            let (c, n, t, h) = (r.center, r.normal, r.tangent, r.half_extents);
+            [1.0, c.x, c.y, c.z, n.x, n.y, n.z, h.x, h.y, t.x, t.y, t.z]
+        }
+        Light::Sun(s) => {
+            let d = s.direction;
+            [2.0, 0.0, 0.0, 0.0, d.x, d.y, d.z, s.angular_radius, 0.0, 0.0, 0.0, 0.0]
+        }
     }
 }
 

@@ -4,7 +4,12 @@
 //! projected interior, adds shadow) and an *inner* quad (pointing into it,
 //! removes shadow). Its width at depth `L_b` is the penumbra half-width that the
 //! edge casts on the reference plane `L0`: world `B0 = R(L0 − L_b)/L0` (eq. 3),
-//! i.e. `R(1/L_b − 1/L0)` in map units for a disk light.
+//! i.e. `R(1/L_b − 1/L0)` in map units for a disk light. For a rectangle
+//! light (beyond the paper) `R` is its support function across the fin,
+//! `h(d) = a|d_x| + b|d_y|` ([`crate::light::Aperture::support`]); the falloff
+//! across the fin stays the disk's (a rectangle's exact profile depends on the
+//! edge's slope: linear for an edge along a side, quadratic at the ends for a
+//! diagonal one), an approximation measured in `BENCHMARKS.md`.
 //!
 //! Fins are kept in map space, where the oracle and the GPU look them up, and
 //! carry their own geometry so that `t` (eq. 1) is exact:
@@ -268,8 +273,8 @@ impl FinBuilder {
                     }
                 }
             }
-            let radius = width(pos.z);
-            if !(radius > 0.0) {
+            let full = width(pos.z);
+            if !(full > 0.0) {
                 continue;
             }
             let center = frame.map(pos);
@@ -281,6 +286,11 @@ impl FinBuilder {
                 if from.is_nan() || to.is_nan() || from.perp_dot(to).abs() < 1e-6 && from.dot(to) > 0.0 {
                     return;
                 }
+                // A rectangle light's fan is a circle as wide as the light
+                // across the sector's middle (its bounding circle would
+                // reach past both quads; the disk's is exactly its width).
+                let mid = (from + to).normalize_or(from.perp());
+                let radius = full * frame.aperture.support(mid);
                 out.push(Fin { shape: FinShape::Sector { center, radius, from, to, depth: pos.z }, side, patch });
             };
             match (n_in, n_out, first_in, first_out) {
@@ -321,7 +331,10 @@ impl FinBuilder {
             if e.a.z <= near || e.b.z <= near || dir.is_nan() {
                 continue;
             }
-            let (w0, w1) = (width(e.a.z), width(e.b.z));
+            let (w0, w1) = (
+                width(e.a.z) * frame.aperture.support(d0),
+                width(e.b.z) * frame.aperture.support(d1),
+            );
             if !(w0 > 0.0 || w1 > 0.0) {
                 continue;
             }

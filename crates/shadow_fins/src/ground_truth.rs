@@ -1,5 +1,5 @@
-//! Ground truth: the fraction of the light's disk visible from a point, from `M`
-//! deterministic stratified samples (default 1024, as in all five papers), each
+//! Ground truth: the fraction of the light (disk, rectangle or sun) visible
+//! from a point, from `M` deterministic equal-weight samples of its aperture (default 1024, as in all five papers), each
 //! an exact ray–triangle test through a BVH.
 
 use glam::Vec2;
@@ -31,7 +31,7 @@ pub struct GroundTruth<'a> {
 
 impl<'a> GroundTruth<'a> {
     pub fn new(scene: &'a LightSpaceScene, samples: u32) -> Self {
-        Self { scene, bvh: Bvh::new(&scene.casters), samples: disk_samples(samples) }
+        Self { scene, bvh: Bvh::new(&scene.casters), samples: scene.frame.aperture.samples(samples) }
     }
 
     /// The BVH over the casters (light frame), for primary rays.

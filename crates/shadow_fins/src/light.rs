@@ -1,8 +1,17 @@
 //! Lights with a size, and the light-space frame everything is computed in.
 //!
-//! Two lights (DESIGN §3):
+//! Three lights (DESIGN §3):
 //! - [`DiskLight`]: a planar disk with centre `c`, unit normal `n` pointing into
 //!   the scene and radius `R`; maps are perspective from `c` along `n`.
+//! - [`RectLight`]: a planar rectangle (Bevy's `RectLight`), half extents
+//!   `(a, b)` along its tangent and bitangent; maps are perspective from its
+//!   centre as for the disk. Its frame's `R` is the bounding circle
+//!   `√(a² + b²)` (every conservative footprint stays right), and its
+//!   [`Aperture`] says where in that circle the light actually is: the ground
+//!   truth and the coverage method sample the rectangle, and a fin across an
+//!   edge of map normal `d` is as wide as the rectangle's support function
+//!   `h(d) = a|d_x| + b|d_y|` (the penumbra a straight edge casts spans the
+//!   light's extent across the edge, `2h(d)`, scaled by eq. 3).
 //! - [`SunLight`]: a disk at infinity of angular radius `θ`; maps are
 //!   orthographic and penumbra widths are `tan θ · ΔL`.
 //!
@@ -40,6 +49,113 @@ impl DiskLight {
     }
 }
 
+/// A rectangular planar light, as Bevy's `RectLight`: a `width` × `height`
+/// rectangle centred at `center`, emitting along `normal` (Bevy: the
+/// entity's −Z), its width along `tangent` (Bevy: local X).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RectLight {
+    pub center: Vec3,
+    /// Unit normal pointing into the scene.
+    pub normal: Vec3,
+    /// Unit direction of the width, perpendicular to `normal`.
+    pub tangent: Vec3,
+    /// Half the width and half the height, world units; `0 × 0` gives hard shadows.
+    pub half_extents: Vec2,
+}
+
+impl RectLight {
+    /// Validates the light; `tangent` is made perpendicular to `normal` and
+    /// normalised (it must not be parallel to it).
+    pub fn new(center: Vec3, normal: Vec3, tangent: Vec3, width: f32, height: f32) -> Result<Self, LightError> {
+        if !center.is_finite() {
+            return Err(LightError::NonFinitePosition(center.to_array()));
+        }
+        let normal = normal.try_normalize().ok_or(LightError::BadDirection(normal.to_array()))?;
+        let tangent = (tangent - normal * normal.dot(tangent))
+            .try_normalize()
+            .filter(|_| tangent.is_finite())
+            .ok_or(LightError::BadDirection(tangent.to_array()))?;
+        let ok = |x: f32| x >= 0.0 && x.is_finite();
+        if !(ok(width) && ok(height)) {
+            return Err(LightError::BadRectSize(width, height));
+        }
+        Ok(Self { center, normal, tangent, half_extents: Vec2::new(width, height) * 0.5 })
+    }
+
+    /// The rectangle of the same centre, normal and area as `disk`, `aspect`
+    /// (width ÷ height, > 0) times as wide as high, its width along world x
+    /// (along z when the disk faces along x): the lab's and tests' way to
+    /// compare a rectangle with the disk a scene was built for.
+    pub fn with_area_of(disk: &DiskLight, aspect: f32) -> Result<Self, LightError> {
+        if !(aspect > 0.0 && aspect.is_finite()) {
+            return Err(LightError::BadRectSize(aspect, 1.0));
+        }
+        let height = disk.radius * (std::f32::consts::PI / aspect).sqrt();
+        let tangent = if disk.normal.x.abs() > 0.9 { Vec3::Z } else { Vec3::X };
+        Self::new(disk.center, disk.normal, tangent, height * aspect, height)
+    }
+
+    /// Radius of the circle around the rectangle: the frame's `R`.
+    pub fn bounding_radius(&self) -> f32 {
+        self.half_extents.length()
+    }
+}
+
+/// Where a light is inside its bounding circle (`R` for a planar light,
+/// `tan θ` for the sun), in units of that circle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Aperture {
+    /// The whole circle: a disk light or the sun.
+    Disk,
+    /// A rectangle of these half extents along the frame's `x`, `y` axes,
+    /// with `|half_extents| = 1` (its corners on the circle).
+    Rect { half_extents: Vec2 },
+}
+
+impl Aperture {
+    /// The aperture of a rectangle of these half extents (any scale). A
+    /// `0 × 0` rectangle is a square (the light has no size, so its shape is
+    /// moot, but every function stays finite).
+    pub fn rect(half_extents: Vec2) -> Self {
+        let h = half_extents.abs();
+        let h = if h.length() > 0.0 && h.is_finite() { h / h.length() } else { Vec2::splat(std::f32::consts::FRAC_1_SQRT_2) };
+        Aperture::Rect { half_extents: h }
+    }
+
+    /// Support function `h(d) = max over the aperture of d·q` for a unit
+    /// direction `d`, in units of the bounding circle: 1 for the disk,
+    /// `a|d_x| + b|d_y|` for the rectangle (≤ 1).
+    #[inline]
+    pub fn support(&self, d: Vec2) -> f32 {
+        match *self {
+            Aperture::Disk => 1.0,
+            Aperture::Rect { half_extents } => half_extents.x * d.x.abs() + half_extents.y * d.y.abs(),
+        }
+    }
+
+    /// `count` equal-weight points of the aperture (units of the bounding
+    /// circle): the disk's Fibonacci spiral, or the rectangle's R2 sequence
+    /// (Roberts' generalised golden ratio: low discrepancy in every direction,
+    /// so an edge of any slope sweeps the samples evenly, where a grid would
+    /// step by `1/√N` on an edge parallel to it).
+    pub fn samples(&self, count: u32) -> Vec<Vec2> {
+        match *self {
+            Aperture::Disk => crate::ground_truth::disk_samples(count),
+            Aperture::Rect { half_extents } => {
+                // The plastic number's reciprocals (Roberts 2018).
+                const A1: f64 = 0.754_877_666_246_692_8;
+                const A2: f64 = 0.569_840_290_998_053_3;
+                (0..count.max(1))
+                    .map(|i| {
+                        let (u, v) = (((i as f64 + 0.5) * A1).fract(), ((i as f64 + 0.5) * A2).fract());
+                        Vec2::new((2.0 * u - 1.0) as f32, (2.0 * v - 1.0) as f32) * half_extents
+                    })
+                    .collect()
+            }
+        }
+    }
+}
+
 /// A distant disk light (the sun): parallel centre rays, angular radius `θ`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SunLight {
@@ -59,10 +175,11 @@ impl SunLight {
     }
 }
 
-/// Either light.
+/// Any light.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Light {
     Disk(DiskLight),
+    Rect(RectLight),
     Sun(SunLight),
 }
 
@@ -71,6 +188,7 @@ impl Light {
     pub fn with_zero_size(self) -> Self {
         match self {
             Light::Disk(d) => Light::Disk(DiskLight { radius: 0.0, ..d }),
+            Light::Rect(r) => Light::Rect(RectLight { half_extents: Vec2::ZERO, ..r }),
             Light::Sun(s) => Light::Sun(SunLight { angular_radius: 0.0, ..s }),
         }
     }
@@ -79,6 +197,7 @@ impl Light {
     pub fn with_size_scaled(self, factor: f32) -> Self {
         match self {
             Light::Disk(d) => Light::Disk(DiskLight { radius: d.radius * factor, ..d }),
+            Light::Rect(r) => Light::Rect(RectLight { half_extents: r.half_extents * factor, ..r }),
             Light::Sun(s) => {
                 let t = (s.angular_radius.tan() * factor).atan().min(1.4);
                 Light::Sun(SunLight { angular_radius: t, ..s })
@@ -90,7 +209,18 @@ impl Light {
     pub fn is_zero_size(&self) -> bool {
         match self {
             Light::Disk(d) => d.radius == 0.0,
+            Light::Rect(r) => r.half_extents == Vec2::ZERO,
             Light::Sun(s) => s.angular_radius == 0.0,
+        }
+    }
+
+    /// The centre and unit normal of a planar light (disk or rectangle);
+    /// `None` for the sun.
+    pub fn planar(&self) -> Option<(Vec3, Vec3)> {
+        match self {
+            Light::Disk(d) => Some((d.center, d.normal)),
+            Light::Rect(r) => Some((r.center, r.normal)),
+            Light::Sun(_) => None,
         }
     }
 }
@@ -110,6 +240,8 @@ pub struct LightFrame {
     origin: DVec3,
     axes: [DVec3; 3],
     pub projection: Projection,
+    /// Where the light is inside the circle of [`Self::size`].
+    pub aperture: Aperture,
 }
 
 impl LightFrame {
@@ -119,6 +251,21 @@ impl LightFrame {
             origin: light.center.as_dvec3(),
             axes: orthonormal_axes(light.normal.as_dvec3()),
             projection: Projection::Perspective { radius: light.radius },
+            aperture: Aperture::Disk,
+        }
+    }
+
+    /// Frame of a rectangle light: origin at the centre, `x` along its
+    /// width, `y` along its height, depth along its normal.
+    pub fn rect(light: &RectLight) -> Self {
+        let n = light.normal.as_dvec3().normalize();
+        let u = light.tangent.as_dvec3();
+        let u = (u - n * n.dot(u)).normalize();
+        Self {
+            origin: light.center.as_dvec3(),
+            axes: [u, n.cross(u), n],
+            projection: Projection::Perspective { radius: light.bounding_radius() },
+            aperture: Aperture::rect(light.half_extents),
         }
     }
 
@@ -132,6 +279,7 @@ impl LightFrame {
             origin: center - n * (half * 1.01 + 1e-6 * center.length().max(1.0)),
             axes: orthonormal_axes(n),
             projection: Projection::Orthographic { tan_angle: light.angular_radius.tan() },
+            aperture: Aperture::Disk,
         }
     }
 
@@ -144,12 +292,14 @@ impl LightFrame {
             origin,
             axes: orthonormal_axes(light.direction.as_dvec3()),
             projection: Projection::Orthographic { tan_angle: light.angular_radius.tan() },
+            aperture: Aperture::Disk,
         }
     }
 
     pub fn new(light: &Light, scene_min: Vec3, scene_max: Vec3) -> Self {
         match light {
             Light::Disk(d) => Self::disk(d),
+            Light::Rect(r) => Self::rect(r),
             Light::Sun(s) => Self::sun(s, scene_min, scene_max),
         }
     }
@@ -237,6 +387,14 @@ impl LightFrame {
             Projection::Orthographic { tan_angle } => tan_angle * (receiver_depth - edge_depth),
         };
         if w > 0.0 { w } else { 0.0 }
+    }
+
+    /// [`Self::penumbra_half_width`] across an edge whose map normal is the
+    /// unit `direction`: scaled by the aperture's support function (a
+    /// rectangle's penumbra is as wide as the rectangle is across the edge).
+    #[inline]
+    pub fn penumbra_half_width_across(&self, edge_depth: f32, receiver_depth: f32, direction: Vec2) -> f32 {
+        self.penumbra_half_width(edge_depth, receiver_depth) * self.aperture.support(direction)
     }
 
     /// World-space fin width `B0` at depth `L_b` for reference plane `L0` (eq. 3):

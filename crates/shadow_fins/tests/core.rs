@@ -10,6 +10,7 @@ mod core {
     mod hostile_gltf;
     mod multi_layer;
     mod peers;
+    mod rect_light;
     mod silhouette_properties;
     mod stability;
     mod straight_edge;

@@ -94,6 +94,10 @@ enum Command {
         /// Also write each scene's image strip into this folder.
         #[arg(long)]
         images: Option<PathBuf>,
+        /// Light each scene by a rectangle of its disk's area and this
+        /// width ÷ height (width along world x) instead of the disk.
+        #[arg(long)]
+        rect_aspect: Option<f32>,
     },
     /// Write a built-in scene as a self-contained glTF file.
     ExportGltf {
@@ -160,7 +164,7 @@ fn run(command: Command) -> Result<(), LabError> {
             strip(&c).save_png(&out)?;
             eprintln!("wrote {}", out.display());
         }
-        Command::Report { fins, scenes, width, height, images } => {
+        Command::Report { fins, scenes, width, height, images, rect_aspect } => {
             let settings = fins.settings()?;
             let ids: Vec<SceneId> = if scenes.is_empty() {
                 SceneId::ALL.into_iter().filter(|s| *s != SceneId::DenseBlob).collect()
@@ -208,10 +212,14 @@ fn run(command: Command) -> Result<(), LabError> {
                     light_center: None,
                     light_normal: None,
                     radius: None,
+                    rect: None,
                     sun_direction: None,
                     sun_angle: 0.05,
                 };
-                let loaded = args.load()?;
+                let mut loaded = args.load()?;
+                if let Some(aspect) = rect_aspect {
+                    loaded.light = disk_as_rect(loaded.light, aspect)?;
+                }
                 let c = compare(&loaded, width, height, &configs, fins.map_resolution, fins.samples);
                 println!("### {}\n", title(&loaded.name, &loaded.light, &fins));
                 println!("{}", markdown_table(&c));
@@ -355,9 +363,24 @@ fn method_family(label: &str) -> &str {
     }
 }
 
+/// A rectangle of the disk's area `πR²` and `width ÷ height = aspect`,
+/// centred and facing as the disk, its width along world x (z when the disk
+/// faces along x).
+fn disk_as_rect(light: shadow_fins::light::Light, aspect: f32) -> Result<shadow_fins::light::Light, LabError> {
+    use shadow_fins::light::{Light, RectLight};
+    let Light::Disk(d) = light else { return Ok(light) };
+    if !(aspect > 0.0 && aspect.is_finite()) {
+        return Err(LabError::Usage(format!("--rect-aspect {aspect}: give a width ÷ height > 0")));
+    }
+    Ok(Light::Rect(RectLight::with_area_of(&d, aspect)?))
+}
+
 fn title(name: &str, light: &shadow_fins::light::Light, fins: &FinArgs) -> String {
     let light = match light {
         shadow_fins::light::Light::Disk(d) => format!("disk light R = {}", d.radius),
+        shadow_fins::light::Light::Rect(r) => {
+            format!("rect light {} x {}", r.half_extents.x * 2.0, r.half_extents.y * 2.0)
+        }
         shadow_fins::light::Light::Sun(s) => format!("sun θ = {} rad", s.angular_radius),
     };
     let oracle = match fins.map_resolution {

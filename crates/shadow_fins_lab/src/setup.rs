@@ -3,9 +3,9 @@
 use clap::Args;
 use shadow_fins::{
     camera::Camera,
-    glam::Vec3,
+    glam::{Vec2, Vec3},
     gltf_import::load_gltf,
-    light::{DiskLight, Light, SunLight},
+    light::{DiskLight, Light, RectLight, SunLight},
     oracle::{FinSettings, Method, Overlap},
     peers::PeerMethod,
     refine::Falloff,
@@ -36,6 +36,11 @@ pub struct SceneArgs {
     /// Disk light radius (world units); 0 gives hard shadows.
     #[arg(long, allow_hyphen_values = true)]
     pub radius: Option<f32>,
+    /// A rectangle light of this width,height instead of the disk (centre
+    /// and normal as for the disk; its width along world x, or z when the
+    /// normal is along x). 0,0 gives hard shadows.
+    #[arg(long, value_parser = parse_vec2, allow_hyphen_values = true, conflicts_with = "radius")]
+    pub rect: Option<Vec2>,
     /// Sun light travel direction x,y,z (instead of a disk light).
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, conflicts_with = "light_center")]
     pub sun_direction: Option<Vec3>,
@@ -177,12 +182,27 @@ impl SceneArgs {
         }
         let (c, n, r) = match default {
             Light::Disk(d) => (d.center, d.normal, d.radius),
+            Light::Rect(l) => (l.center, l.normal, l.bounding_radius()),
             Light::Sun(_) => (Vec3::Y * 5.0, Vec3::NEG_Y, 0.5),
         };
         let center = self.light_center.unwrap_or(c);
         let normal = self.light_normal.unwrap_or(n);
+        if let Some(size) = self.rect {
+            let tangent = if normal.normalize_or_zero().x.abs() > 0.9 { Vec3::Z } else { Vec3::X };
+            return Ok(Light::Rect(RectLight::new(center, normal, tangent, size.x, size.y)?));
+        }
         let radius = self.radius.unwrap_or(r);
         Ok(Light::Disk(DiskLight::new(center, normal, radius)?))
+    }
+}
+
+pub fn parse_vec2(s: &str) -> Result<Vec2, String> {
+    match s.split(',').map(str::trim).collect::<Vec<_>>()[..] {
+        [x, y] => {
+            let f = |p: &str| p.parse::<f32>().ok().filter(|v| v.is_finite()).ok_or(format!("'{p}' is not a finite number"));
+            Ok(Vec2::new(f(x)?, f(y)?))
+        }
+        _ => Err(format!("'{s}' is not w,h")),
     }
 }
 

@@ -55,7 +55,6 @@ use glam::{Vec2, Vec3};
 
 use crate::{
     bvh::Bvh,
-    ground_truth::disk_samples,
     light::Projection,
     oracle::Receiver,
     scene::{LightSpaceScene, Scene, surface_epsilon},
@@ -173,7 +172,7 @@ impl<'a> CoverageModel<'a> {
             edges,
             depth_lists,
             bvh: Bvh::new(&light_space.casters),
-            samples: disk_samples(settings.samples.clamp(1, 4096)),
+            samples: light_space.frame.aperture.samples(settings.samples.clamp(1, 4096)),
             near,
         }
     }

@@ -1,0 +1,222 @@
+//! Rectangle lights (Bevy's `RectLight`): the ground truth samples the
+//! rectangle, the coverage method counts its samples, and a fin across an
+//! edge of map normal `d` is as wide as the rectangle's support `a|d_x| + b|d_y|`.
+//!
+//! Half-plane occluders at height 3 under a light at height 5 (`L_b = 2`,
+//! `L_r = 5`): an edge casts a penumbra of half-width `h(d)·(L_r − L_b)/L_b`
+//! on the ground, `1.5·h(d)`, centred on the hard-shadow boundary.
+
+use shadow_fins::{
+    coverage::{CoverageModel, CoverageSettings},
+    glam::{Vec2, Vec3},
+    ground_truth::GroundTruth,
+    light::{Aperture, Light, RectLight},
+    oracle::{FinSettings, FinShadowModel, Method},
+    scene::Scene,
+    scenes::SceneId,
+};
+
+use super::{common::*, convergence::view_receivers};
+
+/// A `w × h` rectangle light at height 5 facing down, its width along world x.
+fn rect(w: f32, h: f32) -> Light {
+    Light::Rect(RectLight::new(Vec3::new(0.0, 5.0, 0.0), Vec3::NEG_Y, Vec3::X, w, h).unwrap())
+}
+
+/// The half-plane `x < 0` (edge along z: normal along the width) or
+/// `z < 0` (edge along x: normal along the height), at height 3.
+fn half_plane(edge_along_z: bool) -> Scene {
+    let occluder = if edge_along_z { quad(-40.0, 0.0, -20.0, 20.0, 3.0) } else { quad(-20.0, 20.0, -40.0, 0.0, 3.0) };
+    Scene::new(vec![ground(), object("half-plane", occluder)])
+}
+
+/// Visible fraction of a rectangle of half-extent `half` across the edge at
+/// offset `s` from the hard-shadow boundary: a box filter, linear.
+fn box_fraction(s: f32, half: f32) -> f32 {
+    ((s / half + 1.0) * 0.5).clamp(0.0, 1.0)
+}
+
+#[test]
+fn rect_lights_reject_bad_sizes_and_a_tangent_along_the_normal() {
+    use shadow_fins::LightError;
+    let new = |n: Vec3, t: Vec3, w: f32, h: f32| RectLight::new(Vec3::ZERO, n, t, w, h);
+    assert!(matches!(new(Vec3::Z, Vec3::X, -1.0, 1.0), Err(LightError::BadRectSize(..))));
+    assert!(matches!(new(Vec3::Z, Vec3::X, 1.0, f32::NAN), Err(LightError::BadRectSize(..))));
+    assert!(matches!(new(Vec3::Z, Vec3::X, f32::INFINITY, 1.0), Err(LightError::BadRectSize(..))));
+    assert!(matches!(new(Vec3::Z, Vec3::Z * 2.0, 1.0, 1.0), Err(LightError::BadDirection(..))));
+    assert!(matches!(new(Vec3::Z, Vec3::NAN, 1.0, 1.0), Err(LightError::BadDirection(..))));
+    // A tangent not perpendicular to the normal is made so.
+    let l = new(Vec3::Z, Vec3::new(1.0, 0.0, 1.0), 2.0, 1.0).unwrap();
+    assert!(l.tangent.dot(l.normal).abs() < 1e-6 && (l.tangent.length() - 1.0).abs() < 1e-6);
+    assert!(new(Vec3::Z, Vec3::X, 0.0, 0.0).is_ok());
+}
+
+#[test]
+fn a_rectangle_with_the_area_of_a_disk_keeps_its_area_centre_and_aspect() {
+    use shadow_fins::{LightError, light::DiskLight};
+    let disk = DiskLight::new(Vec3::new(1.0, 5.0, 2.0), Vec3::NEG_Y, 0.7).unwrap();
+    for aspect in [0.25, 1.0, 4.0] {
+        let r = RectLight::with_area_of(&disk, aspect).unwrap();
+        let (w, h) = (2.0 * r.half_extents.x, 2.0 * r.half_extents.y);
+        let area = std::f32::consts::PI * 0.7 * 0.7;
+        assert!((w * h - area).abs() < 1e-5 * area && (w / h - aspect).abs() < 1e-5 * aspect, "{w} × {h}");
+        assert_eq!((r.center, r.normal, r.tangent), (disk.center, disk.normal, Vec3::X));
+    }
+    // Facing along x, the width lies along z (x is no tangent then).
+    let side = DiskLight::new(Vec3::ZERO, Vec3::X, 1.0).unwrap();
+    assert_eq!(RectLight::with_area_of(&side, 2.0).unwrap().tangent, Vec3::Z);
+    for bad in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        assert!(matches!(RectLight::with_area_of(&disk, bad), Err(LightError::BadRectSize(..))), "{bad}");
+    }
+}
+
+#[test]
+fn the_ground_truth_of_a_rectangle_behind_a_straight_edge_is_a_box_filter() {
+    // Width 2 (a = 1) across the edge along z, height 0.4 (b = 0.2) across
+    // the edge along x: the same light gives penumbrae five times apart.
+    let light = rect(2.0, 0.4);
+    for (edge_along_z, half) in [(true, 1.5 * 1.0), (false, 1.5 * 0.2)] {
+        let scene = half_plane(edge_along_z);
+        let points: Vec<Vec3> = (-24..=24)
+            .map(|i| {
+                let s = i as f32 / 20.0 * half;
+                if edge_along_z { Vec3::new(s, 0.0, 0.3) } else { Vec3::new(0.3, 0.0, s) }
+            })
+            .collect();
+        let gt = ground_truth(&scene, light, 4096, &points);
+        for (p, g) in points.iter().zip(&gt) {
+            let s = if edge_along_z { p.x } else { p.z };
+            let exact = box_fraction(s, half);
+            assert!((g - exact).abs() < 0.01, "edge along z {edge_along_z}, s {s}: truth {g} vs box {exact}");
+        }
+    }
+}
+
+#[test]
+fn fins_are_as_wide_as_the_rectangle_across_each_edge() {
+    // Where the fins' visibility first reaches 1 (outer edge of the penumbra)
+    // and last leaves 0 (inner edge): 1.5·a across the width, 1.5·b across
+    // the height, within 2% (the disk's own test's tolerance).
+    let light = rect(2.0, 0.4);
+    for (edge_along_z, half) in [(true, 1.5f32), (false, 0.3f32)] {
+        let scene = half_plane(edge_along_z);
+        let at = |s: f32| {
+            let p = if edge_along_z { Vec3::new(s, 0.0, 0.3) } else { Vec3::new(0.3, 0.0, s) };
+            method_visibility(&scene, light, Method::MultiLayer, linear(), &[p])[0]
+        };
+        let bisect = |lo: f32, hi: f32, pred: &dyn Fn(f32) -> bool| {
+            let (mut a, mut b) = (lo, hi);
+            for _ in 0..40 {
+                let m = 0.5 * (a + b);
+                if pred(at(m)) { b = m } else { a = m }
+            }
+            b
+        };
+        let outer = bisect(0.0, 4.0, &|v| v >= 1.0);
+        let inner = -bisect(-4.0, 0.0, &|v| v > 0.0);
+        for (name, w) in [("outer", outer), ("inner", inner)] {
+            assert!((w - half).abs() < 0.02 * half, "edge along z {edge_along_z}: {name} half-width {w}, expected {half}");
+        }
+        assert!((at(0.0) - 0.5).abs() < 1e-3, "V on the hard-shadow boundary {}", at(0.0));
+    }
+}
+
+#[test]
+fn a_diagonal_edge_sees_the_support_function_of_the_rectangle() {
+    // Edge along the diagonal x = z under a square 2 × 2 light: the support
+    // across it is (|d_x| + |d_y|)·1 = √2 of the half side, so the
+    // penumbra is √2 times as wide as under an edge along a side.
+    let occluder = shadow_fins::mesh::Mesh::new(
+        vec![Vec3::new(-40.0, 3.0, -40.0), Vec3::new(40.0, 3.0, 40.0), Vec3::new(-40.0, 3.0, 40.0)],
+        vec![0, 2, 1],
+    )
+    .unwrap();
+    let scene = Scene::new(vec![ground(), object("half-plane", occluder)]);
+    let light = rect(2.0, 2.0);
+    // Across the edge: along (1, 0, −1)/√2 from the point (0.3, 0, 0.3).
+    let across = Vec3::new(1.0, 0.0, -1.0).normalize();
+    let at = |s: f32| {
+        method_visibility(&scene, light, Method::MultiLayer, linear(), &[Vec3::new(0.3, 0.0, 0.3) + across * s])[0]
+    };
+    let expected = 1.5 * std::f32::consts::SQRT_2;
+    let first_lit = (0..=400).map(|i| i as f32 * 0.01).find(|&s| at(s) >= 1.0).unwrap_or(f32::NAN);
+    assert!((first_lit - expected).abs() < 0.03 * expected, "outer half-width {first_lit}, expected {expected}");
+    // The truth agrees on where the penumbra ends (it is a tent there, not a box).
+    let truth = ground_truth(&scene, light, 4096, &[Vec3::new(0.3, 0.0, 0.3) + across * (expected * 0.9)])[0];
+    assert!(truth > 0.98 && truth < 1.0, "truth just inside the penumbra's end {truth}");
+}
+
+#[test]
+fn zero_size_rectangles_give_exactly_the_hard_shadow() {
+    for id in [SceneId::BoxOverPlane, SceneId::StarPrism, SceneId::NearContact] {
+        let s = id.build();
+        let (center, normal) = s.light.planar().unwrap();
+        let light = Light::Rect(RectLight::new(center, normal, Vec3::X, 0.0, 0.0).unwrap());
+        let (ls, receivers) = view_receivers(&s.scene, light, &s.camera, 64, 48);
+        let hard = FinShadowModel::new(&s.scene, &ls, Method::Hard, FinSettings::default());
+        let fins = FinShadowModel::new(&s.scene, &ls, Method::MultiLayer, FinSettings::default());
+        let coverage = CoverageModel::new(&s.scene, &ls, CoverageSettings::default());
+        let gt = GroundTruth::new(&ls, 64);
+        let (h, f) = (hard.analytic(), fins.analytic());
+        let mut shadowed = 0;
+        for r in &receivers {
+            let v = h.visibility(*r);
+            shadowed += (v == 0.0) as u32;
+            assert_eq!(f.visibility(*r), v, "{id:?}: fins at {:?}", r.position);
+            assert_eq!(coverage.visibility(*r), v, "{id:?}: coverage at {:?}", r.position);
+            assert_eq!(gt.visibility(*r), v, "{id:?}: truth at {:?}", r.position);
+        }
+        assert!(shadowed > 20, "{id:?}: the view must hold a shadow ({shadowed} px)");
+    }
+}
+
+#[test]
+fn coverage_of_a_rectangle_light_matches_its_ground_truth_on_built_in_scenes() {
+    // 1024 coverage samples against 4096 truth samples: ≤ 0.01 mean.
+    for id in [SceneId::BoxOverPlane, SceneId::StarPrism, SceneId::SphereGrid] {
+        let s = id.build();
+        let (center, normal) = s.light.planar().unwrap();
+        let size = match s.light {
+            Light::Disk(d) => d.radius * 2.0,
+            _ => unreachable!("built-in scenes have disk lights"),
+        };
+        let light = Light::Rect(RectLight::new(center, normal, Vec3::new(1.0, 0.0, 0.4), size * 2.0, size * 0.5).unwrap());
+        let (ls, receivers) = view_receivers(&s.scene, light, &s.camera, 48, 36);
+        let coverage = CoverageModel::new(&s.scene, &ls, CoverageSettings { samples: 1024, ..Default::default() });
+        let gt = GroundTruth::new(&ls, 4096);
+        let (c, g): (Vec<f32>, Vec<f32>) = receivers.iter().map(|r| (coverage.visibility(*r), gt.visibility(*r))).unzip();
+        let penumbra = g.iter().filter(|v| **v > 0.02 && **v < 0.98).count();
+        assert!(penumbra > 30, "{id:?}: the view must hold penumbra ({penumbra} px)");
+        let mae = mean_abs_diff(&c, &g);
+        assert!(mae <= 0.01, "{id:?}: coverage vs truth {mae}");
+    }
+}
+
+#[test]
+fn aperture_samples_are_inside_and_evenly_spread() {
+    // Inside the rectangle, mean at its centre, and every quarter holds a
+    // quarter of them (±2%): what equal weights need.
+    let ap = Aperture::rect(Vec2::new(3.0, 0.5));
+    let Aperture::Rect { half_extents } = ap else { unreachable!() };
+    assert!((half_extents.length() - 1.0).abs() < 1e-6);
+    let samples = ap.samples(4096);
+    assert_eq!(samples.len(), 4096);
+    let mean = samples.iter().copied().sum::<Vec2>() / 4096.0;
+    assert!(mean.length() < 1e-3 * half_extents.length(), "mean {mean}");
+    for q in &samples {
+        assert!(q.x.abs() <= half_extents.x && q.y.abs() <= half_extents.y, "{q} outside {half_extents}");
+    }
+    for (sx, sy) in [(1.0, 1.0), (-1.0, 1.0), (1.0, -1.0), (-1.0, -1.0)] {
+        let n = samples.iter().filter(|q| q.x * sx > 0.0 && q.y * sy > 0.0).count();
+        assert!((n as f32 / 4096.0 - 0.25).abs() < 0.02, "quadrant {sx},{sy}: {n}");
+    }
+    // The support function is the rectangle's: h(d) = a|dx| + b|dy|.
+    let d = Vec2::new(0.6, -0.8);
+    let support = samples.iter().map(|q| q.dot(d)).fold(f32::MIN, f32::max);
+    assert!(support <= ap.support(d) + 1e-6 && support > ap.support(d) * 0.97, "{support} vs {}", ap.support(d));
+    // Degenerate sizes stay finite.
+    for h in [Vec2::ZERO, Vec2::new(1.0, 0.0), Vec2::new(f32::NAN, 1.0)] {
+        let a = Aperture::rect(h);
+        assert!(a.support(Vec2::X).is_finite() && a.samples(16).iter().all(|q| q.is_finite()), "{h}");
+    }
+}
