@@ -55,12 +55,15 @@ struct FinLightUniform {
 const KIND_OWN: u32 = 0u;
 const KIND_BEVY: u32 = 1u;
 const KIND_BEVY_DIRECTIONAL: u32 = 3u;
+const KIND_BEVY_RECT: u32 = 4u;
 const MAX_FIN_LIGHTS: u32 = 16u;
 struct CompositeLight {
     own: FinLightUniform,
     // x: kind, y: Bevy's clustered light index, z: 1 when the layer was written.
     // A directional light's `own` holds its direction towards the light
-    // (forward_inverse_square_range.xyz) and colour × illuminance (color).
+    // (forward_inverse_square_range.xyz) and colour × illuminance (color); a
+    // rectangle light's its position and width (position_radius) and height
+    // (forward_inverse_square_range.w).
     info: vec4<u32>,
 };
 struct CompositeLights {
@@ -148,6 +151,23 @@ fn bevy_directional_index(light: FinLightUniform) -> u32 {
         let shadowed = ((*d).flags & mesh_view_types::DIRECTIONAL_LIGHT_FLAGS_SHADOWS_ENABLED_BIT) != 0u;
         if (!shadowed && all((*d).direction_to_light == light.forward_inverse_square_range.xyz)
                 && all((*d).color.rgb == light.color.rgb)) {
+            return j;
+        }
+    }
+    return n;
+}
+
+// The index in the view's rectangle lights of the fin-shadowed rectangle in
+// `light`, or n_rect_lights when the view has none such: Bevy uploads at most
+// eight, in its query's order, so the slot is found by what Bevy uploaded for
+// it (position, width and height, as the CPU read them from Bevy's extracted
+// light, exactly).
+fn bevy_rect_index(light: FinLightUniform) -> u32 {
+    let n = mesh_view_bindings::lights.n_rect_lights;
+    for (var j = 0u; j < n; j += 1u) {
+        let r = &mesh_view_bindings::lights.rect_lights[j];
+        if (all((*r).position == light.position_radius.xyz) && (*r).width == light.position_radius.w
+                && (*r).height == light.forward_inverse_square_range.w) {
             return j;
         }
     }
@@ -272,6 +292,14 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
                     change -= (1.0 - visibility) * lighting::directional_light(j, &input, true);
                 }
             }
+#ifdef AREA_LIGHT_LUTS
+            else if (light.info.x == KIND_BEVY_RECT && visibility < 1.0) {
+                let j = bevy_rect_index(light.own);
+                if (j < mesh_view_bindings::lights.n_rect_lights) {
+                    change -= (1.0 - visibility) * lighting::rect_light(j, &input, true);
+                }
+            }
+#endif
         }
         // Never below black: what is taken away is at most what Bevy added.
         output_color = vec4(max(output_color.rgb + view.exposure * change, vec3(0.0)), output_color.a);

@@ -45,6 +45,9 @@ struct ExtractParams {
     // The maps' region lies within (min x, min y, max x, max y): a sun's maps
     // fitted to what the cameras see (`sun_fit.rs`); none when min > max.
     window: vec4<f32>,
+    // (half extents a, b of a rectangle light in the unit bounding circle,
+    // 1 rectangle / 0 disk, unused): the light's support function.
+    aperture: vec4<f32>,
 }
 
 struct Instance {
@@ -244,6 +247,16 @@ fn fin_width(z: f32) -> f32 {
         w = params.light.x * (l0 - z);
     }
     return select(0.0, w, w > 0.0);
+}
+
+// The light's support function across unit map direction d
+// (`Aperture::support`): 1 for a disk or the sun, a|d_x| + b|d_y| for a
+// rectangle light in its bounding circle; it scales the fins' widths.
+fn support(d: vec2<f32>) -> f32 {
+    if (params.aperture.z < 0.5) {
+        return 1.0;
+    }
+    return params.aperture.x * abs(d.x) + params.aperture.y * abs(d.y);
 }
 
 // Unit vector, or zero when it has no direction (the core's `normalize_or(NAN)`).
@@ -539,8 +552,14 @@ fn emit_sector(center: vec2<f32>, radius: f32, from_dir: vec2<f32>, to_dir: vec2
     if (!valid(from_dir) || !valid(to_dir) || (abs(cross2(from_dir, to_dir)) < 1e-6 && dot(from_dir, to_dir) > 0.0)) {
         return;
     }
-    let data = array<f32, 12>(center.x, center.y, from_dir.x, from_dir.y, to_dir.x, to_dir.y, radius, depth, 0.0, 0.0, 0.0, 0.0);
-    emit_fin(1u, outer, patch_id, data, center - radius, center + radius);
+    // A rectangle light's fan is a circle as wide as the light across the
+    // sector's middle (`FinBuilder`: its bounding circle would reach past
+    // both quads; a disk's is exactly its width).
+    var mid = from_dir + to_dir;
+    mid = select(vec2<f32>(-from_dir.y, from_dir.x), normalize(mid), dot(mid, mid) > 0.0);
+    let r = radius * support(mid);
+    let data = array<f32, 12>(center.x, center.y, from_dir.x, from_dir.y, to_dir.x, to_dir.y, r, depth, 0.0, 0.0, 0.0, 0.0);
+    emit_fin(1u, outer, patch_id, data, center - r, center + r);
 }
 
 // Unit left normal of the projected edge (the fins' outward direction), zero if degenerate.
@@ -757,15 +776,16 @@ fn silhouette_quads(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocat
     if (sil.a.z <= near || sil.b.z <= near || !valid(dir)) {
         return;
     }
-    let w0 = fin_width(sil.a.z);
-    let w1 = fin_width(sil.b.z);
+    let d0 = sil.dir_a;
+    let d1 = sil.dir_b;
+    // Eq. 3's width, times a rectangle light's support across the fin.
+    let w0 = fin_width(sil.a.z) * support(d0);
+    let w1 = fin_width(sil.b.z) * support(d1);
     if (!(w0 > 0.0 || w1 > 0.0)) {
         return;
     }
     let m0 = map_point(sil.a.xyz);
     let m1 = map_point(sil.b.xyz);
-    let d0 = sil.dir_a;
-    let d1 = sil.dir_b;
     // A staircase step almost along the fin direction spans no area.
     let along = direction(m1 - m0);
     if (abs(cross2(along, d0)) < 0.05 || abs(cross2(along, d1)) < 0.05) {

@@ -11,6 +11,7 @@ mod render {
     mod lab;
     mod lights;
     mod oracle_agreement;
+    mod rect_light;
     mod reliability;
     mod robustness;
     mod runtime_changes;

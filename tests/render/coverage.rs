@@ -20,11 +20,11 @@ use shadow_fins_app::harness::Setup;
 
 use super::common::*;
 
-fn coverage_settings() -> FinShadowSettings {
+pub(super) fn coverage_settings() -> FinShadowSettings {
     FinShadowSettings { method: FinMethod::Coverage, coverage_samples: 64, ..settings() }
 }
 
-fn coverage_oracle(setup: &Setup) -> Vec<f32> {
+pub(super) fn coverage_oracle(setup: &Setup) -> Vec<f32> {
     let ls = LightSpaceScene::new(&setup.scene, setup.light);
     let s = setup.settings.clamped();
     let reference = ReferenceCount::Raster { resolution: s.map_resolution, depths: DEPTH_LIST_LENGTH };

@@ -8,7 +8,6 @@
 use bevy::prelude::*;
 use shadow_fins::{
     coverage::{DEPTH_LIST_LENGTH, EdgeIndex, far_list_length, potential_silhouette_edges, reference},
-    ground_truth::disk_samples,
     oracle::{MapRegion, near_depth},
     scene::Scene,
 };
@@ -206,7 +205,7 @@ pub(crate) fn coverage_frame(
         casters,
         raster_work,
         region,
-        samples: disk_samples(samples.clamp(1, 256)).iter().map(|q| q.to_array()).collect(),
+        samples: ls.frame.aperture.samples(samples.clamp(1, 256)).iter().map(|q| q.to_array()).collect(),
         near,
         extent: ls.extent,
     };

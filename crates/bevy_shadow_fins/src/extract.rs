@@ -26,7 +26,7 @@ use bevy::{
 };
 use shadow_fins::{
     fins::{Fin, FinShape, FinSide},
-    light::{DiskLight, Light, LightFrame, SunLight},
+    light::{Aperture, DiskLight, Light, LightFrame, RectLight as RectArea, SunLight},
     mesh::{Mesh as CoreMesh, Topology},
     oracle::{FinShadowModel, MapRegion},
     scene::{LightSpaceScene, Scene, SceneObject},
@@ -126,8 +126,12 @@ pub struct FinFrameData {
     /// from the world origin.
     pub(crate) origin: DVec3,
     pub(crate) axes: [DVec3; 3],
-    /// The light's size: the disk's radius `R`, or the sun's `tan θ`.
+    /// The light's size: the disk's radius `R` (a rectangle's bounding
+    /// circle's), or the sun's `tan θ`.
     pub(crate) size: f32,
+    /// Where in that circle the light is: a rectangle's fins are as wide as
+    /// its support function across them (`extract.wgsl`'s `support`).
+    pub(crate) aperture: Aperture,
     /// The sun's orthographic maps (`x, y` in world units); else perspective
     /// maps from the disk's centre (`x/L, y/L`).
     pub(crate) orthographic: bool,
@@ -309,7 +313,8 @@ pub(crate) fn build(app: &mut App) {
 /// A light asking for fin shadows, as the frame builder sees it.
 struct LightSource {
     entity: Entity,
-    /// A disk (`FinLight`, `SpotLight`) or the sun (`DirectionalLight`).
+    /// A disk (`FinLight`, `SpotLight`), a rectangle (`RectLight`) or the
+    /// sun (`DirectionalLight`).
     light: Light,
     reach: Reach,
     settings: FinShadowSettings,
@@ -321,13 +326,14 @@ struct LightSource {
     layers: RenderLayers,
 }
 
-/// The lights with fin shadows: `FinLight`s, and Bevy `SpotLight`s and
-/// `DirectionalLight`s with [`FinShadows`], by entity order; and the entities
+/// The lights with fin shadows: `FinLight`s, and Bevy `SpotLight`s,
+/// `DirectionalLight`s and `RectLight`s with [`FinShadows`], by entity order; and the entities
 /// of those whose position or direction is not finite (they shadow nothing).
 fn light_sources(
     fin_lights: &Query<(Entity, &FinLight, &FinShadowSettings, &GlobalTransform)>,
     spot_lights: &SpotLights,
     directional_lights: &DirectionalLights,
+    rect_lights: &RectLights,
 ) -> (Vec<LightSource>, Vec<Entity>) {
     // Not `GlobalTransform::forward`: it panics (debug) on a zero scale; the
     // core's lights reject a direction of no length instead.
@@ -378,8 +384,36 @@ fn light_sources(
             }))
         },
     );
+    // Bevy's rectangle spans its local X (width) and Y (height), scaled as
+    // Bevy scales it (`ExtractedRectLight`), and faces local −Z.
+    let rects = rect_lights.iter().filter(|l| l.5 && !fin_lights.contains(l.0)).filter_map(
+        |(entity, rect, settings, transform, render, _)| {
+            let settings = settings?.clamped();
+            let m = transform.affine().matrix3;
+            let size = |s: f32, axis: bevy::math::Vec3A| finite(s) * axis.length();
+            let area = RectArea::new(
+                transform.translation(),
+                forward(transform),
+                Vec3::from(m.x_axis),
+                size(rect.width, m.x_axis),
+                size(rect.height, m.y_axis),
+            );
+            Some(
+                area.map(|area| LightSource {
+                    entity,
+                    light: Light::Rect(area),
+                    reach: Reach { range: finite(rect.range), cone: None },
+                    settings,
+                    shading: LightShading::Bevy { render_entity: render.id() },
+                    window: None,
+                    layers: RenderLayers::default(),
+                })
+                .map_err(|_| entity),
+            )
+        },
+    );
     let (mut sources, mut invalid) = (Vec::new(), Vec::new());
-    for light in own.chain(spots).chain(suns) {
+    for light in own.chain(spots).chain(suns).chain(rects) {
         match light {
             Ok(source) => sources.push(source),
             Err(entity) => invalid.push(entity),
@@ -468,13 +502,37 @@ type DirectionalLights<'w, 's> = Query<
     ),
 >;
 
+/// Every `RectLight` (Bevy has no shadow map for it to turn off).
+type RectLights<'w, 's> = Query<
+    'w,
+    's,
+    (
+        Entity,
+        &'static bevy::light::RectLight,
+        Option<&'static FinShadowSettings>,
+        &'static GlobalTransform,
+        &'static RenderEntity,
+        Has<FinShadows>,
+    ),
+>;
+
+/// The Bevy lights with no shadow map of their own to give back (one
+/// parameter: a system takes at most sixteen).
+#[derive(bevy::ecs::system::SystemParam)]
+struct OtherLights<'w, 's> {
+    rects: RectLights<'w, 's>,
+    /// Point lights asking for fin shadows, which are not modelled yet.
+    #[allow(clippy::type_complexity)]
+    points: Query<'w, 's, (), (With<FinShadows>, With<PointLight>, Without<FinLight>)>,
+}
+
 /// Rebuilds each light's frame when it, a setting or a caster changed.
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
 fn update_fin_frames(
     fin_lights: Query<(Entity, &FinLight, &FinShadowSettings, &GlobalTransform)>,
     mut spot_lights: SpotLights,
     mut directional_lights: DirectionalLights,
-    other_lights: Query<(), (With<FinShadows>, Without<SpotLight>, Without<DirectionalLight>, Without<FinLight>)>,
+    lights: OtherLights,
     casters: Casters,
     mut changes: CasterChanges,
     light_layers: Query<&RenderLayers>,
@@ -499,13 +557,13 @@ fn update_fin_frames(
         }
     }
     let casters_changed = changes.any() || mesh_event;
-    if !other_lights.is_empty() {
+    if !lights.points.is_empty() {
         warn_once!(
-            "fin shadows: FinShadows on a PointLight or RectLight is not modelled yet; those lights keep \
-             Bevy's shadows (DirectionalLight, SpotLight and FinLight have fin shadows)"
+            "fin shadows: FinShadows on a PointLight is not modelled yet; it keeps Bevy's shadows \
+             (DirectionalLight, SpotLight, RectLight and FinLight have fin shadows)"
         );
     }
-    let (mut sources, invalid) = light_sources(&fin_lights, &spot_lights, &directional_lights);
+    let (mut sources, invalid) = light_sources(&fin_lights, &spot_lights, &directional_lights, &lights.rects);
     for source in &mut sources {
         if let Ok(layers) = light_layers.get(source.entity) {
             source.layers = layers.clone();
@@ -933,6 +991,7 @@ fn light_frame(
                 origin: frame.origin(),
                 axes: frame.axes_f64(),
                 size: frame.size(),
+                aperture: frame.aperture,
                 orthographic: !frame.is_perspective(),
                 reference_depth: 0.0,
                 near: 0.0,
@@ -1005,6 +1064,7 @@ fn coverage_data(
         origin: in_frame.frame.origin(),
         axes: in_frame.frame.axes_f64(),
         size: in_frame.frame.size(),
+        aperture: in_frame.frame.aperture,
         orthographic: !in_frame.frame.is_perspective(),
         reference_depth: 0.0,
         near: coverage.near,
@@ -1199,6 +1259,7 @@ fn cpu_frame(
         origin: ls.frame.origin(),
         axes: ls.frame.axes_f64(),
         size: ls.frame.size(),
+        aperture: ls.frame.aperture,
         orthographic: !ls.frame.is_perspective(),
         reference_depth: ls.reference_depth,
         near: model.near,

@@ -25,8 +25,9 @@
 //! ## Lights
 //!
 //! [`FinShadows`] on a Bevy `SpotLight` (a disk of the spot's `radius` facing
-//! along its axis) or `DirectionalLight` (the sun, as wide as its `SunDisk`'s
-//! angular size, through orthographic maps), or the plugin's own
+//! along its axis), `DirectionalLight` (the sun, as wide as its `SunDisk`'s
+//! angular size, through orthographic maps) or `RectLight` (its rectangle:
+//! Bevy itself gives it no shadow at all), or the plugin's own
 //! [`FinLight`] (a disk lighting the half-space it faces). Up to [`MAX_FIN_LIGHTS`] at once, any mix, each with
 //! its own [`FinShadowSettings`] (method, layers, maps), its own frame
 //! rebuilt only when it, a caster, the budget or the set of lights changed
@@ -37,8 +38,8 @@
 //! sees none runs no extraction or map pass (its visibility pass writes 1). The
 //! penumbra-map budget ([`FinShadowBudget::map_bytes`]) is shared equally;
 //! past it a light's maps lose resolution, then layers, with the reason in its
-//! stats. `PointLight` and `RectLight` are not modelled yet (they keep
-//! Bevy's shadows; said once). Meshes fin shadows cannot reach
+//! stats. `PointLight` is not modelled yet (it keeps Bevy's shadows; said
+//! once). Meshes fin shadows cannot reach
 //! (forward-rendered, alpha-blended or transmissive `StandardMaterial`s) are
 //! counted in [`FinReceivers`] and said once.
 //!
@@ -51,8 +52,9 @@
 //! when `FinShadows` goes). The compositing pass then takes `(1 − V)` of the
 //! light's contribution away per pixel, evaluated by *Bevy's own* per-light
 //! function (`bevy_pbr::lighting::spot_light`, found by the light's index in
-//! Bevy's clustered list, or `lighting::directional_light`, found in the
-//! view's directional lights by what Bevy uploaded for it), and only where
+//! Bevy's clustered list, `lighting::directional_light` or
+//! `lighting::rect_light`, found in the view's directional or rectangle
+//! lights by what Bevy uploaded for it), and only where
 //! Bevy added it (the pixel's cluster list holds the spot; the view's list
 //! holds the sun, which it does not on render layers the view does not
 //! see): the shading is Bevy's by construction and follows Bevy upgrades. The alternatives were weighed: overriding Bevy's shadow

@@ -60,8 +60,15 @@ impl FinLight {
 ///   shadow. Bevy's cascades and contact shadows for it are off. Two suns of
 ///   the same direction and colour on different render layers are not told
 ///   apart by the compositing pass (it finds a sun in a view's list by them).
-/// - `PointLight`, `RectLight`: not modelled yet; said once at run time, and
-///   they keep Bevy's own shadows.
+/// - `RectLight { width, height, .. }`: a rectangle of those sizes (times the
+///   transform's scale along local X and Y, as Bevy scales it) facing local
+///   −Z. Fins across an edge are as wide as the rectangle's support function
+///   in the direction across it, the coverage method and the ground truth
+///   sample the rectangle itself; `0 × 0` gives exactly the hard shadow.
+///   Bevy has no shadow for a `RectLight` (and needs the `area_light_luts`
+///   feature to light one at all): this is its only shadow.
+/// - `PointLight`: not modelled yet; said once at run time, and it keeps
+///   Bevy's own shadows.
 ///
 /// Bevy's own shadow map and contact shadows for the light are off while
 /// `FinShadows` is on (in the render world: the light's `shadow_maps_enabled`

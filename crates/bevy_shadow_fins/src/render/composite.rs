@@ -4,12 +4,13 @@
 //! On a fin-shadowed camera this pass takes the place of Bevy's deferred
 //! lighting pass: it runs Bevy's own `apply_pbr_lighting` on the G-buffer (so
 //! every Bevy light, probe, SSAO and fog is unchanged), then per fin light:
-//! - a Bevy light (`SpotLight` or `DirectionalLight` + `FinShadows`): Bevy
-//!   has just shaded it, with its shadow map off; the pass takes `(1 − V)` of
-//!   it away again, evaluated by Bevy's own per-light function
-//!   (`lighting::spot_light` with the light's index in Bevy's clustered list,
-//!   `lighting::directional_light` with its index in the view's directional
-//!   lights), so the light's colour, range, cone and BRDF are Bevy's by
+//! - a Bevy light (`SpotLight`, `DirectionalLight` or `RectLight` +
+//!   `FinShadows`): Bevy has just shaded it, with its shadow map off (a
+//!   `RectLight` has none); the pass takes `(1 − V)` of it away again,
+//!   evaluated by Bevy's own per-light function (`lighting::spot_light` with
+//!   the light's index in Bevy's clustered list, `lighting::directional_light`
+//!   and `lighting::rect_light` with its index in the view's directional or
+//!   rectangle lights), so the light's colour, range, cone and BRDF are Bevy's by
 //!   construction, after any Bevy upgrade;
 //! - a [`FinLight`]: the pass adds it, shaded by Bevy's point-light BRDF
 //!   functions, times `V`.
@@ -29,7 +30,7 @@ use bevy::{
         schedule::{Core3d, Core3dSystems},
     },
     pbr::{
-        ExtractedDirectionalLight, GlobalClusterableObjectMeta, MeshPipelineKey, MeshViewBindGroup, ViewKeyCache,
+        ExtractedDirectionalLight, ExtractedRectLight, GlobalClusterableObjectMeta, MeshPipelineKey, MeshViewBindGroup, ViewKeyCache,
         deferred::{
             DeferredLightingLayout, PbrDeferredLightingDepthId, SkipDeferredLighting, deferred_lighting,
             prepare_deferred_lighting_pipelines,
@@ -108,6 +109,18 @@ impl FinLightUniform {
             color: color.to_array(),
         }
     }
+
+    /// A Bevy rectangle light as `prepare_lights` uploads it (`GpuRectLight`:
+    /// position, width, height): the composite finds the light in the view's
+    /// rectangle lights by these (`color` unused).
+    fn rect(rect: &ExtractedRectLight) -> Self {
+        let position = rect.transform.translation();
+        Self {
+            position_radius: position.extend(rect.width).to_array(),
+            forward_inverse_square_range: [0.0, 0.0, 0.0, rect.height],
+            color: [0.0; 4],
+        }
+    }
 }
 
 /// What the compositing pass does with light slot `i` (`CompositeLight.info.x`).
@@ -115,6 +128,7 @@ const KIND_OWN: u32 = 0;
 const KIND_BEVY: u32 = 1;
 const KIND_NONE: u32 = 2;
 const KIND_BEVY_DIRECTIONAL: u32 = 3;
+const KIND_BEVY_RECT: u32 = 4;
 
 /// One light slot as the compositing shader reads it (`CompositeLight` in
 /// `composite.wgsl`): the shading of a [`FinLight`], or the index of a Bevy
@@ -279,11 +293,14 @@ fn prepare_composite_pipelines(
 /// light as Bevy uploads it (direction towards the light, colour ×
 /// illuminance) and the shader finds it in the view's list by those (and
 /// its shadow maps being off), or leaves it alone when the view has no such
-/// light.
+/// light. A rectangle light is not clustered either (Bevy uploads at most
+/// eight per view, in query order): the slot holds its position, width and
+/// height, by which the shader finds it.
 fn composite_lights(
     frames: &FinFrames,
     clustered: Option<&GlobalClusterableObjectMeta>,
     directional: &Query<&ExtractedDirectionalLight>,
+    rects: &Query<&ExtractedRectLight>,
 ) -> CompositeLights {
     let mut out = CompositeLights::zeroed();
     out.count[0] = frames.0.len().min(MAX_FIN_LIGHTS) as u32;
@@ -293,9 +310,10 @@ fn composite_lights(
             LightShading::Own { light, transform } => {
                 FinLightUniform::new(&light, &transform).map_or(none, |own| (KIND_OWN, own, 0))
             }
-            LightShading::Bevy { render_entity } => match directional.get(render_entity) {
-                Ok(sun) => (KIND_BEVY_DIRECTIONAL, FinLightUniform::directional(sun), 0),
-                Err(_) => clustered
+            LightShading::Bevy { render_entity } => match (directional.get(render_entity), rects.get(render_entity)) {
+                (Ok(sun), _) => (KIND_BEVY_DIRECTIONAL, FinLightUniform::directional(sun), 0),
+                (_, Ok(rect)) => (KIND_BEVY_RECT, FinLightUniform::rect(rect), 0),
+                _ => clustered
                     .and_then(|c| c.entity_to_index.get(&render_entity))
                     .map_or(none, |&id| (KIND_BEVY, FinLightUniform::zeroed(), id as u32)),
             },
@@ -313,10 +331,11 @@ fn prepare_composite_bind_groups(
     frames: Res<FinFrames>,
     clustered: Option<Res<GlobalClusterableObjectMeta>>,
     directional: Query<&ExtractedDirectionalLight>,
+    rects: Query<&ExtractedRectLight>,
     views: Query<(Entity, &FinViewTexture, Option<&FinCompositeBindGroup>), With<FinCompositePipeline>>,
 ) {
     let Some(pipelines) = pipelines else { return };
-    let lights = composite_lights(&frames, clustered.as_deref(), &directional);
+    let lights = composite_lights(&frames, clustered.as_deref(), &directional, &rects);
     for (entity, texture, previous) in &views {
         let uniform = match previous {
             Some(p) => p.uniform.clone(),

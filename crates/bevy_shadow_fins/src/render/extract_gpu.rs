@@ -26,6 +26,7 @@ use crate::{
     gpu_scene::{GpuCapacity, GpuScene},
     light::FinMethod,
 };
+use shadow_fins::light::Aperture;
 
 /// `control` buffer layout (u32 words), as in `extract.wgsl`.
 pub(super) const C_PARAMS: u64 = 16;
@@ -163,6 +164,9 @@ struct ExtractParams {
     axis_n: [f32; 4],
     /// The maps' region lies within (min x, min y, max x, max y); none when min > max.
     window: [f32; 4],
+    /// (rectangle half extents a, b in the unit bounding circle, 1 for a
+    /// rectangle / 0 for the disk, 0): the light's support function.
+    aperture: [f32; 4],
 }
 
 pub(super) struct ExtractPipelines {
@@ -299,6 +303,10 @@ pub(super) fn prepare(
         axis_v: v4(scene.axes[1]),
         axis_n: v4(scene.axes[2]),
         window: scene.map_window.map_or([1.0, 1.0, -1.0, -1.0], |(lo, hi)| [lo.x, lo.y, hi.x, hi.y]),
+        aperture: match frame.aperture {
+            Aperture::Disk => [1.0, 1.0, 0.0, 0.0],
+            Aperture::Rect { half_extents } => [half_extents.x, half_extents.y, 1.0, 0.0],
+        },
     };
     let cap = frame.limit_bytes;
     let uniform = BufferUsages::UNIFORM | BufferUsages::COPY_DST;
