@@ -109,3 +109,33 @@ fn the_editors_settings_change_what_the_plugin_renders() {
     println!("{changed} sampled viewport pixels differ between hard and soft");
     assert!(changed > 500, "a 1-unit light and a hard shadow map rendered nearly the same ({changed} pixels differ)");
 }
+
+#[test]
+fn the_editors_rect_light_casts_a_soft_shadow_that_its_size_changes() {
+    // Bevy's RectLight chosen in the editor (`kind: "rect"`): of size 0 its
+    // fin shadow is the hard one, of the disk-of-radius-1 area a soft one.
+    let dir = out_dir();
+    let write = |name: &str, radius: f32| {
+        let mut s = EditorSettings::load(&PathBuf::from("tests/data/editor-settings.ron")).expect("settings fixture");
+        (s.radius, s.method, s.kind, s.rect_aspect) = (radius, "multi-layer".into(), Some("rect".into()), 3.0);
+        let path = dir.join(format!("{name}.ron"));
+        s.save(&path).unwrap();
+        path
+    };
+    let (point, wide) = (write("rect-0", 0.0), write("rect-1", 1.0));
+    let a = screenshot("rect-0", &["--settings", point.to_str().unwrap()], 16);
+    let b = screenshot("rect-1", &["--settings", wide.to_str().unwrap()], 16);
+    let (w, h) = (a.width().min(b.width()), a.height().min(b.height()));
+    assert!(distinct_colours(&b, (w / 4, w * 3 / 4, h / 4, h * 3 / 4)) > 20, "the rect-lit view is flat");
+    let mut changed = 0;
+    for y in (h / 4..h * 3 / 4).step_by(2) {
+        for x in (w / 4..w * 3 / 4).step_by(2) {
+            let (p, q) = (a.get_color_at(x, y).unwrap().to_srgba(), b.get_color_at(x, y).unwrap().to_srgba());
+            if (p.red - q.red).abs() + (p.green - q.green).abs() + (p.blue - q.blue).abs() > 0.06 {
+                changed += 1;
+            }
+        }
+    }
+    println!("{changed} sampled viewport pixels differ between a 0 × 0 and a sized rect light");
+    assert!(changed > 300, "the rectangle's size changed almost nothing ({changed} pixels differ)");
+}

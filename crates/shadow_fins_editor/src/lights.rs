@@ -110,6 +110,7 @@ mod tests {
             kind: crate::scene::LightKind::FinLight,
             sun_angle: crate::scene::DEFAULT_SUN_ANGLE,
             illuminance: crate::scene::DEFAULT_ILLUMINANCE,
+            rect_aspect: crate::scene::DEFAULT_RECT_ASPECT,
         };
         let (a, ta) = new_light(&params, 0);
         let (_, tb) = new_light(&params, 1);

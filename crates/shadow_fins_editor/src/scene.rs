@@ -14,7 +14,7 @@ use bevy_egui::input::EguiWantsInput;
 use bevy_shadow_fins::{FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster};
 use shadow_fins::{
     camera::Camera as CoreCamera,
-    light::{DiskLight, Light, SunLight},
+    light::{DiskLight, Light, RectLight as RectArea, SunLight},
     scene::Scene,
     scenes::SceneId,
 };
@@ -95,9 +95,12 @@ pub struct LightParams {
     pub intensity: f32,
     pub color: [f32; 3],
     pub method: EditorMethod,
-    /// Which light it is: the plugin's `FinLight`, or Bevy's own `SpotLight`
-    /// or `DirectionalLight` with `FinShadows`.
+    /// Which light it is: the plugin's `FinLight`, or Bevy's own `SpotLight`,
+    /// `DirectionalLight` or `RectLight` with `FinShadows`.
     pub kind: LightKind,
+    /// A `RectLight`'s width ÷ height; it has the area of the disk of
+    /// `radius` (`shadow_fins::light::RectLight::with_area_of`).
+    pub rect_aspect: f32,
     /// The sun's angular diameter, radians (`SunDisk::angular_size`).
     pub sun_angle: f32,
     /// The sun's illuminance, lux.
@@ -115,10 +118,14 @@ pub enum LightKind {
     Spot,
     /// Bevy's `DirectionalLight` with a `SunDisk`: the sun, as soft as its angular size.
     Sun,
+    /// Bevy's `RectLight` (Bevy shades it, and gives it no shadow of its
+    /// own): a rectangle of the disk's area, [`LightParams::rect_aspect`]
+    /// times as wide as high.
+    Rect,
 }
 
 impl LightKind {
-    pub const ALL: [LightKind; 3] = [LightKind::FinLight, LightKind::Spot, LightKind::Sun];
+    pub const ALL: [LightKind; 4] = [LightKind::FinLight, LightKind::Spot, LightKind::Sun, LightKind::Rect];
 
     /// The name in settings files.
     pub fn name(self) -> &'static str {
@@ -126,6 +133,7 @@ impl LightKind {
             LightKind::FinLight => "fin-light",
             LightKind::Spot => "spot",
             LightKind::Sun => "sun",
+            LightKind::Rect => "rect",
         }
     }
 
@@ -138,6 +146,7 @@ impl LightKind {
             LightKind::FinLight => "FinLight (disk)",
             LightKind::Spot => "Bevy SpotLight",
             LightKind::Sun => "Bevy sun",
+            LightKind::Rect => "Bevy RectLight",
         }
     }
 }
@@ -147,6 +156,9 @@ impl LightKind {
 /// light gives the demo's ground.
 pub const DEFAULT_SUN_ANGLE: f32 = 0.00930842;
 pub const DEFAULT_ILLUMINANCE: f32 = 3000.0;
+
+/// The editor's rectangle light is four times as wide as high by default.
+pub const DEFAULT_RECT_ASPECT: f32 = 4.0;
 
 /// The outer cone angle of the editor's spot light, radians (inner: 70% of it).
 pub const SPOT_CONE: f32 = 1.0;
@@ -158,7 +170,23 @@ impl LightParams {
         if self.kind == LightKind::Sun {
             return SunLight::new(direction, self.sun_angular_radius()).ok().map(Light::Sun);
         }
-        DiskLight::new(self.position, direction, self.radius.max(0.0)).ok().map(Light::Disk)
+        let disk = DiskLight::new(self.position, direction, self.radius.max(0.0)).ok()?;
+        if self.kind == LightKind::Rect {
+            // Its width along the light's local X, as Bevy spans it.
+            let (width, height) = self.rect_size();
+            let tangent = self.transform().right().as_vec3();
+            return RectArea::new(self.position, direction, tangent, width, height).ok().map(Light::Rect);
+        }
+        Some(Light::Disk(disk))
+    }
+
+    /// The `RectLight`'s width and height: the area of the disk of `radius`,
+    /// `rect_aspect` (clamped to `[0.01, 100]`, 1 for NaN) times as wide as high.
+    pub fn rect_size(&self) -> (f32, f32) {
+        let aspect = if self.rect_aspect.is_finite() { self.rect_aspect.clamp(0.01, 100.0) } else { 1.0 };
+        let radius = if self.radius.is_finite() { self.radius.max(0.0) } else { 0.0 };
+        let height = radius * (std::f32::consts::PI / aspect).sqrt();
+        (height * aspect, height)
     }
 
     /// Half the sun's angular diameter, clamped as the plugin clamps it
@@ -265,6 +293,7 @@ fn spawn_rig(
         kind: LightKind::FinLight,
         sun_angle: DEFAULT_SUN_ANGLE,
         illuminance: DEFAULT_ILLUMINANCE,
+        rect_aspect: DEFAULT_RECT_ASPECT,
     };
     let mut settings = FinShadowSettings::default();
     // `--settings`, or the autosave an earlier run left.
@@ -422,6 +451,7 @@ fn sync_light(
             Option<&mut FinLight>,
             Option<&mut SpotLight>,
             Option<&mut DirectionalLight>,
+            Option<&mut RectLight>,
         ),
         With<EditorLight>,
     >,
@@ -429,7 +459,7 @@ fn sync_light(
     if !params.is_changed() {
         return;
     }
-    let Ok((entity, mut transform, mut settings, fin, spot, directional)) = lights.single_mut() else { return };
+    let Ok((entity, mut transform, mut settings, fin, spot, directional, rect)) = lights.single_mut() else { return };
     let finite = |x: f32| if x.is_finite() { x.max(0.0) } else { 0.0 };
     *transform = params.transform();
     let color = Color::srgb(params.color[0], params.color[1], params.color[2]);
@@ -452,7 +482,7 @@ fn sync_light(
                 match directional {
                     Some(mut d) => *d = sun,
                     None => {
-                        commands.entity(entity).remove::<(PointLight, FinLight, SpotLight)>().insert(sun);
+                        commands.entity(entity).remove::<(PointLight, FinLight, SpotLight, RectLight)>().insert(sun);
                     }
                 }
                 // Also after Bevy PCSS, which kept the DirectionalLight but not FinShadows.
@@ -474,7 +504,24 @@ fn sync_light(
                     None => {
                         commands
                             .entity(entity)
-                            .remove::<(PointLight, FinLight, DirectionalLight, SunDisk)>()
+                            .remove::<(PointLight, FinLight, DirectionalLight, SunDisk, RectLight)>()
+                            .insert((light, FinShadows));
+                    }
+                }
+                return;
+            }
+            if params.kind == LightKind::Rect {
+                // Bevy divides a RectLight's power by its area: 0 × 0 would
+                // light with infinite radiance (NaN on screen). A millimetre
+                // square is a hard shadow for any scene the editor shows.
+                let (width, height) = params.rect_size();
+                let light = RectLight { color, intensity, range, width: width.max(1e-3), height: height.max(1e-3) };
+                match rect {
+                    Some(mut r) => *r = light,
+                    None => {
+                        commands
+                            .entity(entity)
+                            .remove::<(PointLight, FinLight, SpotLight, DirectionalLight, SunDisk)>()
                             .insert((light, FinShadows));
                     }
                 }
@@ -486,7 +533,7 @@ fn sync_light(
                 None => {
                     commands
                         .entity(entity)
-                        .remove::<(PointLight, SpotLight, DirectionalLight, SunDisk, FinShadows)>()
+                        .remove::<(PointLight, SpotLight, DirectionalLight, SunDisk, RectLight, FinShadows)>()
                         .insert(light);
                 }
             }
@@ -496,7 +543,7 @@ fn sync_light(
             // `soft_shadow_size` is a size in cascade depth units, not an
             // angle (Bevy's knob; given the sun's angular diameter here).
             let mut e = commands.entity(entity);
-            e.remove::<(FinLight, SpotLight, PointLight, DirectionalLight, SunDisk, FinShadows)>();
+            e.remove::<(FinLight, SpotLight, PointLight, DirectionalLight, SunDisk, RectLight, FinShadows)>();
             if params.kind == LightKind::Sun {
                 e.insert(DirectionalLight {
                     color,
@@ -523,7 +570,15 @@ fn sync_light(
 fn sync_marker(params: Res<LightParams>, mut marker: Query<&mut Transform, With<LightMarker>>) {
     if params.is_changed() {
         for mut t in &mut marker {
-            *t = params.transform().with_scale(Vec3::new(1.0, 1.0, 0.05) * params.radius.max(0.02));
+            let scale = match params.kind {
+                // The rectangle as a flat box of its half sizes.
+                LightKind::Rect => {
+                    let (w, h) = params.rect_size();
+                    Vec3::new((w * 0.5).max(0.02), (h * 0.5).max(0.02), 0.05 * params.radius.max(0.02))
+                }
+                _ => Vec3::new(1.0, 1.0, 0.05) * params.radius.max(0.02),
+            };
+            *t = params.transform().with_scale(scale);
         }
     }
 }
@@ -554,6 +609,7 @@ mod tests {
                 kind: LightKind::FinLight,
                 sun_angle: DEFAULT_SUN_ANGLE,
                 illuminance: DEFAULT_ILLUMINANCE,
+                rect_aspect: DEFAULT_RECT_ASPECT,
             })
             .add_message::<LoadScene>()
             .add_systems(Update, load_scene);

@@ -36,7 +36,7 @@ pub struct EditorSettings {
     /// still written, for editors from before `kind`.
     #[serde(default)]
     pub spot: bool,
-    /// `fin-light`, `spot` or `sun` (absent in files from before the sun:
+    /// `fin-light`, `spot`, `sun` or `rect` (absent in files from before the sun:
     /// `spot` says which).
     #[serde(default)]
     pub kind: Option<String>,
@@ -46,6 +46,13 @@ pub struct EditorSettings {
     /// The sun's illuminance, lux.
     #[serde(default = "default_illuminance")]
     pub illuminance: f32,
+    /// A `RectLight`'s width ÷ height (absent in files from before it).
+    #[serde(default = "default_rect_aspect")]
+    pub rect_aspect: f32,
+}
+
+fn default_rect_aspect() -> f32 {
+    crate::scene::DEFAULT_RECT_ASPECT
 }
 
 fn default_sun_angle() -> f32 {
@@ -103,6 +110,7 @@ impl EditorSettings {
             kind: Some(light.kind.name().into()),
             sun_angle: light.sun_angle,
             illuminance: light.illuminance,
+            rect_aspect: light.rect_aspect,
         }
     }
 
@@ -130,6 +138,9 @@ impl EditorSettings {
         // At most 80°, as the plugin clamps it; never negative or NaN.
         light.sun_angle = if self.sun_angle.is_finite() { self.sun_angle.clamp(0.0, 2.8) } else { 0.0 };
         light.illuminance = if self.illuminance.is_finite() { self.illuminance.max(0.0) } else { light.illuminance };
+        // The editor's slider range; NaN keeps the current shape.
+        light.rect_aspect =
+            if self.rect_aspect.is_finite() { self.rect_aspect.clamp(0.01, 100.0) } else { light.rect_aspect };
         *fins = FinShadowSettings {
             layers: self.layers,
             sub_layers: self.sub_layers,
@@ -213,6 +224,7 @@ pub fn check_settings_text(text: &str) {
         kind: LightKind::FinLight,
         sun_angle: crate::scene::DEFAULT_SUN_ANGLE,
         illuminance: crate::scene::DEFAULT_ILLUMINANCE,
+        rect_aspect: crate::scene::DEFAULT_RECT_ASPECT,
     };
     let mut fins = FinShadowSettings::default();
     file.apply(&mut light, &mut fins);
@@ -222,6 +234,7 @@ pub fn check_settings_text(text: &str) {
     assert!(light.color.iter().all(|c| (0.0..=1.0).contains(c)));
     assert!(light.sun_angle.is_finite() && (0.0..=2.8).contains(&light.sun_angle));
     assert!(light.illuminance.is_finite() && light.illuminance >= 0.0);
+    assert!(light.rect_aspect.is_finite() && (0.01..=100.0).contains(&light.rect_aspect));
     assert_eq!(fins, fins.clamped(), "applied settings are within their ranges");
 }
 
@@ -240,6 +253,7 @@ mod tests {
             kind: LightKind::FinLight,
             sun_angle: 0.02,
             illuminance: 1500.0,
+            rect_aspect: 2.5,
         }
     }
 
@@ -271,8 +285,15 @@ mod tests {
             let saved = EditorSettings::capture(&LightParams { kind, ..light() }, &FinShadowSettings::default());
             let (mut l, mut f) = (light(), FinShadowSettings::default());
             EditorSettings::from_ron(&saved.to_ron(), "x.ron").unwrap().apply(&mut l, &mut f);
-            assert_eq!((l.kind, l.sun_angle, l.illuminance), (kind, 0.02, 1500.0));
+            assert_eq!((l.kind, l.sun_angle, l.illuminance, l.rect_aspect), (kind, 0.02, 1500.0, 2.5));
         }
+        // A file from before the rectangle light gets the default aspect.
+        let saved = EditorSettings::capture(&light(), &FinShadowSettings::default()).to_ron();
+        let before_rect = saved.replace("rect_aspect: 2.5,", "");
+        assert_ne!(before_rect, saved, "the field must be in the file to be dropped from it");
+        let (mut l, mut f) = (light(), FinShadowSettings::default());
+        EditorSettings::from_ron(&before_rect, "old.ron").unwrap().apply(&mut l, &mut f);
+        assert_eq!(l.rect_aspect, crate::scene::DEFAULT_RECT_ASPECT);
         // Files from before `kind`: `spot` says which; from before `spot`: the FinLight.
         let spot =
             EditorSettings::capture(&LightParams { kind: LightKind::Spot, ..light() }, &FinShadowSettings::default());

@@ -123,6 +123,10 @@ fn panels(
                             "Bevy's DirectionalLight with FinShadows, as soft as its SunDisk's angular size \
                              (orthographic maps fitted to the scene; the position only places the marker)"
                         }
+                        LightKind::Rect => {
+                            "Bevy's RectLight with FinShadows: Bevy shades it (area-light LTC), fins shadow it; \
+                             the rectangle has the disk's area (radius) and the aspect below"
+                        }
                     });
                 }
             });
@@ -147,6 +151,13 @@ fn panels(
                         .logarithmic(true)
                         .smallest_positive(1e-3),
                 );
+                if p.kind == LightKind::Rect {
+                    ui.add(
+                        egui::Slider::new(&mut p.rect_aspect, 0.05..=20.0).text("width ÷ height").logarithmic(true),
+                    );
+                    let (w, h) = p.rect_size();
+                    ui.small(format!("{w:.3} × {h:.3} (the area of the disk of this radius)"));
+                }
                 ui.add(egui::Slider::new(&mut p.intensity, 0.0..=1e8).text("intensity (lm)").logarithmic(true));
             }
             ui.horizontal(|ui| {
