@@ -30,7 +30,9 @@ pub enum LightError {
     BadRadius(f32),
     #[error("sun angular radius {0} rad is outside [0, 1.4]: use a small angle (the real sun is 0.0047 rad)")]
     BadAngle(f32),
-    #[error("rectangle light size {0} x {1} is negative or not finite: use a width and height >= 0 (0 x 0 gives hard shadows)")]
+    #[error(
+        "rectangle light size {0} x {1} is negative or not finite: use a width and height >= 0 (0 x 0 gives hard shadows)"
+    )]
     BadRectSize(f32, f32),
 }
 

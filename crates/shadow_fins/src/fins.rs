@@ -331,10 +331,7 @@ impl FinBuilder {
             if e.a.z <= near || e.b.z <= near || dir.is_nan() {
                 continue;
             }
-            let (w0, w1) = (
-                width(e.a.z) * frame.aperture.support(d0),
-                width(e.b.z) * frame.aperture.support(d1),
-            );
+            let (w0, w1) = (width(e.a.z) * frame.aperture.support(d0), width(e.b.z) * frame.aperture.support(d1));
             if !(w0 > 0.0 || w1 > 0.0) {
                 continue;
             }

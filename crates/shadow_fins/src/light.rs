@@ -118,7 +118,11 @@ impl Aperture {
     /// moot, but every function stays finite).
     pub fn rect(half_extents: Vec2) -> Self {
         let h = half_extents.abs();
-        let h = if h.length() > 0.0 && h.is_finite() { h / h.length() } else { Vec2::splat(std::f32::consts::FRAC_1_SQRT_2) };
+        let h = if h.length() > 0.0 && h.is_finite() {
+            h / h.length()
+        } else {
+            Vec2::splat(std::f32::consts::FRAC_1_SQRT_2)
+        };
         Aperture::Rect { half_extents: h }
     }
 

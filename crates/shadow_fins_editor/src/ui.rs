@@ -152,9 +152,7 @@ fn panels(
                         .smallest_positive(1e-3),
                 );
                 if p.kind == LightKind::Rect {
-                    ui.add(
-                        egui::Slider::new(&mut p.rect_aspect, 0.05..=20.0).text("width ÷ height").logarithmic(true),
-                    );
+                    ui.add(egui::Slider::new(&mut p.rect_aspect, 0.05..=20.0).text("width ÷ height").logarithmic(true));
                     let (w, h) = p.rect_size();
                     ui.small(format!("{w:.3} × {h:.3} (the area of the disk of this radius)"));
                 }

@@ -199,7 +199,9 @@ impl SceneArgs {
 pub fn parse_vec2(s: &str) -> Result<Vec2, String> {
     match s.split(',').map(str::trim).collect::<Vec<_>>()[..] {
         [x, y] => {
-            let f = |p: &str| p.parse::<f32>().ok().filter(|v| v.is_finite()).ok_or(format!("'{p}' is not a finite number"));
+            let f = |p: &str| {
+                p.parse::<f32>().ok().filter(|v| v.is_finite()).ok_or(format!("'{p}' is not a finite number"))
+            };
             Ok(Vec2::new(f(x)?, f(y)?))
         }
         _ => Err(format!("'{s}' is not w,h")),

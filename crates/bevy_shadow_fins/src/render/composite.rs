@@ -30,7 +30,8 @@ use bevy::{
         schedule::{Core3d, Core3dSystems},
     },
     pbr::{
-        ExtractedDirectionalLight, ExtractedRectLight, GlobalClusterableObjectMeta, MeshPipelineKey, MeshViewBindGroup, ViewKeyCache,
+        ExtractedDirectionalLight, ExtractedRectLight, GlobalClusterableObjectMeta, MeshPipelineKey, MeshViewBindGroup,
+        ViewKeyCache,
         deferred::{
             DeferredLightingLayout, PbrDeferredLightingDepthId, SkipDeferredLighting, deferred_lighting,
             prepare_deferred_lighting_pipelines,

@@ -115,7 +115,10 @@ fn fins_are_as_wide_as_the_rectangle_across_each_edge() {
         let outer = bisect(0.0, 4.0, &|v| v >= 1.0);
         let inner = -bisect(-4.0, 0.0, &|v| v > 0.0);
         for (name, w) in [("outer", outer), ("inner", inner)] {
-            assert!((w - half).abs() < 0.02 * half, "edge along z {edge_along_z}: {name} half-width {w}, expected {half}");
+            assert!(
+                (w - half).abs() < 0.02 * half,
+                "edge along z {edge_along_z}: {name} half-width {w}, expected {half}"
+            );
         }
         assert!((at(0.0) - 0.5).abs() < 1e-3, "V on the hard-shadow boundary {}", at(0.0));
     }
@@ -180,11 +183,13 @@ fn coverage_of_a_rectangle_light_matches_its_ground_truth_on_built_in_scenes() {
             Light::Disk(d) => d.radius * 2.0,
             _ => unreachable!("built-in scenes have disk lights"),
         };
-        let light = Light::Rect(RectLight::new(center, normal, Vec3::new(1.0, 0.0, 0.4), size * 2.0, size * 0.5).unwrap());
+        let light =
+            Light::Rect(RectLight::new(center, normal, Vec3::new(1.0, 0.0, 0.4), size * 2.0, size * 0.5).unwrap());
         let (ls, receivers) = view_receivers(&s.scene, light, &s.camera, 48, 36);
         let coverage = CoverageModel::new(&s.scene, &ls, CoverageSettings { samples: 1024, ..Default::default() });
         let gt = GroundTruth::new(&ls, 4096);
-        let (c, g): (Vec<f32>, Vec<f32>) = receivers.iter().map(|r| (coverage.visibility(*r), gt.visibility(*r))).unzip();
+        let (c, g): (Vec<f32>, Vec<f32>) =
+            receivers.iter().map(|r| (coverage.visibility(*r), gt.visibility(*r))).unzip();
         let penumbra = g.iter().filter(|v| **v > 0.02 && **v < 0.98).count();
         assert!(penumbra > 30, "{id:?}: the view must hold penumbra ({penumbra} px)");
         let mae = mean_abs_diff(&c, &g);
