@@ -69,6 +69,22 @@ fn distinct_colours(image: &Image, (x0, x1, y0, y1): (u32, u32, u32, u32)) -> us
     seen.len()
 }
 
+/// Sampled pixels (every other one, in the middle half of the view) whose
+/// sRGB colours differ by more than 0.06 summed over the channels.
+fn changed_pixels(a: &Image, b: &Image) -> usize {
+    let (w, h) = (a.width().min(b.width()), a.height().min(b.height()));
+    let mut changed = 0;
+    for y in (h / 4..h * 3 / 4).step_by(2) {
+        for x in (w / 4..w * 3 / 4).step_by(2) {
+            let (p, q) = (a.get_color_at(x, y).unwrap().to_srgba(), b.get_color_at(x, y).unwrap().to_srgba());
+            if (p.red - q.red).abs() + (p.green - q.green).abs() + (p.blue - q.blue).abs() > 0.06 {
+                changed += 1;
+            }
+        }
+    }
+    changed
+}
+
 #[test]
 fn the_editor_starts_draws_panels_and_scene_and_writes_a_screenshot() {
     let image = screenshot("editor", &[], 20);
@@ -96,16 +112,7 @@ fn the_editors_settings_change_what_the_plugin_renders() {
     let soft = write("soft", 1.0, "multi-layer");
     let a = screenshot("hard", &["--settings", hard.to_str().unwrap()], 12);
     let b = screenshot("soft", &["--settings", soft.to_str().unwrap()], 12);
-    let (w, h) = (a.width().min(b.width()), a.height().min(b.height()));
-    let mut changed = 0;
-    for y in (h / 4..h * 3 / 4).step_by(2) {
-        for x in (w / 4..w * 3 / 4).step_by(2) {
-            let (p, q) = (a.get_color_at(x, y).unwrap().to_srgba(), b.get_color_at(x, y).unwrap().to_srgba());
-            if (p.red - q.red).abs() + (p.green - q.green).abs() + (p.blue - q.blue).abs() > 0.06 {
-                changed += 1;
-            }
-        }
-    }
+    let changed = changed_pixels(&a, &b);
     println!("{changed} sampled viewport pixels differ between hard and soft");
     assert!(changed > 500, "a 1-unit light and a hard shadow map rendered nearly the same ({changed} pixels differ)");
 }
@@ -127,15 +134,7 @@ fn the_editors_rect_light_casts_a_soft_shadow_that_its_size_changes() {
     let b = screenshot("rect-1", &["--settings", wide.to_str().unwrap()], 16);
     let (w, h) = (a.width().min(b.width()), a.height().min(b.height()));
     assert!(distinct_colours(&b, (w / 4, w * 3 / 4, h / 4, h * 3 / 4)) > 20, "the rect-lit view is flat");
-    let mut changed = 0;
-    for y in (h / 4..h * 3 / 4).step_by(2) {
-        for x in (w / 4..w * 3 / 4).step_by(2) {
-            let (p, q) = (a.get_color_at(x, y).unwrap().to_srgba(), b.get_color_at(x, y).unwrap().to_srgba());
-            if (p.red - q.red).abs() + (p.green - q.green).abs() + (p.blue - q.blue).abs() > 0.06 {
-                changed += 1;
-            }
-        }
-    }
+    let changed = changed_pixels(&a, &b);
     println!("{changed} sampled viewport pixels differ between a 0 × 0 and a sized rect light");
     assert!(changed > 300, "the rectangle's size changed almost nothing ({changed} pixels differ)");
 }

@@ -46,29 +46,18 @@ fn a_fin_shadowed_spot_light_is_bevys_light_times_the_visibility() {
     // Bevy's own shadow map must be off: it would darken the inner penumbra
     // a second time.
     let shadowed = spot_setup();
-    let mut lit = shadowed.clone();
-    for o in &mut lit.scene.objects {
-        o.casts_shadows = false;
-    }
     let mut dark = shadowed.clone();
     dark.intensity = 0.0;
-    let (s, l, d) = (render_bevy_lights(&shadowed), render_bevy_lights(&lit), render_bevy_lights(&dark));
-    save(&s, "spot_shadowed");
-    save(&l, "spot_lit");
-    assert_not_trivial(&s);
-    assert!(l.visibility.iter().all(|v| *v == 1.0), "nothing casts, yet V < 1 somewhere");
-    let (sc, lc, dc) = (linear_rgb(&s), linear_rgb(&l), linear_rgb(&d));
-    let lit_pixels = (0..lc.len()).filter(|&i| lc[i][1] - dc[i][1] > 0.05).count();
+    let c = SingleLightComposite::render(&shadowed, &dark, "spot");
+    assert_not_trivial(&c.shadowed);
+    assert!(c.lit.visibility.iter().all(|v| *v == 1.0), "nothing casts, yet V < 1 somewhere");
+    let lit_pixels = c.gain.iter().filter(|g| **g > 0.05).count();
     assert!(lit_pixels > 1000, "the spot light lights only {lit_pixels} pixels");
-    let errors: Vec<f32> = (0..sc.len())
-        .filter(|&i| lc[i][1] - dc[i][1] > 0.05 && lc[i].iter().all(|c| *c < 0.95))
-        .map(|i| (sc[i][1] - (dc[i][1] + s.visibility[i] * (lc[i][1] - dc[i][1]))).abs())
-        .collect();
-    let penumbra = (0..sc.len()).filter(|&i| (0.05..0.95).contains(&s.visibility[i])).count();
+    let penumbra = c.shadowed.visibility.iter().filter(|v| (0.05..0.95).contains(*v)).count();
     assert!(penumbra > 100, "only {penumbra} penumbra pixels");
-    let n = errors.len();
+    let n = c.errors.len();
     assert!(n > 1000, "only {n} unclipped lit pixels");
-    let (mean, p99) = mean_and_p99(errors);
+    let (mean, p99) = mean_and_p99(c.errors);
     println!("spot composite vs dark + V·(lit − dark): mean {mean:.4}, p99 {p99:.4} over {n} pixels");
     assert!(mean <= 0.005 && p99 <= 0.02, "mean {mean}, p99 {p99}");
 }

@@ -33,21 +33,9 @@ fn rect_setup(id: SceneId, settings: FinShadowSettings) -> Setup {
 #[test]
 fn a_fin_shadowed_rect_light_matches_the_raster_oracle_on_three_scenes() {
     for extraction in [FinExtraction::Gpu, FinExtraction::Cpu] {
-        for id in [SceneId::BoxOverPlane, SceneId::NearContact, SceneId::RingPlate] {
-            let setup = rect_setup(id, FinShadowSettings { extraction, ..settings() });
-            let shot = render_bevy_lights(&setup);
-            save(&shot, &format!("rect_{}_{extraction:?}", id.name()));
-            assert_not_trivial(&shot);
-            let (mad, far) = compare(&shot.visibility, &oracle(&setup, Method::MultiLayer));
-            println!(
-                "rect, {extraction:?}, {}: mean |gpu − oracle| = {mad:.5}, share > 0.1 = {:.2}%",
-                id.name(),
-                far * 100.0
-            );
-            assert!(mad <= 0.01 && far <= 0.03, "{extraction:?} {}: {mad} / {far}", id.name());
-            let penumbra = shot.visibility.iter().filter(|v| (0.05..0.95).contains(*v)).count();
-            assert!(penumbra > 100, "{}: only {penumbra} penumbra pixels: is the rectangle soft at all?", id.name());
-        }
+        assert_matches_the_oracle("rect", &[SceneId::BoxOverPlane, SceneId::NearContact, SceneId::RingPlate], |id| {
+            rect_setup(id, FinShadowSettings { extraction, ..settings() })
+        });
     }
 }
 
@@ -109,27 +97,15 @@ fn a_fin_shadowed_rect_light_is_bevys_light_times_the_visibility() {
     let mut shadowed = rect_setup(SceneId::BoxOverPlane, settings());
     // Dim enough that nothing clips at white.
     shadowed.intensity = 2.0e4;
-    let mut lit = shadowed.clone();
-    for o in &mut lit.scene.objects {
-        o.casts_shadows = false;
-    }
     let mut dark = shadowed.clone();
     dark.intensity = 0.0;
-    let (s, l, d) = (render_bevy_lights(&shadowed), render_bevy_lights(&lit), render_bevy_lights(&dark));
-    save(&s, "rect_shadowed");
-    save(&l, "rect_lit");
-    assert_not_trivial(&s);
-    assert!(l.visibility.iter().all(|v| *v == 1.0), "nothing casts, yet V < 1 somewhere");
-    let (sc, lc, dc) = (linear_rgb(&s), linear_rgb(&l), linear_rgb(&d));
-    let errors: Vec<f32> = (0..sc.len())
-        .filter(|&i| lc[i][1] - dc[i][1] > 0.05 && lc[i].iter().all(|c| *c < 0.95))
-        .map(|i| (sc[i][1] - (dc[i][1] + s.visibility[i] * (lc[i][1] - dc[i][1]))).abs())
-        .collect();
-    let n = errors.len();
+    let c = SingleLightComposite::render(&shadowed, &dark, "rect");
+    assert_not_trivial(&c.shadowed);
+    assert!(c.lit.visibility.iter().all(|v| *v == 1.0), "nothing casts, yet V < 1 somewhere");
+    let n = c.errors.len();
     assert!(n > 1000, "only {n} unclipped lit pixels");
-    let umbra = (0..sc.len()).filter(|&i| s.visibility[i] < 0.02 && lc[i][1] - dc[i][1] > 0.05).count();
-    assert!(umbra > 50, "no lit-but-shadowed umbra to check: is the rectangle's shadow composited?");
-    let (mean, p99) = mean_and_p99(errors);
+    assert!(c.lit_umbra() > 50, "no lit-but-shadowed umbra to check: is the rectangle's shadow composited?");
+    let (mean, p99) = mean_and_p99(c.errors);
     println!("rect composite vs dark + V·(lit − dark): mean {mean:.4}, p99 {p99:.4} over {n} pixels");
     assert!(mean <= 0.005 && p99 <= 0.02, "mean {mean}, p99 {p99}");
 }

@@ -31,21 +31,9 @@ fn unfitted() -> FinShadowSettings {
 #[test]
 fn a_fin_shadowed_sun_matches_the_raster_oracle_on_three_scenes() {
     for extraction in [FinExtraction::Gpu, FinExtraction::Cpu] {
-        for id in [SceneId::BoxOverPlane, SceneId::NearContact, SceneId::RingPlate] {
-            let setup = sun_setup(id, FinShadowSettings { extraction, ..unfitted() });
-            let shot = render_bevy_lights(&setup);
-            save(&shot, &format!("sun_{}_{extraction:?}", id.name()));
-            assert_not_trivial(&shot);
-            let (mad, far) = compare(&shot.visibility, &oracle(&setup, Method::MultiLayer));
-            println!(
-                "sun, {extraction:?}, {}: mean |gpu − oracle| = {mad:.5}, share > 0.1 = {:.2}%",
-                id.name(),
-                far * 100.0
-            );
-            assert!(mad <= 0.01 && far <= 0.03, "{extraction:?} {}: {mad} / {far}", id.name());
-            let penumbra = shot.visibility.iter().filter(|v| (0.05..0.95).contains(*v)).count();
-            assert!(penumbra > 100, "{}: only {penumbra} penumbra pixels: is the sun soft at all?", id.name());
-        }
+        assert_matches_the_oracle("sun", &[SceneId::BoxOverPlane, SceneId::NearContact, SceneId::RingPlate], |id| {
+            sun_setup(id, FinShadowSettings { extraction, ..unfitted() })
+        });
     }
 }
 
@@ -70,26 +58,14 @@ fn a_fin_shadowed_sun_is_bevys_light_times_the_visibility() {
     // must be off, or the umbra would be darkened twice.
     let mut shadowed = sun_setup(SceneId::BoxOverPlane, settings());
     shadowed.sun_illuminance = 1500.0;
-    let mut lit = shadowed.clone();
-    for o in &mut lit.scene.objects {
-        o.casts_shadows = false;
-    }
     let mut dark = shadowed.clone();
     dark.sun_illuminance = 0.0;
-    let (s, l, d) = (render_bevy_lights(&shadowed), render_bevy_lights(&lit), render_bevy_lights(&dark));
-    save(&s, "sun_shadowed");
-    save(&l, "sun_lit");
-    assert_not_trivial(&s);
-    let (sc, lc, dc) = (linear_rgb(&s), linear_rgb(&l), linear_rgb(&d));
-    let errors: Vec<f32> = (0..sc.len())
-        .filter(|&i| lc[i][1] - dc[i][1] > 0.05 && lc[i].iter().all(|c| *c < 0.95))
-        .map(|i| (sc[i][1] - (dc[i][1] + s.visibility[i] * (lc[i][1] - dc[i][1]))).abs())
-        .collect();
-    let n = errors.len();
+    let c = SingleLightComposite::render(&shadowed, &dark, "sun");
+    assert_not_trivial(&c.shadowed);
+    let n = c.errors.len();
     assert!(n > 1000, "only {n} unclipped lit pixels");
-    let umbra = (0..sc.len()).filter(|&i| s.visibility[i] < 0.02 && lc[i][1] - dc[i][1] > 0.05).count();
-    assert!(umbra > 50, "no lit-but-shadowed umbra to check");
-    let (mean, p99) = mean_and_p99(errors);
+    assert!(c.lit_umbra() > 50, "no lit-but-shadowed umbra to check");
+    let (mean, p99) = mean_and_p99(c.errors);
     println!("sun composite vs dark + V·(lit − dark): mean {mean:.4}, p99 {p99:.4} over {n} pixels");
     assert!(mean <= 0.005 && p99 <= 0.02, "mean {mean}, p99 {p99}");
 }

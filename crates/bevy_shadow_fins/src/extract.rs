@@ -822,10 +822,7 @@ impl CasterScene {
                 let out = match light {
                     Light::Disk(disk) => bounds.is_some_and(|b| out_of_reach(&b, disk, sees.reach)),
                     // A rectangle reaches what its bounding disk reaches.
-                    Light::Rect(r) => bounds.is_some_and(|b| {
-                        let disk = DiskLight { center: r.center, normal: r.normal, radius: r.bounding_radius() };
-                        out_of_reach(&b, &disk, sees.reach)
-                    }),
+                    Light::Rect(r) => bounds.is_some_and(|b| out_of_reach(&b, &r.bounding_disk(), sees.reach)),
                     Light::Sun(_) => false,
                 };
                 if o.casts_shadows && (out || !layers.intersects(sees.layers)) {

@@ -90,9 +90,27 @@ impl RectLight {
         if !(aspect > 0.0 && aspect.is_finite()) {
             return Err(LightError::BadRectSize(aspect, 1.0));
         }
-        let height = disk.radius * (std::f32::consts::PI / aspect).sqrt();
-        let tangent = if disk.normal.x.abs() > 0.9 { Vec3::Z } else { Vec3::X };
-        Self::new(disk.center, disk.normal, tangent, height * aspect, height)
+        let (width, height) = Self::size_of_disk_area(disk.radius, aspect);
+        Self::new(disk.center, disk.normal, Self::world_tangent(disk.normal), width, height)
+    }
+
+    /// The width direction the lab and tests give a rectangle facing along
+    /// `normal`: world x, or z when `normal` is (nearly) along x.
+    pub fn world_tangent(normal: Vec3) -> Vec3 {
+        if normal.normalize_or_zero().x.abs() > 0.9 { Vec3::Z } else { Vec3::X }
+    }
+
+    /// Width and height of the rectangle of a disk of `radius`'s area,
+    /// `aspect` times as wide as high (`w·h = πR²`, `w = aspect·h`).
+    pub fn size_of_disk_area(radius: f32, aspect: f32) -> (f32, f32) {
+        let height = radius * (std::f32::consts::PI / aspect).sqrt();
+        (height * aspect, height)
+    }
+
+    /// The disk around the rectangle (its centre, normal and bounding
+    /// radius): what it can reach, for culling.
+    pub fn bounding_disk(&self) -> DiskLight {
+        DiskLight { center: self.center, normal: self.normal, radius: self.bounding_radius() }
     }
 
     /// Radius of the circle around the rectangle: the frame's `R`.
@@ -391,14 +409,6 @@ impl LightFrame {
             Projection::Orthographic { tan_angle } => tan_angle * (receiver_depth - edge_depth),
         };
         if w > 0.0 { w } else { 0.0 }
-    }
-
-    /// [`Self::penumbra_half_width`] across an edge whose map normal is the
-    /// unit `direction`: scaled by the aperture's support function (a
-    /// rectangle's penumbra is as wide as the rectangle is across the edge).
-    #[inline]
-    pub fn penumbra_half_width_across(&self, edge_depth: f32, receiver_depth: f32, direction: Vec2) -> f32 {
-        self.penumbra_half_width(edge_depth, receiver_depth) * self.aperture.support(direction)
     }
 
     /// World-space fin width `B0` at depth `L_b` for reference plane `L0` (eq. 3):

@@ -170,14 +170,13 @@ impl LightParams {
         if self.kind == LightKind::Sun {
             return SunLight::new(direction, self.sun_angular_radius()).ok().map(Light::Sun);
         }
-        let disk = DiskLight::new(self.position, direction, self.radius.max(0.0)).ok()?;
         if self.kind == LightKind::Rect {
             // Its width along the light's local X, as Bevy spans it.
             let (width, height) = self.rect_size();
             let tangent = self.transform().right().as_vec3();
             return RectArea::new(self.position, direction, tangent, width, height).ok().map(Light::Rect);
         }
-        Some(Light::Disk(disk))
+        DiskLight::new(self.position, direction, self.radius.max(0.0)).ok().map(Light::Disk)
     }
 
     /// The `RectLight`'s width and height: the area of the disk of `radius`,
@@ -185,8 +184,7 @@ impl LightParams {
     pub fn rect_size(&self) -> (f32, f32) {
         let aspect = if self.rect_aspect.is_finite() { self.rect_aspect.clamp(0.01, 100.0) } else { 1.0 };
         let radius = if self.radius.is_finite() { self.radius.max(0.0) } else { 0.0 };
-        let height = radius * (std::f32::consts::PI / aspect).sqrt();
-        (height * aspect, height)
+        RectArea::size_of_disk_area(radius, aspect)
     }
 
     /// Half the sun's angular diameter, clamped as the plugin clamps it

@@ -188,7 +188,7 @@ impl SceneArgs {
         let center = self.light_center.unwrap_or(c);
         let normal = self.light_normal.unwrap_or(n);
         if let Some(size) = self.rect {
-            let tangent = if normal.normalize_or_zero().x.abs() > 0.9 { Vec3::Z } else { Vec3::X };
+            let tangent = RectLight::world_tangent(normal);
             return Ok(Light::Rect(RectLight::new(center, normal, tangent, size.x, size.y)?));
         }
         let radius = self.radius.unwrap_or(r);
@@ -197,28 +197,25 @@ impl SceneArgs {
 }
 
 pub fn parse_vec2(s: &str) -> Result<Vec2, String> {
-    match s.split(',').map(str::trim).collect::<Vec<_>>()[..] {
-        [x, y] => {
-            let f = |p: &str| {
-                p.parse::<f32>().ok().filter(|v| v.is_finite()).ok_or(format!("'{p}' is not a finite number"))
-            };
-            Ok(Vec2::new(f(x)?, f(y)?))
-        }
-        _ => Err(format!("'{s}' is not w,h")),
-    }
+    parse_floats::<2>(s, "w,h").map(Vec2::from_array)
 }
 
 pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    parse_floats::<3>(s, "x,y,z").map(Vec3::from_array)
+}
+
+/// `N` finite comma-separated numbers (`shape` names them in the error).
+fn parse_floats<const N: usize>(s: &str, shape: &str) -> Result<[f32; N], String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-    if parts.len() != 3 {
-        return Err(format!("'{s}' is not x,y,z"));
+    if parts.len() != N {
+        return Err(format!("'{s}' is not {shape}"));
     }
-    let mut v = [0.0f32; 3];
+    let mut v = [0.0f32; N];
     for (slot, p) in v.iter_mut().zip(&parts) {
         *slot = p.parse().map_err(|_| format!("'{p}' is not a number"))?;
         if !slot.is_finite() {
             return Err(format!("'{p}' is not finite"));
         }
     }
-    Ok(Vec3::from_array(v))
+    Ok(v)
 }
