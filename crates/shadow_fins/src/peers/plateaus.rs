@@ -28,19 +28,32 @@
 //! he suggests ellipses for lights near the horizon). The falloff is his
 //! recommended sinusoid, as Parker's polynomial `3τ² − 2τ³`.
 //!
+//! **A rectangle light** (`Aperture::Rect`, half sides `a`, `b` along the
+//! frame's axes): a point's penumbra is the light's rectangle seen through
+//! it, so the cone becomes a pyramid over a parallelogram — the light's
+//! axes carried onto the plane along the vertex's ray (the central
+//! projection linearised at the light's centre), `2a` and `2b` long at
+//! `τ = 1` as the cone is `D` wide — and the sheet is the hull of two such
+//! parallelograms, `τ = min over u` of their norm `‖q − p(u)‖ / r(u)`.
+//! Across an edge of normal `d` that is `2h(d)` wide, `h` the rectangle's
+//! support function, as the fins; the disk of radius `R`, which for a
+//! rectangle is its bounding circle `√(a² + b²)`, made it `2√(a² + b²)`
+//! across every edge (the penumbra of a 4 : 1 rectangle's short side four
+//! times too wide).
+//!
 //! **Receiver-plane restriction.** The method shades one plane: the largest
 //! flat receiver facing the light ([`ReceiverPlane::largest_flat`]). Every
 //! other receiver (the casters themselves, a second floor) gets the light
 //! centre's hard shadow — what a renderer pairing plateaus with its shadow
 //! map does — and the lab's tables score those pixels too.
 
-use glam::{Vec2, Vec3};
+use glam::{Mat2, Vec2, Vec3};
 
 use crate::{
     bvh::Bvh,
     cell_grid::{CellGrid, cell_range},
     coverage::index::MAX_ENTRIES,
-    light::Projection,
+    light::{Aperture, Projection},
     oracle::{FinExtractor, Receiver},
     peers::across,
     refine::Falloff,
@@ -110,6 +123,31 @@ struct Sheet {
     p2: Vec2,
     r1: f32,
     r2: f32,
+    /// The cones' cross-section: a circle of radius 1, or a parallelogram.
+    shape: Footprint,
+}
+
+/// The cross-section of a cone of radius 1: what a point's penumbra on the
+/// plane looks like, up to its size.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Footprint {
+    /// A disk light or the sun: Haines' circles.
+    Circle,
+    /// A rectangle light: the parallelogram of half axes `k₁`, `k₂` (plane
+    /// coordinates), kept as the matrix that takes an offset `x` to its
+    /// coordinates `c` in `x = c₁k₁ + c₂k₂` (the norm is `max |cᵢ|`), and
+    /// the half size of its bounding box.
+    Parallelogram { to_axes: Mat2, half_box: Vec2 },
+}
+
+impl Footprint {
+    /// Half the size of the bounding box of the radius-1 cross-section.
+    fn half_box(&self) -> Vec2 {
+        match *self {
+            Footprint::Circle => Vec2::ONE,
+            Footprint::Parallelogram { half_box, .. } => half_box,
+        }
+    }
 }
 
 /// One scene under one light, as a plateau texture on its receiver plane.
@@ -148,6 +186,7 @@ impl PlateauModel {
             Projection::Orthographic { tan_angle } => 2.0 * tan_angle,
         };
         let axes = across(plane.normal);
+        let footprint = |v: Vec3| footprint(light_space.frame.aperture, projection, plane, axes, v);
         let mut ex = FinExtractor::default();
         ex.extract_silhouettes(scene, light_space);
         // Each silhouette vertex's cone: its drop-shadow point on the plane and radius.
@@ -184,16 +223,18 @@ impl PlateauModel {
             .iter()
             .filter_map(|e| {
                 let ((p1, r1), (p2, r2)) = (cone(e.a)?, cone(e.b)?);
-                (r1 > 0.0 || r2 > 0.0).then_some(Sheet { p1, p2, r1, r2 })
+                // One parallelogram per sheet, carried along the ray through
+                // the edge's midpoint (the same for every ray when the plane
+                // is parallel to the light).
+                let shape = footprint((e.a + e.b) * 0.5);
+                (r1 > 0.0 || r2 > 0.0).then_some(Sheet { p1, p2, r1, r2, shape })
             })
             .collect();
         let bounds: Vec<Option<(Vec2, Vec2)>> = sheets
             .iter()
             .map(|s| {
-                Some((
-                    (s.p1 - Vec2::splat(s.r1)).min(s.p2 - Vec2::splat(s.r2)),
-                    (s.p1 + Vec2::splat(s.r1)).max(s.p2 + Vec2::splat(s.r2)),
-                ))
+                let k = s.shape.half_box();
+                Some(((s.p1 - k * s.r1).min(s.p2 - k * s.r2), (s.p1 + k * s.r1).max(s.p2 + k * s.r2)))
             })
             .collect();
         let (lo, hi) = bounds
@@ -271,14 +312,70 @@ impl PlateauModel {
     }
 }
 
-/// The smallest `τ` at which `q` is in the hull of the sheet's two disks of
-/// radii `τ·r₁`, `τ·r₂`: `min over u` of `|q − p(u)| / r(u)`. Setting the
-/// derivative of its square to zero is linear in `u`, so the minimum is at
-/// that root or at an end.
+/// The cross-section of a rectangle light's cones on `plane` (plane
+/// coordinates along `axes`), for a vertex at `v`: the light's half sides
+/// `a·x̂`, `b·ŷ` (units of its bounding circle, the cone's radius) carried
+/// onto the plane along the ray through `v`, `l − w (l·n)/(w·n)` — the
+/// derivative of where a light point's ray through `v` meets the plane,
+/// up to the cone's scale `|p − v|/|v|` (which [`PlateauModel::on_plane`]
+/// puts in `r`). The disk and the sun keep Haines' circles.
+fn footprint(
+    aperture: Aperture,
+    projection: Projection,
+    plane: ReceiverPlane,
+    axes: (Vec3, Vec3),
+    v: Vec3,
+) -> Footprint {
+    let Aperture::Rect { half_extents } = aperture else { return Footprint::Circle };
+    let w = match projection {
+        Projection::Perspective { .. } => v.normalize_or_zero(),
+        Projection::Orthographic { .. } => Vec3::Z,
+    };
+    let w_n = w.dot(plane.normal);
+    let carry = |l: Vec3| {
+        let k = l - w * (l.dot(plane.normal) / w_n);
+        Vec2::new(k.dot(axes.0), k.dot(axes.1))
+    };
+    // A zero side (a line light) kept a sliver, so the matrix inverts.
+    let h = half_extents.max(Vec2::splat(1e-6));
+    let (k1, k2) = (carry(Vec3::X) * h.x, carry(Vec3::Y) * h.y);
+    let to_axes = Mat2::from_cols(k1, k2).inverse();
+    if !(w_n < 0.0) || !to_axes.is_finite() {
+        return Footprint::Circle;
+    }
+    Footprint::Parallelogram { to_axes, half_box: k1.abs() + k2.abs() }
+}
+
+/// The smallest `τ` at which `q` is in the hull of the sheet's two cones'
+/// cross-sections of radii `τ·r₁`, `τ·r₂`: `min over u` of
+/// `‖q − p(u)‖ / r(u)`. Circles: setting the derivative of its square to
+/// zero is linear in `u`, so the minimum is at that root or at an end.
+/// Parallelograms: the norm along the segment is convex and piecewise
+/// linear, and a linear function over the positive linear `r(u)` is
+/// monotone, so the minimum is at an end or a kink (where a coordinate
+/// `cᵢ(u)` or `|c₁| − |c₂|` is 0).
 fn sheet_tau(s: &Sheet, q: Vec2) -> f32 {
     let d = q - s.p1;
     let e = s.p2 - s.p1;
     let dr = s.r2 - s.r1;
+    if let Footprint::Parallelogram { to_axes, .. } = s.shape {
+        let (c0, ce) = (to_axes * d, to_axes * e);
+        let at = |u: f32| {
+            let r = s.r1 + u * dr;
+            let c = c0 - ce * u;
+            if r > 0.0 { c.x.abs().max(c.y.abs()) / r } else { f32::INFINITY }
+        };
+        let mut best = at(0.0).min(at(1.0));
+        for (num, den) in [(c0.x, ce.x), (c0.y, ce.y), (c0.x - c0.y, ce.x - ce.y), (c0.x + c0.y, ce.x + ce.y)] {
+            if den != 0.0 {
+                let u = num / den;
+                if (0.0..=1.0).contains(&u) {
+                    best = best.min(at(u));
+                }
+            }
+        }
+        return best;
+    }
     let at = |u: f32| {
         let r = s.r1 + u * dr;
         if r > 0.0 { (d - e * u).length() / r } else { f32::INFINITY }
@@ -314,6 +411,7 @@ mod tests {
                 p2: Vec2::new(rnd(), rnd()) * 4.0,
                 r1: rnd() * 2.0,
                 r2: rnd() * 2.0 + 1e-3,
+                shape: Footprint::Circle,
             };
             let q = Vec2::new(rnd(), rnd()) * 6.0 - Vec2::ONE;
             let dense = (0..=20000)
@@ -331,9 +429,69 @@ mod tests {
         }
     }
 
+    /// The same for parallelogram cones: the ends and kinks hold the minimum.
+    #[test]
+    fn the_parallelogram_sheet_minimum_at_ends_and_kinks_matches_a_dense_search() {
+        let mut seed = 11u32;
+        let mut rnd = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f32 / u32::MAX as f32
+        };
+        for _ in 0..500 {
+            // Sheared and unequal, but far from flat (det ≥ 0.25), so the
+            // dense search's steps stay fine against the norm's slope.
+            let (k1, k2) = (Vec2::new(rnd() + 1.0, rnd() - 0.5), Vec2::new(rnd() - 0.5, rnd() + 0.5));
+            let to_axes = Mat2::from_cols(k1, k2).inverse();
+            let s = Sheet {
+                p1: Vec2::new(rnd(), rnd()) * 4.0,
+                p2: Vec2::new(rnd(), rnd()) * 4.0,
+                r1: rnd() * 2.0,
+                r2: rnd() * 2.0 + 1e-3,
+                shape: Footprint::Parallelogram { to_axes, half_box: k1.abs() + k2.abs() },
+            };
+            let q = Vec2::new(rnd(), rnd()) * 6.0 - Vec2::ONE;
+            let dense = (0..=20000)
+                .map(|i| {
+                    let u = i as f32 / 20000.0;
+                    let r = s.r1 + u * (s.r2 - s.r1);
+                    let c = to_axes * (q - s.p1.lerp(s.p2, u));
+                    if r > 0.0 { c.x.abs().max(c.y.abs()) / r } else { f32::INFINITY }
+                })
+                .fold(f32::INFINITY, f32::min);
+            let closed = sheet_tau(&s, q);
+            assert!(closed <= dense + 1e-4 * dense.max(1.0), "kinks {closed} above dense {dense} for {s:?} at {q}");
+            assert!(closed >= dense - 1e-3 * dense.max(1.0), "kinks {closed} below dense {dense} for {s:?} at {q}");
+        }
+    }
+
+    #[test]
+    fn a_rectangle_over_a_parallel_plane_keeps_its_sides() {
+        // Plane across the light's axis: the footprint's half axes are the
+        // rectangle's, whatever the vertex (no carrying along the ray).
+        let plane = ReceiverPlane { point: Vec3::new(0.0, 0.0, 5.0), normal: Vec3::NEG_Z };
+        let axes = (Vec3::X, Vec3::Y);
+        let ap = Aperture::rect(Vec2::new(4.0, 1.0));
+        let Aperture::Rect { half_extents } = ap else { unreachable!() };
+        for v in [Vec3::new(0.0, 0.0, 3.0), Vec3::new(2.0, -1.0, 2.0)] {
+            let Footprint::Parallelogram { to_axes, half_box } =
+                footprint(ap, Projection::Perspective { radius: 1.0 }, plane, axes, v)
+            else {
+                panic!("a rectangle's footprint is a parallelogram")
+            };
+            assert!((half_box - half_extents).abs().max_element() < 1e-6, "{half_box} vs {half_extents}");
+            assert!((to_axes * Vec2::new(half_extents.x, 0.0) - Vec2::X).length() < 1e-5);
+        }
+        assert_eq!(
+            footprint(Aperture::Disk, Projection::Perspective { radius: 1.0 }, plane, axes, Vec3::Z),
+            Footprint::Circle
+        );
+    }
+
     #[test]
     fn equal_cones_make_a_flat_band_of_their_radius() {
-        let s = Sheet { p1: Vec2::new(0.0, 0.0), p2: Vec2::new(4.0, 0.0), r1: 1.0, r2: 1.0 };
+        let s = Sheet { p1: Vec2::new(0.0, 0.0), p2: Vec2::new(4.0, 0.0), r1: 1.0, r2: 1.0, shape: Footprint::Circle };
         assert!((sheet_tau(&s, Vec2::new(2.0, 0.5)) - 0.5).abs() < 1e-6);
         assert!((sheet_tau(&s, Vec2::new(5.0, 0.0)) - 1.0).abs() < 1e-6);
     }

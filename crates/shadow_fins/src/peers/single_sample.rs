@@ -29,6 +29,17 @@
 //!   object; without this a ground plane would darken itself under a
 //!   grazing light, through its own neighbouring triangles.)
 //! - **the sun**: `D/A` is the sun's angular diameter, `2 tan θ`.
+//! - **a rectangle light** (`Aperture::Rect`): the shell is the triangle's
+//!   Minkowski sum with the light's rectangle, seen from the receiver and
+//!   doubled (the disk's `b = D·t/A` is that sum with the disk doubled:
+//!   the full penumbra outside the centre's shadow). A rectangle is flat,
+//!   so what the receiver sees of it is its central projection: the
+//!   triangle is projected from the receiver onto the light's plane, and
+//!   `τ` is the rectangle-norm distance `max(|q_x|/2a, |q_y|/2b)` of the
+//!   light's centre from that polygon. Across a straight edge of normal
+//!   `d` the shell is then `2h(d)` wide, `h` the rectangle's support
+//!   function, as the fins' width; the disk's bounding circle (what `R`
+//!   is for a rectangle) would make it `2√(a² + b²)` across every edge.
 //!
 //! The umbra is the hard shadow of the light's centre, so it is too large
 //! wherever the real shadow has an inner penumbra (the paper says so).
@@ -37,7 +48,7 @@ use glam::{Vec2, Vec3};
 
 use crate::{
     bvh::{Bvh, ray_hits_box},
-    light::Projection,
+    light::{Aperture, Projection},
     oracle::Receiver,
     peers::across,
     refine::Falloff,
@@ -48,6 +59,7 @@ use crate::{
 pub struct SingleSampleModel {
     bvh: Bvh,
     projection: Projection,
+    aperture: Aperture,
     extent: f32,
     reference_depth: f32,
 }
@@ -57,6 +69,7 @@ impl SingleSampleModel {
         Self {
             bvh: Bvh::new(&light_space.casters),
             projection: light_space.frame.projection,
+            aperture: light_space.frame.aperture,
             extent: light_space.extent,
             reference_depth: light_space.reference_depth,
         }
@@ -90,6 +103,9 @@ impl SingleSampleModel {
             return 1.0;
         }
         let perspective = matches!(self.projection, Projection::Perspective { .. });
+        if let Aperture::Rect { half_extents } = self.aperture {
+            return self.rect_visibility(o, v, a, t_min, half_extents);
+        }
         let (e1, e2) = across(v);
         // Shared by the box test (which narrows the search as `τ` falls) and the triangle test.
         let tau = std::cell::Cell::new(1.0f32);
@@ -117,6 +133,77 @@ impl SingleSampleModel {
                 if let Some(d) = angular_distance(tri, o, v, e1, e2, t_min, perspective) {
                     tau.set(tau.get().min(d / spread));
                 }
+            },
+        );
+        Falloff::Bernstein.apply(tau.get())
+    }
+
+    /// The shell of a rectangle light (`half_extents` in units of the
+    /// bounding circle, the frame's axes): `τ` is the smallest rectangle-norm
+    /// distance, in light-size units over the doubled rectangle, from the
+    /// light's centre to where a line from the receiver `o` through a
+    /// triangle meets the light (the triangle's shadow cast from `o` onto
+    /// the light's plane, or onto the sun's directions). The centre's hard
+    /// shadow has already been traced.
+    fn rect_visibility(&self, o: Vec3, v: Vec3, a: f32, t_min: f32, half_extents: Vec2) -> f32 {
+        let perspective = matches!(self.projection, Projection::Perspective { .. });
+        let size = match self.projection {
+            Projection::Perspective { radius } => radius,
+            Projection::Orthographic { tan_angle } => tan_angle,
+        };
+        // The doubled rectangle, in light-size units; a zero side (a line
+        // light) kept finite: its norm is then huge off the line, not NaN.
+        let shell = (2.0 * size * half_extents).max(Vec2::splat(1e-6 * size));
+        let inv_v = v.recip();
+        let tau = std::cell::Cell::new(1.0f32);
+        self.bvh.for_each_candidate(
+            |lo, hi| {
+                // A point of norm below `τ` lies within `τ` times the
+                // doubled bounding circle at its depth (the rectangle is
+                // inside it) of the ray's point at that depth: `2τR·s` at
+                // `s = (L_o − L_p)/L_o` of the way to a planar light, `t = A·s`
+                // along the ray; `2τ tan θ·t` at `t = L_o − L_p` under the sun.
+                if lo.z >= o.z || (perspective && hi.z <= 0.0) {
+                    return false;
+                }
+                let (r, t_hi) = if perspective {
+                    let s = ((o.z - lo.z.max(0.0)) / o.z).min(1.0);
+                    (2.0 * size * s, a * s)
+                } else {
+                    let t = (o.z - lo.z).min(a);
+                    (2.0 * size * t, t)
+                };
+                let r = r * tau.get();
+                ray_hits_box(lo - Vec3::splat(r), hi + Vec3::splat(r), o, inv_v, 0.0, t_hi)
+            },
+            |_, tri| {
+                let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+                let len = n.length();
+                // The receiver's own plane (`t_min` is its lift): as for the disk.
+                if !(len > 0.0) || ((o - tri[0]).dot(n) / len).abs() <= 2.0 * t_min {
+                    return;
+                }
+                // Between the receiver's depth and the light's plane: where a
+                // point can stand between the receiver and some of the light.
+                let mut poly: Vec<Vec3> = clip(tri, |p| o.z - p.z - t_min);
+                if perspective {
+                    poly = clip(&poly, |p| p.z);
+                }
+                if poly.len() < 3 {
+                    return;
+                }
+                let projected: Vec<Vec2> = poly
+                    .iter()
+                    .map(|p| {
+                        let q = if perspective {
+                            (Vec2::new(p.x, p.y) * o.z - Vec2::new(o.x, o.y) * p.z) / (o.z - p.z)
+                        } else {
+                            (Vec2::new(p.x, p.y) - Vec2::new(o.x, o.y)) / (o.z - p.z)
+                        };
+                        q / shell
+                    })
+                    .collect();
+                tau.set(tau.get().min(chebyshev_distance_to_convex_polygon(&projected)));
             },
         );
         Falloff::Bernstein.apply(tau.get())
@@ -185,25 +272,63 @@ fn clip(poly: &[Vec3], side: impl Fn(Vec3) -> f32) -> Vec<Vec3> {
 
 /// Distance from the origin to a convex polygon (0 inside).
 fn distance_to_convex_polygon(poly: &[Vec2]) -> f32 {
+    if contains_origin(poly) {
+        return 0.0;
+    }
     let n = poly.len();
-    let mut inside_sign = 0.0f32;
-    let mut inside = true;
     let mut best = f32::INFINITY;
     for i in 0..n {
         let (a, b) = (poly[i], poly[(i + 1) % n]);
         let e = b - a;
-        let cross = e.perp_dot(-a);
+        let t = if e.length_squared() > 0.0 { ((-a).dot(e) / e.length_squared()).clamp(0.0, 1.0) } else { 0.0 };
+        best = best.min((a + e * t).length());
+    }
+    best
+}
+
+/// `max(|x|, |y|)` distance from the origin to a convex polygon (0
+/// inside): the rectangle norm once each axis is divided by its half side.
+fn chebyshev_distance_to_convex_polygon(poly: &[Vec2]) -> f32 {
+    if contains_origin(poly) {
+        return 0.0;
+    }
+    let n = poly.len();
+    let norm = |p: Vec2| p.x.abs().max(p.y.abs());
+    let mut best = f32::INFINITY;
+    for i in 0..n {
+        let (a, b) = (poly[i], poly[(i + 1) % n]);
+        let e = b - a;
+        best = best.min(norm(a));
+        // `max(|x|, |y|)` along the edge is convex and piecewise linear:
+        // its minimum is at an end or where `x`, `y` or `|x| − |y|` is 0.
+        for (num, den) in [(-a.x, e.x), (-a.y, e.y), (a.y - a.x, e.x - e.y), (-a.x - a.y, e.x + e.y)] {
+            if den != 0.0 {
+                let t = num / den;
+                if (0.0..=1.0).contains(&t) {
+                    best = best.min(norm(a + e * t));
+                }
+            }
+        }
+    }
+    best
+}
+
+/// True when the origin is inside a convex polygon (either winding).
+fn contains_origin(poly: &[Vec2]) -> bool {
+    let n = poly.len();
+    let mut inside_sign = 0.0f32;
+    for i in 0..n {
+        let (a, b) = (poly[i], poly[(i + 1) % n]);
+        let cross = (b - a).perp_dot(-a);
         if cross != 0.0 {
             if inside_sign == 0.0 {
                 inside_sign = cross.signum();
             } else if cross.signum() != inside_sign {
-                inside = false;
+                return false;
             }
         }
-        let t = if e.length_squared() > 0.0 { ((-a).dot(e) / e.length_squared()).clamp(0.0, 1.0) } else { 0.0 };
-        best = best.min((a + e * t).length());
     }
-    if inside && inside_sign != 0.0 { 0.0 } else { best }
+    inside_sign != 0.0
 }
 
 #[cfg(test)]
@@ -219,6 +344,19 @@ mod tests {
         // A corner is the nearest point: rounded corners, as the paper's outer triangle.
         let corner: Vec<Vec2> = square.iter().map(|p| *p + Vec2::new(4.0, 5.0)).collect();
         assert!((distance_to_convex_polygon(&corner) - 5.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn the_rectangle_norm_distance_is_the_larger_axis_gap() {
+        let square = [Vec2::new(-1.0, -1.0), Vec2::new(1.0, -1.0), Vec2::new(1.0, 1.0), Vec2::new(-1.0, 1.0)];
+        assert_eq!(chebyshev_distance_to_convex_polygon(&square), 0.0);
+        let shifted = |d: Vec2| -> Vec<Vec2> { square.iter().map(|p| *p + d).collect() };
+        // Beside it: the gap across; off a corner: the larger of the two gaps.
+        assert!((chebyshev_distance_to_convex_polygon(&shifted(Vec2::new(3.0, 0.5))) - 2.0).abs() < 1e-6);
+        assert!((chebyshev_distance_to_convex_polygon(&shifted(Vec2::new(4.0, 5.0))) - 4.0).abs() < 1e-6);
+        // A diagonal edge x + y = 2: nearest where |x| = |y|, at (1, 1).
+        let diagonal = [Vec2::new(2.0, 0.0), Vec2::new(0.0, 2.0), Vec2::new(3.0, 3.0)];
+        assert!((chebyshev_distance_to_convex_polygon(&diagonal) - 1.0).abs() < 1e-6);
     }
 
     #[test]

@@ -5,6 +5,9 @@
 //! Half-plane occluders at height 3 under a light at height 5 (`L_b = 2`,
 //! `L_r = 5`): an edge casts a penumbra of half-width `h(d)·(L_r − L_b)/L_b`
 //! on the ground, `1.5·h(d)`, centred on the hard-shadow boundary.
+//!
+//! The outer-only peers (single sample, plateaus) put the whole penumbra
+//! outside the hard shadow, `2h(d)` of it across each edge as the fins.
 
 use shadow_fins::{
     coverage::{CoverageModel, CoverageSettings},
@@ -12,11 +15,16 @@ use shadow_fins::{
     ground_truth::GroundTruth,
     light::{Aperture, Light, RectLight},
     oracle::{FinSettings, FinShadowModel, Method},
-    scene::Scene,
+    peers::{PeerMethod, PeerModel},
+    scene::{LightSpaceScene, Scene},
     scenes::SceneId,
 };
 
 use super::{common::*, convergence::view_receivers};
+
+/// The outer-only peers, which take a rectangle's shape (the others treat
+/// it as its bounding disk for now).
+const OUTER_ONLY: [PeerMethod; 2] = [PeerMethod::SingleSample, PeerMethod::Plateaus];
 
 /// A `w × h` rectangle light at height 5 facing down, its width along world x.
 fn rect(w: f32, h: f32) -> Light {
@@ -223,5 +231,108 @@ fn aperture_samples_are_inside_and_evenly_spread() {
     for h in [Vec2::ZERO, Vec2::new(1.0, 0.0), Vec2::new(f32::NAN, 1.0)] {
         let a = Aperture::rect(h);
         assert!(a.support(Vec2::X).is_finite() && a.samples(16).iter().all(|q| q.is_finite()), "{h}");
+    }
+}
+
+#[test]
+fn outer_only_peers_are_as_wide_as_the_rectangle_across_each_edge() {
+    // The whole penumbra outside the hard shadow (both papers' umbra is the
+    // centre's hard shadow): from the hard edge to `2·1.5·h(d)`, 3a across
+    // the width and 3b across the height, half the light at half the way
+    // (Bernstein's `3τ² − 2τ³` at τ = ½). The bounding circle made both 3√(a² + b²).
+    let light = rect(2.0, 0.4);
+    for (edge_along_z, width) in [(true, 3.0f32), (false, 0.6f32)] {
+        let scene = half_plane(edge_along_z);
+        let ls = LightSpaceScene::new(&scene, light);
+        for method in OUTER_ONLY {
+            let model = PeerModel::new(method, &scene, &ls);
+            let at = |s: f32| {
+                let p = if edge_along_z { Vec3::new(s, 0.0, 0.3) } else { Vec3::new(0.3, 0.0, s) };
+                model.visibility(ground_receivers(&ls, &[p])[0])
+            };
+            let lit = (1..=4000).map(|i| i as f32 * 1e-3 * width).find(|&s| at(s) >= 1.0).unwrap_or(f32::INFINITY);
+            assert!(
+                (lit - width).abs() <= 0.02 * width,
+                "{} edge along z {edge_along_z}: lit from {lit}, expected {width}",
+                method.name()
+            );
+            assert!((at(0.5 * width) - 0.5).abs() < 0.03, "{}: half-way {}", method.name(), at(0.5 * width));
+            assert_eq!(at(-0.01 * width), 0.0, "{}: light inside the hard shadow", method.name());
+        }
+    }
+}
+
+/// Total absolute error of `method` over a view against `samples` of ground
+/// truth, per pixel of the true shadow (`V < 0.999`): unlike the lab's MAE,
+/// whose region is the union of both shadows, a penumbra drawn too wide
+/// cannot dilute its own error.
+fn error_per_shadowed_pixel(id: SceneId, light: Light, method: PeerMethod, samples: u32) -> f32 {
+    let s = id.build();
+    let (ls, receivers) = view_receivers(&s.scene, light, &s.camera, 64, 48);
+    let receivers: Vec<_> = receivers.into_iter().filter(|r| r.faces_light(&ls.frame)).collect();
+    let model = PeerModel::new(method, &s.scene, &ls);
+    let gt = GroundTruth::new(&ls, samples);
+    let (v, g): (Vec<f32>, Vec<f32>) = receivers.iter().map(|r| (model.visibility(*r), gt.visibility(*r))).unzip();
+    let shadowed = g.iter().filter(|g| **g < 0.999).count();
+    assert!(shadowed > 50, "{id:?}: the view must hold a shadow ({shadowed} px)");
+    v.iter().zip(&g).map(|(v, g)| (v - g).abs()).sum::<f32>() / shadowed as f32
+}
+
+#[test]
+fn outer_only_peers_err_under_a_rectangle_about_as_under_the_disk_of_its_area() {
+    // Outer-only methods err by their whole outer penumbra, whose width
+    // across an edge is the light's extent across it. A 4 : 1 rectangle of
+    // the disk's area (a = 1.77R, b = 0.44R) spans (a + b)/2 = 1.11R on
+    // average over a box's two edge directions, against the disk's R; its
+    // bounding circle, 1.83R. So ≈ 1.1× the disk's error, and 1.35× (about
+    // halfway, geometrically, to 1.8×) is where the rectangle's shape was lost.
+    for id in [SceneId::BoxOverPlane, SceneId::TiltedReceiver, SceneId::StarPrism] {
+        let disk = id.build().light;
+        let Light::Disk(d) = disk else { unreachable!("built-in scenes have disk lights") };
+        let rect = Light::Rect(RectLight::with_area_of(&d, 4.0).unwrap());
+        for method in OUTER_ONLY {
+            let (e_rect, e_disk) =
+                (error_per_shadowed_pixel(id, rect, method, 1024), error_per_shadowed_pixel(id, disk, method, 1024));
+            assert!(
+                e_rect <= 1.35 * e_disk,
+                "{id:?} {}: error {e_rect} under the rectangle, {e_disk} under the disk ({:.2}×)",
+                method.name(),
+                e_rect / e_disk
+            );
+        }
+    }
+}
+
+#[test]
+fn outer_only_peers_under_zero_size_or_line_rectangles_stay_hard_or_finite() {
+    // 0 × 0 is exactly each method's hard shadow: what it gives in the same
+    // frame as a disk of radius 0. A line light (one side 0) and a huge
+    // one stay finite in [0, 1].
+    for id in [SceneId::BoxOverPlane, SceneId::TiltedReceiver, SceneId::NearContact] {
+        let s = id.build();
+        let (center, normal) = s.light.planar().unwrap();
+        let with = |w: f32, h: f32| Light::Rect(RectLight::new(center, normal, Vec3::X, w, h).unwrap());
+        let (ls, receivers) = view_receivers(&s.scene, with(0.0, 0.0), &s.camera, 48, 36);
+        let mut ls_disk = LightSpaceScene::new(&s.scene, with(0.0, 0.0));
+        ls_disk.frame.aperture = Aperture::Disk;
+        for method in OUTER_ONLY {
+            let (zero, point) = (PeerModel::new(method, &s.scene, &ls), PeerModel::new(method, &s.scene, &ls_disk));
+            let mut shadowed = 0;
+            for r in &receivers {
+                let v = zero.visibility(*r);
+                shadowed += (v == 0.0) as u32;
+                assert!(v == 0.0 || v == 1.0, "{id:?} {}: 0 × 0 gives {v} at {:?}", method.name(), r.position);
+                assert_eq!(v, point.visibility(*r), "{id:?} {}: 0 × 0 at {:?}", method.name(), r.position);
+            }
+            assert!(shadowed > 20, "{id:?}: the view must hold a shadow ({shadowed} px)");
+            for (w, h) in [(2.0, 0.0), (0.0, 2.0), (1e3, 1.0)] {
+                let ls = LightSpaceScene::new(&s.scene, with(w, h));
+                let model = PeerModel::new(method, &s.scene, &ls);
+                for r in &receivers {
+                    let v = model.unclamped_visibility(*r);
+                    assert!(v.is_finite() && (0.0..=1.0).contains(&v), "{id:?} {} {w} × {h}: {v}", method.name());
+                }
+            }
+        }
     }
 }
