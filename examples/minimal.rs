@@ -6,7 +6,13 @@ use bevy::prelude::*;
 use bevy_shadow_fins::{FinShadowView, FinShadows, ShadowFinsPlugin};
 
 fn main() {
-    App::new().add_plugins((DefaultPlugins, ShadowFinsPlugin)).add_systems(Startup, setup).run();
+    App::new()
+        .add_plugins((DefaultPlugins, ShadowFinsPlugin))
+        // Fin shadows reach deferred materials; without this line forward
+        // materials get Bevy's own hard shadow instead (see `BevyShadowMapsKept`).
+        .insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred())
+        .add_systems(Startup, setup)
+        .run();
 }
 
 fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials: ResMut<Assets<StandardMaterial>>) {

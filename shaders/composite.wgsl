@@ -1,8 +1,9 @@
 // Layered compositing (DESIGN §3 "Compositing"): Bevy's own deferred lighting
 // of the G-buffer, then per fin-shadowed light its visibility layer V: a Bevy
-// light (which Bevy just shaded with its shadow map off) loses (1 − V) of its
-// own contribution, evaluated by Bevy's per-light function; a FinLight adds its
-// direct contribution times V. It replaces Bevy's deferred lighting pass on
+// light, which Bevy just shaded with its own shadow S (1 when its map is off,
+// as it is unless `BevyShadowMapsKept`), gets (V − S) of its own contribution,
+// evaluated by Bevy's per-light function, so that V replaces S; a FinLight
+// adds its direct contribution times V. It replaces Bevy's deferred lighting pass on
 // fin-shadowed cameras, so the sum is exact before tonemapping, HDR or not.
 //
 // A FinLight is shaded exactly as Bevy shades a point light
@@ -17,6 +18,7 @@
     lighting,
     mesh_types::MESH_FLAGS_SHADOW_RECEIVER_BIT,
     mesh_view_bindings::{deferred_prepass_texture, view},
+    shadows,
 }
 #import bevy_pbr::{mesh_view_bindings, mesh_view_types, clustered_forward as clustering}
 
@@ -59,8 +61,8 @@ const KIND_BEVY_RECT: u32 = 4u;
 const MAX_FIN_LIGHTS: u32 = 16u;
 struct CompositeLight {
     own: FinLightUniform,
-    // x: kind, y: Bevy's clustered light index, z: 1 when the layer was written.
-    // A directional light's `own` holds its direction towards the light
+    // x: kind, y: Bevy's clustered light index, z: 1 when the layer was written,
+    // w: 1 when Bevy's own shadow maps of fin-shadowed lights are kept. A directional light's `own` holds its direction towards the light
     // (forward_inverse_square_range.xyz) and colour × illuminance (color); a
     // rectangle light's its position and width (position_radius) and height
     // (forward_inverse_square_range.w).
@@ -121,14 +123,18 @@ fn lighting_input_of(in: PbrInput) -> lighting::LightingInput {
 // very list `apply_pbr_lighting` walks (point lights, then spot lights). A
 // light Bevy did not add here — not yet clustered in its first frames, out of
 // range, on render layers the view does not see — must not be taken away.
-fn bevy_lit_pixel_with(id: u32, in: PbrInput) -> bool {
-    let view_z = dot(vec4<f32>(
+// The pixel's view-space z, as `apply_pbr_lighting` computes it.
+fn view_z_of(in: PbrInput) -> f32 {
+    return dot(vec4<f32>(
         view.view_from_world[0].z,
         view.view_from_world[1].z,
         view.view_from_world[2].z,
         view.view_from_world[3].z
     ), in.world_position);
-    let cluster = clustering::view_fragment_cluster_index(in.frag_coord.xy, view_z, in.is_orthographic);
+}
+
+fn bevy_lit_pixel_with(id: u32, in: PbrInput) -> bool {
+    let cluster = clustering::view_fragment_cluster_index(in.frag_coord.xy, view_z_of(in), in.is_orthographic);
     let ranges = clustering::unpack_clusterable_object_index_ranges(cluster);
     for (var j = ranges.first_point_light_index_offset; j < ranges.first_reflection_probe_index_offset; j += 1u) {
         if (clustering::get_clusterable_object_id(j) == id) {
@@ -138,18 +144,73 @@ fn bevy_lit_pixel_with(id: u32, in: PbrInput) -> bool {
     return false;
 }
 
+// Bevy's own shadow S of clustered light `id` at this pixel, exactly as
+// `apply_pbr_lighting` computes it (its shadow map, then its contact shadow):
+// 1 when the light's flags say both are off, as fin shadows turn them off
+// unless Bevy's maps are kept for other cameras or unreached receivers.
+fn bevy_clustered_shadow(id: u32, in: PbrInput) -> f32 {
+    if ((in.flags & MESH_FLAGS_SHADOW_RECEIVER_BIT) == 0u) {
+        return 1.0;
+    }
+    let light = &mesh_view_bindings::clustered_lights.data[id];
+    var shadow = 1.0;
+    if (((*light).flags & mesh_view_types::POINT_LIGHT_FLAGS_SHADOWS_ENABLED_BIT) != 0u) {
+        if (((*light).flags & mesh_view_types::POINT_LIGHT_FLAGS_SPOT_LIGHT_BIT) != 0u) {
+            shadow = shadows::fetch_spot_shadow(id, in.world_position, in.world_normal, (*light).shadow_map_near_z,
+                in.frag_coord.xy);
+        } else {
+            shadow = shadows::fetch_point_shadow(id, in.world_position, in.world_normal, in.frag_coord.xy);
+        }
+    }
+#ifdef CONTACT_SHADOWS
+#ifdef DEPTH_PREPASS
+    let steps = mesh_view_bindings::contact_shadows_settings.linear_steps;
+    if (steps > 0u && shadow > 0.0
+            && ((*light).flags & mesh_view_types::POINT_LIGHT_FLAGS_CONTACT_SHADOWS_ENABLED_BIT) != 0u) {
+        let L = normalize((*light).position_radius.xyz - in.world_position.xyz);
+        shadow *= pbr_functions::calculate_contact_shadow(in.world_position.xyz, in.frag_coord.xy, L, steps);
+    }
+#endif
+#endif
+    return shadow;
+}
+
+// The same for directional light `j` of the view.
+fn bevy_directional_shadow(j: u32, in: PbrInput) -> f32 {
+    if ((in.flags & MESH_FLAGS_SHADOW_RECEIVER_BIT) == 0u) {
+        return 1.0;
+    }
+    let light = &mesh_view_bindings::lights.directional_lights[j];
+    var shadow = 1.0;
+    if (((*light).flags & mesh_view_types::DIRECTIONAL_LIGHT_FLAGS_SHADOWS_ENABLED_BIT) != 0u) {
+        shadow = shadows::fetch_directional_shadow(j, in.world_position, in.world_normal, view_z_of(in),
+            in.frag_coord.xy);
+    }
+#ifdef CONTACT_SHADOWS
+#ifdef DEPTH_PREPASS
+    let steps = mesh_view_bindings::contact_shadows_settings.linear_steps;
+    if (steps > 0u && shadow > 0.0
+            && ((*light).flags & mesh_view_types::DIRECTIONAL_LIGHT_FLAGS_CONTACT_SHADOWS_ENABLED_BIT) != 0u) {
+        shadow *= pbr_functions::calculate_contact_shadow(in.world_position.xyz, in.frag_coord.xy,
+            (*light).direction_to_light, steps);
+    }
+#endif
+#endif
+    return shadow;
+}
+
 // The index in the view's directional lights of the fin-shadowed sun in
 // `light`, or n_directional_lights when the view has none such: Bevy sorts
 // its directional lights and leaves out those on render layers the view does
 // not see, so the slot is found by what Bevy uploaded for it (the direction
-// and colour the CPU read from Bevy's extracted light, exactly) and its shadow
-// maps being off, as fin shadows turned them off.
-fn bevy_directional_index(light: FinLightUniform) -> u32 {
+// and colour the CPU read from Bevy's extracted light, exactly) and — unless
+// Bevy's maps are kept — its shadow maps being off, as fin shadows turned them off.
+fn bevy_directional_index(light: FinLightUniform, bevy_maps_kept: bool) -> u32 {
     let n = mesh_view_bindings::lights.n_directional_lights;
     for (var j = 0u; j < n; j += 1u) {
         let d = &mesh_view_bindings::lights.directional_lights[j];
         let shadowed = ((*d).flags & mesh_view_types::DIRECTIONAL_LIGHT_FLAGS_SHADOWS_ENABLED_BIT) != 0u;
-        if (!shadowed && all((*d).direction_to_light == light.forward_inverse_square_range.xyz)
+        if ((bevy_maps_kept || !shadowed) && all((*d).direction_to_light == light.forward_inverse_square_range.xyz)
                 && all((*d).color.rgb == light.color.rgb)) {
             return j;
         }
@@ -273,26 +334,36 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
                 visibility = 0.0;
             }
             visibility = clamp(visibility, 0.0, 1.0);
+            // With Bevy's maps off S is 1, and a fully lit pixel has nothing to change.
+            let bevy_maps_kept = light.info.w != 0u;
+            let may_change = bevy_maps_kept || visibility < 1.0;
             if (light.info.x == KIND_OWN) {
                 change += visibility * fin_light_direct(&input, light.own);
-            } else if (light.info.x == KIND_BEVY && visibility < 1.0 && bevy_lit_pixel_with(light.info.y, pbr_input)) {
-                // Bevy added this light unshadowed; clustered lights past the
+            } else if (light.info.x == KIND_BEVY && may_change && bevy_lit_pixel_with(light.info.y, pbr_input)) {
+                // Bevy added this light times S; clustered lights past the
                 // point lights are spot lights (`first_spot_light_index_offset`).
-                let flags = mesh_view_bindings::clustered_lights.data[light.info.y].flags;
-                var bevy_light: vec3<f32>;
-                if ((flags & mesh_view_types::POINT_LIGHT_FLAGS_SPOT_LIGHT_BIT) != 0u) {
-                    bevy_light = lighting::spot_light(light.info.y, &input, true);
-                } else {
-                    bevy_light = lighting::point_light(light.info.y, &input, true, true);
+                let shadow = bevy_clustered_shadow(light.info.y, pbr_input);
+                if (visibility != shadow) {
+                    let flags = mesh_view_bindings::clustered_lights.data[light.info.y].flags;
+                    var bevy_light: vec3<f32>;
+                    if ((flags & mesh_view_types::POINT_LIGHT_FLAGS_SPOT_LIGHT_BIT) != 0u) {
+                        bevy_light = lighting::spot_light(light.info.y, &input, true);
+                    } else {
+                        bevy_light = lighting::point_light(light.info.y, &input, true, true);
+                    }
+                    change += (visibility - shadow) * bevy_light;
                 }
-                change -= (1.0 - visibility) * bevy_light;
-            } else if (light.info.x == KIND_BEVY_DIRECTIONAL && visibility < 1.0) {
-                let j = bevy_directional_index(light.own);
+            } else if (light.info.x == KIND_BEVY_DIRECTIONAL && may_change) {
+                let j = bevy_directional_index(light.own, bevy_maps_kept);
                 if (j < mesh_view_bindings::lights.n_directional_lights) {
-                    change -= (1.0 - visibility) * lighting::directional_light(j, &input, true);
+                    let shadow = bevy_directional_shadow(j, pbr_input);
+                    if (visibility != shadow) {
+                        change += (visibility - shadow) * lighting::directional_light(j, &input, true);
+                    }
                 }
             }
 #ifdef AREA_LIGHT_LUTS
+            // Bevy gives a rectangle light no shadow: S is 1.
             else if (light.info.x == KIND_BEVY_RECT && visibility < 1.0) {
                 let j = bevy_rect_index(light.own);
                 if (j < mesh_view_bindings::lights.n_rect_lights) {

@@ -8,6 +8,7 @@ use bevy::{
     core_pipeline::tonemapping::{DebandDither, Tonemapping},
     diagnostic::DiagnosticsStore,
     light::{PointLightShadowMap, SunDisk},
+    pbr::DefaultOpaqueRendererMethod,
     prelude::*,
     render::diagnostic::RenderDiagnosticsPlugin,
     render::{
@@ -189,7 +190,11 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
             // Headless: no event loop (it needs a display); the caller drives `update`.
             .disable::<bevy::winit::WinitPlugin>(),
     )
-    .add_plugins((ShadowFinsPlugin, RenderDiagnosticsPlugin));
+    .add_plugins((ShadowFinsPlugin, RenderDiagnosticsPlugin))
+    // Fin shadows reach deferred materials: the harness, like a game that
+    // wants them on every material, makes deferred its default (the plugin
+    // leaves that choice to the app).
+    .insert_resource(DefaultOpaqueRendererMethod::deferred());
     let world = app.world_mut();
     let (w, h) = (setup.width, setup.height);
     let material = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial::default());
@@ -609,16 +614,21 @@ impl Shot {
     /// Writes the first camera's final image as a PNG (for looking at what a
     /// test rendered).
     pub fn save_color(&self, path: &str) -> Result<(), String> {
-        let image = Image::new(
-            Extent3d { width: self.width, height: self.height, depth_or_array_layers: 1 },
-            TextureDimension::D2,
-            self.color.iter().flatten().copied().collect(),
-            TextureFormat::Rgba8UnormSrgb,
-            RenderAssetUsages::MAIN_WORLD,
-        );
-        if let Some(dir) = std::path::Path::new(path).parent() {
-            std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
-        }
-        image.try_into_dynamic().map_err(|e| e.to_string())?.to_rgba8().save(path).map_err(|e| e.to_string())
+        save_srgb8(self.width, self.height, &self.color, path)
     }
+}
+
+/// Writes sRGB bytes (RGBA, row-major, top row first) as a PNG, making its folder.
+pub fn save_srgb8(width: u32, height: u32, pixels: &[[u8; 4]], path: &str) -> Result<(), String> {
+    let image = Image::new(
+        Extent3d { width, height, depth_or_array_layers: 1 },
+        TextureDimension::D2,
+        pixels.iter().flatten().copied().collect(),
+        TextureFormat::Rgba8UnormSrgb,
+        RenderAssetUsages::MAIN_WORLD,
+    );
+    if let Some(dir) = std::path::Path::new(path).parent() {
+        std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
+    }
+    image.try_into_dynamic().map_err(|e| e.to_string())?.to_rgba8().save(path).map_err(|e| e.to_string())
 }

@@ -302,6 +302,7 @@ pub(crate) fn build(app: &mut App) {
             PostUpdate,
             (update_fin_frames, mirror_first_light_stats)
                 .chain()
+                .in_set(FinFramesUpdate)
                 .after(TransformSystems::Propagate)
                 // A sun's window reads this frame's boxes and camera projections.
                 .after(bevy::camera::visibility::VisibilitySystems::CalculateBounds)
@@ -309,6 +310,10 @@ pub(crate) fn build(app: &mut App) {
                 .after(bevy::camera::CameraUpdateSystems),
         );
 }
+
+/// Where every fin-shadowed light's frame is rebuilt (`PostUpdate`).
+#[derive(bevy::ecs::schedule::SystemSet, Debug, Clone, PartialEq, Eq, Hash)]
+pub(crate) struct FinFramesUpdate;
 
 /// A light asking for fin shadows, as the frame builder sees it.
 struct LightSource {
@@ -391,6 +396,14 @@ fn light_sources(
             let settings = settings?.clamped();
             let m = transform.affine().matrix3;
             let size = |s: f32, axis: bevy::math::Vec3A| finite(s) * axis.length();
+            if !(size(rect.width, m.x_axis) * size(rect.height, m.y_axis) > 0.0) {
+                // Fin shadows of a 0 × 0 rectangle are the hard shadow; Bevy's
+                // own shading divides the light's power by its area.
+                warn_once!(
+                    "fin shadows: a RectLight of zero area: Bevy shades it as infinitely bright (NaN on screen); \
+                     give it a width and height > 0"
+                );
+            }
             let area = RectArea::new(
                 transform.translation(),
                 forward(transform),

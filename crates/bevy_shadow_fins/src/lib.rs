@@ -41,7 +41,7 @@
 //! stats. `PointLight` is not modelled yet (it keeps Bevy's shadows; said
 //! once). Meshes fin shadows cannot reach
 //! (forward-rendered, alpha-blended or transmissive `StandardMaterial`s) are
-//! counted in [`FinReceivers`] and said once.
+//! counted in [`FinReceivers`], said once, and get Bevy's hard shadow (below).
 //!
 //! ## Where fin shadows enter Bevy's lighting, and why there
 //!
@@ -64,20 +64,29 @@
 //! taken by materials), and naga_oil overrides need `override_any` plus a
 //! patched Bevy shader asset — a fork by another name; shading the light
 //! ourselves (as [`FinLight`] still is) drifts from Bevy's BRDF with every
-//! upgrade. The price of the G-buffer route: only deferred materials are
-//! shadowed, which is why the plugin still sets `DefaultOpaqueRendererMethod`
-//! to deferred (see below) — lifting that needs the forward path, still open.
+//! upgrade. The price of the G-buffer route: only deferred materials get fin
+//! shadows. The plugin does not make deferred the app's default behind its
+//! back (Bevy 0.19 draws deferred materials only on cameras with a deferred
+//! prepass: a minimap camera would lose them): an app that wants fin shadows
+//! on every material inserts `DefaultOpaqueRendererMethod::deferred()`
+//! itself. Meshes fin shadows cannot reach ([`FinReceivers`]) get Bevy's own
+//! hard shadow of the light instead of none, and a camera without
+//! [`FinShadowView`] renders exactly as without the plugin: while either
+//! exists, Bevy's shadow map of a fin-shadowed light stays on
+//! ([`BevyShadowMapsKept`]) and the compositing pass gives the light
+//! `(V − S)` of Bevy's contribution, `S` being Bevy's own shadow of it
+//! (`shadows::fetch_*_shadow`, contact shadows too), so a fin camera shows
+//! the same fin shadow either way.
 //!
 //! Every drawn mesh with a `Mesh3d` casts and receives (opt out with
 //! [`NotFinShadowCaster`] or Bevy's `NotShadowCaster`, and
 //! [`NotFinShadowReceiver`]; a mesh hidden by `Visibility` casts nothing;
 //! a mesh casts only for lights whose `RenderLayers` it shares, as in Bevy's
 //! own shadow maps — without the component both are on layer 0); materials are
-//! unchanged. The plugin makes deferred the default opaque renderer method
-//! (`DefaultOpaqueRendererMethod`), because the fin light is composited from
-//! the G-buffer: 3D cameras that show fin-lit scenes carry [`FinShadowView`],
-//! which adds the deferred prepass. Materials forced to
-//! `OpaqueRendererMethod::Forward` are not lit by the fin light.
+//! unchanged. 3D cameras that show fin-shadowed scenes carry
+//! [`FinShadowView`], which adds the deferred prepass the compositing reads.
+//! Forward materials are not lit by a [`FinLight`] (it has no Bevy
+//! counterpart to fall back on).
 //!
 //! Stages, per light, per frame and only when something moved or a setting changed:
 //! 1. **fin extraction and layer assignment** in compute passes
@@ -132,6 +141,7 @@
 //! Bevy's `RenderDiagnosticsPlugin`); extraction and maps only on frames where
 //! something changed.
 
+mod bevy_shadow_maps;
 mod budget;
 mod coverage_frame;
 mod extract;
@@ -141,6 +151,7 @@ mod receivers;
 mod render;
 mod sun_fit;
 
+pub use bevy_shadow_maps::BevyShadowMapsKept;
 pub use budget::{FinDegradation, FinShadowBudget};
 pub use extract::{
     FinCasterScans, FinFrameStats, FinFrames, FinLightFrame, FinLightStats, FinSceneError, FinShadowStats,
@@ -188,12 +199,12 @@ impl Plugin for ShadowFinsPlugin {
             .register_type::<FinShadowBudget>()
             .init_resource::<FinShadowBudget>()
             .init_resource::<budget::FinDeviceLimits>()
-            .insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred())
             .add_systems(PostUpdate, turn_off_msaa_on_fin_views)
             .add_observer(add_not_shadow_receiver)
             .add_observer(remove_not_shadow_receiver);
         extract::build(app);
         receivers::build(app);
+        bevy_shadow_maps::build(app);
         render::build(app);
     }
 

@@ -4,8 +4,9 @@
 //! they reach deferred opaque materials only. A `StandardMaterial` rendered
 //! forward (`OpaqueRendererMethod::Forward`, or `Auto` while the app's
 //! default is forward), alpha-blended or transmissive is drawn by Bevy's
-//! forward passes: there a fin-shadowed Bevy light shines unshadowed and a
-//! `FinLight` does not shine at all. [`FinReceivers`] counts such meshes
+//! forward passes: there a fin-shadowed Bevy light keeps Bevy's own hard
+//! shadow (`bevy_shadow_maps.rs` keeps its map on while such meshes exist)
+//! and a `FinLight` does not shine at all. [`FinReceivers`] counts such meshes
 //! (custom materials are not inspected), recounted only when a material or
 //! a mesh's material changed.
 
@@ -50,7 +51,7 @@ impl FinReceivers {
 }
 
 #[allow(clippy::type_complexity)]
-fn count_unreached_receivers(
+pub(crate) fn count_unreached_receivers(
     frames: Res<FinFrames>,
     default: Res<DefaultOpaqueRendererMethod>,
     materials: Res<Assets<StandardMaterial>>,
@@ -78,8 +79,9 @@ fn count_unreached_receivers(
     }
     if !frames.0.is_empty() && (now.forward > 0 || now.blended > 0) {
         warn_once!(
-            "fin shadows: {} forward-rendered and {} alpha-blended/transmissive meshes get no fin shadow \
-             (fin shadows reach deferred opaque materials; see FinReceivers)",
+            "fin shadows: {} forward-rendered and {} alpha-blended/transmissive meshes get Bevy's hard shadow, \
+             not fin shadows (fin shadows reach deferred opaque materials: insert \
+             DefaultOpaqueRendererMethod::deferred() for every opaque material; see FinReceivers)",
             now.forward,
             now.blended
         );

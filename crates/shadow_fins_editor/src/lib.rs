@@ -59,6 +59,9 @@ pub struct EditorPlugin {
 impl Plugin for EditorPlugin {
     fn build(&self, app: &mut App) {
         app.add_plugins((ShadowFinsPlugin, EguiPlugin::default(), RenderDiagnosticsPlugin))
+            // Fin shadows reach deferred materials; the plugin leaves the
+            // app-wide choice to the app, and the editor wants them everywhere.
+            .insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred())
             .insert_resource(self.options.clone())
             .init_resource::<EditorState>();
         scene::build(app);

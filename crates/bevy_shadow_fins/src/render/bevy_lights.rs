@@ -1,7 +1,7 @@
 //! Bevy's own lights with fin shadows: their Bevy shadow map (and contact
-//! shadows, which the compositing pass would otherwise count twice) are off
-//! while fin shadows are on — no double GPU cost —, without touching the
-//! user's light. (Bevy's CPU-side shadow culling for the light still runs;
+//! shadows) are off while fin shadows are on — no double GPU cost —, without
+//! touching the user's light, unless a camera without fin shadows or a
+//! receiver fin shadows cannot reach still needs them (`bevy_shadow_maps.rs`). (Bevy's CPU-side shadow culling for the light still runs;
 //! volumetric light needs Bevy's shadow map, so a `VolumetricLight` loses its
 //! shafts while fin-shadowed.)
 //!
@@ -18,7 +18,10 @@ use bevy::{
     render::{Render, RenderApp, RenderSystems},
 };
 
-use crate::extract::{FinFrames, LightShading};
+use crate::{
+    BevyShadowMapsKept,
+    extract::{FinFrames, LightShading},
+};
 
 pub(super) fn finish(app: &mut App) {
     let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
@@ -31,9 +34,15 @@ pub(super) fn finish(app: &mut App) {
 /// Spot and point lights are `ExtractedPointLight`s, suns `ExtractedDirectionalLight`s.
 fn bevy_shadow_maps_off(
     frames: Res<FinFrames>,
+    kept: Option<Res<BevyShadowMapsKept>>,
     mut lights: Query<&mut ExtractedPointLight>,
     mut suns: Query<&mut ExtractedDirectionalLight>,
 ) {
+    // Kept for cameras without fin shadows or receivers fin shadows cannot reach
+    // (`bevy_shadow_maps.rs`): the compositing pass replaces Bevy's shadow by V.
+    if kept.is_some_and(|k| k.kept()) {
+        return;
+    }
     for frame in &frames.0 {
         let LightShading::Bevy { render_entity } = frame.shading else { continue };
         if let Ok(mut light) = lights.get_mut(render_entity)

@@ -138,7 +138,9 @@ const KIND_BEVY_RECT: u32 = 4;
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 struct CompositeLight {
     own: FinLightUniform,
-    /// x: kind, y: Bevy's light index, z: 1 when this view's layer was written.
+    /// x: kind, y: Bevy's light index, z: 1 when this view's layer was written,
+    /// w: 1 when Bevy's own shadow map of the light is kept
+    /// ([`crate::BevyShadowMapsKept`]): the shader replaces its shadow by V.
     info: [u32; 4],
 }
 
@@ -292,8 +294,8 @@ fn prepare_composite_pipelines(
 /// A directional light is not clustered, and its index in a view's list
 /// depends on Bevy's sort and the view's render layers: the slot holds the
 /// light as Bevy uploads it (direction towards the light, colour ×
-/// illuminance) and the shader finds it in the view's list by those (and
-/// its shadow maps being off), or leaves it alone when the view has no such
+/// illuminance) and the shader finds it in the view's list by those (and,
+/// unless Bevy's maps are kept, its shadow maps being off), or leaves it alone when the view has no such
 /// light. A rectangle light is not clustered either (Bevy uploads at most
 /// eight per view, in query order): the slot holds its position, width and
 /// height, by which the shader finds it.
@@ -302,6 +304,7 @@ fn composite_lights(
     clustered: Option<&GlobalClusterableObjectMeta>,
     directional: &Query<&ExtractedDirectionalLight>,
     rects: &Query<&ExtractedRectLight>,
+    bevy_maps_kept: bool,
 ) -> CompositeLights {
     let mut out = CompositeLights::zeroed();
     out.count[0] = frames.0.len().min(MAX_FIN_LIGHTS) as u32;
@@ -319,7 +322,7 @@ fn composite_lights(
                     .map_or(none, |&id| (KIND_BEVY, FinLightUniform::zeroed(), id as u32)),
             },
         };
-        out.lights[slot] = CompositeLight { own, info: [kind, id, 0, 0] };
+        out.lights[slot] = CompositeLight { own, info: [kind, id, 0, bevy_maps_kept as u32] };
     }
     out
 }
@@ -333,10 +336,12 @@ fn prepare_composite_bind_groups(
     clustered: Option<Res<GlobalClusterableObjectMeta>>,
     directional: Query<&ExtractedDirectionalLight>,
     rects: Query<&ExtractedRectLight>,
+    kept: Option<Res<crate::BevyShadowMapsKept>>,
     views: Query<(Entity, &FinViewTexture, Option<&FinCompositeBindGroup>), With<FinCompositePipeline>>,
 ) {
     let Some(pipelines) = pipelines else { return };
-    let lights = composite_lights(&frames, clustered.as_deref(), &directional, &rects);
+    let kept = kept.is_some_and(|k| k.kept());
+    let lights = composite_lights(&frames, clustered.as_deref(), &directional, &rects, kept);
     for (entity, texture, previous) in &views {
         let uniform = match previous {
             Some(p) => p.uniform.clone(),

@@ -47,6 +47,7 @@ pub(crate) fn build(app: &mut App) {
     embedded_asset!(app, "shaders/visibility.wgsl");
     app.add_plugins((
         ExtractResourcePlugin::<FinFrames>::default(),
+        ExtractResourcePlugin::<crate::BevyShadowMapsKept>::default(),
         ExtractComponentPlugin::<FinShadowView>::default(),
     ));
     composite::build(app);
