@@ -436,6 +436,14 @@ fn drag_light_with_shift(
     }
 }
 
+/// The power of a Bevy `RectLight` as bright on its axis as the editor's disk
+/// light of `intensity` lumens: Bevy spreads a point or spot light's lumens over
+/// the sphere (`E = P / 4πd²`) but a rectangle's over its one lit hemisphere as
+/// a Lambertian emitter (`L = P / πA`, so `E ≈ P / πd²` on its axis): a quarter.
+pub(crate) fn rect_intensity(intensity: f32) -> f32 {
+    intensity * 0.25
+}
+
 /// Writes the light parameters into the light entity: a `FinLight` for the
 /// fin methods, Bevy's `PointLight` with PCSS for the PCSS method.
 fn sync_light(
@@ -513,7 +521,13 @@ fn sync_light(
                 // light with infinite radiance (NaN on screen). A millimetre
                 // square is a hard shadow for any scene the editor shows.
                 let (width, height) = params.rect_size();
-                let light = RectLight { color, intensity, range, width: width.max(1e-3), height: height.max(1e-3) };
+                let light = RectLight {
+                    color,
+                    intensity: rect_intensity(intensity),
+                    range,
+                    width: width.max(1e-3),
+                    height: height.max(1e-3),
+                };
                 match rect {
                     Some(mut r) => *r = light,
                     None => {
