@@ -160,6 +160,75 @@ fn a_caster_on_no_layer_of_the_lights_casts_no_fin_shadow_until_they_share_one()
     let back = session.settle(6).expect("render").visibility;
     let (mad, _) = compare(&back, &shadowed);
     assert!(mad <= 1e-4, "sharing a layer did not bring the shadow back ({mad})");
+    // Removing `RenderLayers` puts a mesh back on layer 0: with the spot on
+    // layer 0 alone again, the box casts once its layer-1 component goes.
+    let world = session.app.world_mut();
+    world.entity_mut(spot).remove::<RenderLayers>();
+    assert!(compare(&session.settle(6).expect("render").visibility, &not_casting).0 <= 1e-4, "layer 1 box cast");
+    session.app.world_mut().entity_mut(the_box).remove::<RenderLayers>();
+    let removed = session.settle(6).expect("render").visibility;
+    let (mad, _) = compare(&removed, &shadowed);
+    println!("RenderLayers removed from the box: |V − V shadowed| = {mad:.2e}");
+    assert!(mad <= 1e-4, "removing the box's RenderLayers did not bring its shadow back ({mad})");
+}
+
+#[test]
+fn a_parent_move_a_mesh_edit_and_a_despawn_are_each_seen() {
+    // The box under a new parent: moving the parent moves the shadow to
+    // where a fresh app renders the box moved; editing the mesh asset in
+    // place (same handle, its vertices shifted back) brings the first shadow
+    // back; despawning the parent takes the box's shadow away entirely.
+    use bevy::mesh::VertexAttributeValues;
+    let setup = setup(SceneId::BoxOverPlane, settings());
+    let offset = Vec3::new(0.4, 0.0, -0.3);
+    let mut moved = setup.clone();
+    for o in moved.scene.objects.iter_mut().filter(|o| o.name == "box") {
+        o.transform.translation += bevy::math::Vec3A::from(offset);
+    }
+    let mut without_box = setup.clone();
+    without_box.scene.objects.retain(|o| o.name != "box");
+    let (expected_moved, expected_gone) = (render(&moved).visibility, render(&without_box).visibility);
+
+    let mut session = harness::Session::new(&setup);
+    let before = session.settle(6).expect("render").visibility;
+    assert_visibility_not_trivial(&before);
+    let world = session.app.world_mut();
+    let the_box = the_box(world);
+    let parent = world.spawn((Transform::default(), Visibility::default())).id();
+    world.entity_mut(parent).add_child(the_box);
+    let parented = session.settle(6).expect("render").visibility;
+    assert!(compare(&parented, &before).0 <= 1e-4, "parenting under an identity moved the shadow");
+
+    session.app.world_mut().get_mut::<Transform>(parent).expect("a transform").translation += offset;
+    let parent_moved = session.settle(6).expect("render").visibility;
+    let (mad, _) = compare(&parent_moved, &expected_moved);
+    let (changed, _) = compare(&parent_moved, &before);
+    println!("parent moved: |V − V fresh| = {mad:.2e}, |V − V before| = {changed:.3}");
+    assert!(changed > 0.005, "moving the parent did not move the shadow ({changed})");
+    assert!(mad <= 1e-3, "the parent-moved shadow differs from a fresh render ({mad})");
+
+    {
+        let world = session.app.world_mut();
+        let handle = world.get::<Mesh3d>(the_box).expect("a mesh").0.clone();
+        let mut meshes = world.resource_mut::<Assets<Mesh>>();
+        let mut mesh = meshes.get_mut(&handle).expect("the box's mesh");
+        let Some(VertexAttributeValues::Float32x3(positions)) = mesh.attribute_mut(Mesh::ATTRIBUTE_POSITION) else {
+            panic!("positions");
+        };
+        for p in positions.iter_mut() {
+            *p = (Vec3::from(*p) - offset).to_array();
+        }
+    }
+    let edited = session.settle(6).expect("render").visibility;
+    let (mad, _) = compare(&edited, &before);
+    println!("mesh edited back: |V − V before| = {mad:.2e}");
+    assert!(mad <= 1e-3, "editing the mesh in place was not seen ({mad})");
+
+    session.app.world_mut().despawn(parent);
+    let gone = session.settle(6).expect("render").visibility;
+    let (mad, _) = compare(&gone, &expected_gone);
+    println!("parent despawned: |V − V without the box| = {mad:.2e}");
+    assert!(mad <= 1e-4, "the despawned box still casts ({mad})");
 }
 
 #[test]

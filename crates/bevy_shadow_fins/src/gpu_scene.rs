@@ -42,7 +42,14 @@ pub(crate) struct GpuMeshGeometry {
     pub closed: bool,
     /// Object-space bounds (for the scene extent without touching vertices).
     pub bounds: (Vec3, Vec3),
+    /// Unique per packing: what the concatenated geometry is keyed by. Not the
+    /// `Arc`'s address — a mesh edited in place is packed again and its new
+    /// `Arc` may reuse the freed address, which kept the old triangles on the GPU.
+    pub packing: u64,
 }
+
+/// The next [`GpuMeshGeometry::packing`].
+static NEXT_PACKING: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
 impl GpuMeshGeometry {
     pub fn pack(t: &Topology) -> Self {
@@ -116,7 +123,16 @@ impl GpuMeshGeometry {
         ]);
         let bounds =
             t.positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
-        Self { words: w, vertices: v as u32, faces: f as u32, edges: e as u32, closed: t.is_closed_manifold(), bounds }
+        let packing = NEXT_PACKING.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        Self {
+            words: w,
+            vertices: v as u32,
+            faces: f as u32,
+            edges: e as u32,
+            closed: t.is_closed_manifold(),
+            bounds,
+            packing,
+        }
     }
 }
 
@@ -241,7 +257,8 @@ pub(crate) struct GpuScene {
 pub(crate) struct GpuSceneBuilder {
     geometry: Arc<Vec<u32>>,
     geometry_key: u64,
-    offsets: HashMap<usize, u32>,
+    /// Word offset of each packing in `geometry`.
+    offsets: HashMap<u64, u32>,
 }
 
 impl GpuSceneBuilder {
@@ -258,9 +275,9 @@ impl GpuSceneBuilder {
         let mut seen = std::collections::HashSet::new();
         let mut hasher = std::collections::hash_map::DefaultHasher::new();
         for m in meshes {
-            if seen.insert(Arc::as_ptr(m)) {
+            if seen.insert(m.packing) {
                 distinct.push(m);
-                (Arc::as_ptr(m) as usize).hash(&mut hasher);
+                m.packing.hash(&mut hasher);
             }
         }
         let key = hasher.finish();
@@ -268,7 +285,7 @@ impl GpuSceneBuilder {
             let mut words = Vec::with_capacity(distinct.iter().map(|d| d.words.len()).sum());
             self.offsets.clear();
             for d in &distinct {
-                self.offsets.insert(Arc::as_ptr(d) as usize, words.len() as u32);
+                self.offsets.insert(d.packing, words.len() as u32);
                 words.extend_from_slice(&d.words);
             }
             // A binding may not be empty.
@@ -303,7 +320,7 @@ impl GpuSceneBuilder {
                 translation: v4(to_frame.translation),
                 normal: cofactor.map(|n| v4(n * sign)),
                 light: light.to_array(),
-                ids: [self.offsets[&(Arc::as_ptr(mesh) as usize)], vertices, faces, edges],
+                ids: [self.offsets[&mesh.packing], vertices, faces, edges],
                 info: [flags, mesh.vertices, f, e],
             });
             vertices += mesh.vertices;
