@@ -174,12 +174,24 @@ fn a_caster_on_no_layer_of_the_lights_casts_no_fin_shadow_until_they_share_one()
 
 #[test]
 fn a_parent_move_a_mesh_edit_and_a_despawn_are_each_seen() {
-    // The box under a new parent: moving the parent moves the shadow to
-    // where a fresh app renders the box moved; editing the mesh asset in
-    // place (same handle, its vertices shifted back) brings the first shadow
-    // back; despawning the parent takes the box's shadow away entirely.
+    // On every path that keeps caster state between frames: GPU extraction
+    // (packed geometry), CPU extraction and the coverage method.
+    use bevy_shadow_fins::{FinExtraction, FinMethod};
+    let cpu = FinShadowSettings { extraction: FinExtraction::Cpu, ..settings() };
+    let coverage = FinShadowSettings { method: FinMethod::Coverage, coverage_samples: 64, ..settings() };
+    for (label, settings) in [("gpu extraction", settings()), ("cpu extraction", cpu), ("coverage", coverage)] {
+        println!("{label}:");
+        parent_move_mesh_edit_and_despawn(settings);
+    }
+}
+
+/// The box under a new parent: moving the parent moves the shadow to where a
+/// fresh app renders the box moved; editing the mesh asset in place (same
+/// handle, its vertices shifted back) brings the first shadow back;
+/// despawning the parent takes the box's shadow away entirely.
+fn parent_move_mesh_edit_and_despawn(settings: FinShadowSettings) {
     use bevy::mesh::VertexAttributeValues;
-    let setup = setup(SceneId::BoxOverPlane, settings());
+    let setup = setup(SceneId::BoxOverPlane, settings);
     let offset = Vec3::new(0.4, 0.0, -0.3);
     let mut moved = setup.clone();
     for o in moved.scene.objects.iter_mut().filter(|o| o.name == "box") {
