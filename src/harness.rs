@@ -81,6 +81,9 @@ pub struct Setup {
     pub extra_spots: Vec<shadow_fins::light::DiskLight>,
     /// The illuminance of a `Light::Sun`'s `DirectionalLight`, lux.
     pub sun_illuminance: f32,
+    /// Render without Bevy's pipelined rendering: each `update` runs the main
+    /// world, then the render world (to time them apart).
+    pub sequential_rendering: bool,
 }
 
 /// Marks `Setup::extra_spots` (kept when the main light is replaced).
@@ -127,6 +130,7 @@ impl Setup {
             spot: false,
             extra_spots: vec![],
             sun_illuminance: 3000.0,
+            sequential_rendering: false,
         }
     }
 }
@@ -183,18 +187,20 @@ pub struct ViewSlots {
 /// read-back slots (the first camera first).
 pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
     let mut app = App::new();
-    app.add_plugins(
-        DefaultPlugins
-            .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, ..default() })
-            .set(RenderPlugin { synchronous_pipeline_compilation: true, ..default() })
-            // Headless: no event loop (it needs a display); the caller drives `update`.
-            .disable::<bevy::winit::WinitPlugin>(),
-    )
-    .add_plugins((ShadowFinsPlugin, RenderDiagnosticsPlugin))
-    // Fin shadows reach deferred materials: the harness, like a game that
-    // wants them on every material, makes deferred its default (the plugin
-    // leaves that choice to the app).
-    .insert_resource(DefaultOpaqueRendererMethod::deferred());
+    let mut plugins = DefaultPlugins
+        .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, ..default() })
+        .set(RenderPlugin { synchronous_pipeline_compilation: true, ..default() })
+        // Headless: no event loop (it needs a display); the caller drives `update`.
+        .disable::<bevy::winit::WinitPlugin>();
+    if setup.sequential_rendering {
+        plugins = plugins.disable::<bevy::render::pipelined_rendering::PipelinedRenderingPlugin>();
+    }
+    app.add_plugins(plugins)
+        .add_plugins((ShadowFinsPlugin, RenderDiagnosticsPlugin))
+        // Fin shadows reach deferred materials: the harness, like a game that
+        // wants them on every material, makes deferred its default (the plugin
+        // leaves that choice to the app).
+        .insert_resource(DefaultOpaqueRendererMethod::deferred());
     let world = app.world_mut();
     let (w, h) = (setup.width, setup.height);
     let material = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial::default());

@@ -23,7 +23,7 @@ use shadow_fins::{
     scenes::SceneId,
     shapes,
 };
-use shadow_fins_app::render_lab::{lights, measure, stability, sun};
+use shadow_fins_app::render_lab::{lights, measure, scaling, stability, sun};
 use shadow_fins_lab::{
     LabError,
     grid::{Axes, Technique, parse_list},
@@ -78,6 +78,25 @@ enum Command {
         #[arg(long, default_value_t = 240)]
         height: u32,
         /// Fin maps' and Bevy's shadow maps' resolution.
+        #[arg(long, default_value_t = 1024)]
+        map_resolution: u32,
+        /// Also write the table here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Frame cost against the object count (cubes of one mesh), static and one moving; main and render world apart.
+    Scaling {
+        /// Object counts, comma-separated (1 to 100 000).
+        #[arg(long, default_value = "10,100,1000,10000")]
+        counts: String,
+        /// Frames timed per configuration (median reported).
+        #[arg(long, default_value_t = 20)]
+        frames: u32,
+        #[arg(long, default_value_t = 320)]
+        width: u32,
+        #[arg(long, default_value_t = 240)]
+        height: u32,
+        /// The fin maps' resolution.
         #[arg(long, default_value_t = 1024)]
         map_resolution: u32,
         /// Also write the table here.
@@ -192,6 +211,9 @@ fn main() -> ExitCode {
         Command::Lights { scene, counts, frames, width, height, map_resolution, out } => {
             run_lights(&scene, &counts, frames, (width, height), map_resolution, out).map(|()| ExitCode::SUCCESS)
         }
+        Command::Scaling { counts, frames, width, height, map_resolution, out } => {
+            run_scaling(&counts, frames, (width, height), map_resolution, out).map(|()| ExitCode::SUCCESS)
+        }
         Command::Sun { scenes, angles, frames, width, height, map_resolution, samples, layers, out } => {
             let parsed = parse_sun(&scenes, &angles);
             parsed
@@ -237,6 +259,30 @@ fn run_lights(
     let run = lights::LightsRun { scene, counts, frames: frames.max(1), width, height, map_resolution };
     let rows = lights::run(&run).map_err(usage)?;
     let table = lights::markdown(&rows);
+    println!("{table}");
+    if let Some(path) = &out {
+        write(path, &table)?;
+    }
+    Ok(())
+}
+
+fn run_scaling(
+    counts: &str,
+    frames: u32,
+    (width, height): (u32, u32),
+    map_resolution: u32,
+    out: Option<PathBuf>,
+) -> Result<(), LabError> {
+    let counts = parse_list("counts", counts, |s| s.parse::<usize>().ok().filter(|n| (1..=100_000).contains(n)))
+        .map_err(usage)?;
+    let run = scaling::ScalingRun {
+        counts,
+        frames: frames.max(1),
+        width: width.clamp(1, 4096),
+        height: height.clamp(1, 4096),
+        map_resolution,
+    };
+    let table = scaling::markdown(&scaling::run(&run).map_err(usage)?);
     println!("{table}");
     if let Some(path) = &out {
         write(path, &table)?;

@@ -1,9 +1,10 @@
 //! The lab's rendered half: the speed/accuracy trade measured on what Bevy
 //! draws with the plugin (`measure`), the numerical extremes (`stability`),
-//! several lights at once (`lights`) and the sun (`sun`). The `shadow-fins-render-lab` binary drives both; the
+//! several lights at once (`lights`), the sun (`sun`) and the object count (`scaling`). The `shadow-fins-render-lab` binary drives both; the
 //! Bevy-free parts (the grid, rows, CSV/JSON, plots) live in `shadow_fins_lab`.
 
 pub mod lights;
 pub mod measure;
+pub mod scaling;
 pub mod stability;
 pub mod sun;
