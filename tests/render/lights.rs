@@ -248,9 +248,20 @@ fn receivers_fin_shadows_cannot_reach_are_counted() {
         material(StandardMaterial { opaque_render_method: bevy::material::OpaqueRendererMethod::Forward, ..default() });
     let blended = material(StandardMaterial { alpha_mode: AlphaMode::Blend, ..default() });
     let cube = world.resource_mut::<Assets<Mesh>>().add(Cuboid::new(0.2, 0.2, 0.2));
-    for (m, x) in [(forward, -1.5), (blended, 1.5)] {
+    for (m, x) in [(forward.clone(), -1.5), (blended, 1.5)] {
         world.spawn((Mesh3d(cube.clone()), MeshMaterial3d(m), Transform::from_xyz(x, 0.1, 1.5)));
     }
+    // Not counted, since they receive no shadow either way (they would keep
+    // Bevy's maps on for nothing): unlit, opted out, hidden.
+    let unlit = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial {
+        unlit: true,
+        opaque_render_method: bevy::material::OpaqueRendererMethod::Forward,
+        ..default()
+    });
+    let at = Transform::from_xyz(0.0, 0.1, 2.5);
+    world.spawn((Mesh3d(cube.clone()), MeshMaterial3d(unlit), at));
+    world.spawn((Mesh3d(cube.clone()), MeshMaterial3d(forward.clone()), at, bevy::light::NotShadowReceiver));
+    world.spawn((Mesh3d(cube.clone()), MeshMaterial3d(forward), at, Visibility::Hidden));
     session.settle(16).expect("render");
     let counted = *session.app.world().resource::<bevy_shadow_fins::FinReceivers>();
     assert_eq!(counted, bevy_shadow_fins::FinReceivers { forward: 1, blended: 1 });

@@ -10,7 +10,8 @@
 //!   alpha-blended or transmissive) should get Bevy's hard shadow rather than
 //!   none.
 //!
-//! While either holds, the map stays on (the cost is Bevy's shadow pass again)
+//! While either holds, the map stays on (the cost is Bevy's shadow pass again,
+//! and fin cameras sample Bevy's map a second time per pixel for `S`)
 //! and the compositing pass replaces Bevy's shadow `S` of the light by `V` on
 //! the pixels it reaches — `(V − S)` of Bevy's own contribution, `S` computed
 //! by Bevy's own `fetch_*_shadow` — so a fin-shadowed camera shows the same
@@ -61,7 +62,8 @@ fn decide_bevy_shadow_maps(
     frames: Res<FinFrames>,
     receivers: Res<FinReceivers>,
     cameras: Query<&Camera, (With<Camera3d>, Without<FinShadowView>)>,
-    mut lights: Query<(Option<&mut SpotLight>, Option<&mut DirectionalLight>, Option<&mut PointLight>)>,
+    // A RectLight has no Bevy map, and a PointLight has no fin frame yet.
+    mut lights: Query<(Option<&mut SpotLight>, Option<&mut DirectionalLight>)>,
     mut kept: ResMut<BevyShadowMapsKept>,
 ) {
     let now = BevyShadowMapsKept {
@@ -77,7 +79,7 @@ fn decide_bevy_shadow_maps(
         return;
     }
     if now.kept() && frames.0.iter().any(|f| matches!(f.shading, LightShading::Bevy { .. })) {
-        info!(
+        debug!(
             "fin shadows: Bevy's own shadow maps stay on for fin-shadowed lights ({} cameras without FinShadowView, \
              {} meshes fin shadows cannot reach; see BevyShadowMapsKept)",
             now.cameras_without_fin_view, now.unreached_receivers
@@ -89,15 +91,12 @@ fn decide_bevy_shadow_maps(
         }
         // Marked changed, Bevy extracts the light again with the user's own
         // shadow setting; `render/bevy_lights.rs` then leaves it or turns it off.
-        if let Ok((spot, sun, point)) = lights.get_mut(frame.light) {
+        if let Ok((spot, sun)) = lights.get_mut(frame.light) {
             if let Some(mut spot) = spot {
                 spot.set_changed();
             }
             if let Some(mut sun) = sun {
                 sun.set_changed();
-            }
-            if let Some(mut point) = point {
-                point.set_changed();
             }
         }
     }

@@ -407,6 +407,24 @@ mod tests {
     }
 
     #[test]
+    fn packing_the_same_mesh_twice_gives_two_packings() {
+        // The geometry cache is keyed by packing: a mesh edited in place is
+        // packed again and must never be taken for its old packing (its `Arc`
+        // address could be reused, which is what the cache once keyed by).
+        let topology = Topology::build(&shapes::cuboid(Vec3::ONE));
+        let (a, b) = (GpuMeshGeometry::pack(&topology), GpuMeshGeometry::pack(&topology));
+        assert_ne!(a.packing, b.packing);
+        let disk = shadow_fins::light::DiskLight::new(Vec3::new(0.0, 5.0, 0.0), Vec3::NEG_Y, 0.5).unwrap();
+        let frame = LightFrame::disk(&disk);
+        let objects = [SceneObject::new("box", shapes::cuboid(Vec3::ONE), bevy::math::Affine3A::IDENTITY).unwrap()];
+        let mut builder = GpuSceneBuilder::default();
+        let max = GpuCapacity::max_for(1 << 30);
+        let first = builder.build(&objects, &[Arc::new(a)], &frame, &mut None, max).geometry_key;
+        let second = builder.build(&objects, &[Arc::new(b)], &frame, &mut None, max).geometry_key;
+        assert_ne!(first, second, "a new packing of the same mesh kept the old geometry key");
+    }
+
+    #[test]
     fn packed_geometry_lists_every_edge_at_both_its_vertices() {
         let topology = Topology::build(&shapes::cuboid(Vec3::ONE));
         let g = GpuMeshGeometry::pack(&topology);

@@ -8,7 +8,12 @@
 //! use bevy_shadow_fins::{FinShadowView, FinShadows, ShadowFinsPlugin};
 //!
 //! fn main() {
-//!     App::new().add_plugins((DefaultPlugins, ShadowFinsPlugin)).add_systems(Startup, setup).run();
+//!     App::new()
+//!         .add_plugins((DefaultPlugins, ShadowFinsPlugin))
+//!         // Fin shadows reach deferred materials (forward ones get Bevy's hard shadow).
+//!         .insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred())
+//!         .add_systems(Startup, setup)
+//!         .run();
 //! }
 //!
 //! fn setup(mut commands: Commands) {
@@ -70,7 +75,7 @@
 //! prepass: a minimap camera would lose them): an app that wants fin shadows
 //! on every material inserts `DefaultOpaqueRendererMethod::deferred()`
 //! itself. Meshes fin shadows cannot reach ([`FinReceivers`]) get Bevy's own
-//! hard shadow of the light instead of none, and a camera without
+//! hard shadow of the light instead of none (a `RectLight` has none in Bevy), and a camera without
 //! [`FinShadowView`] renders exactly as without the plugin: while either
 //! exists, Bevy's shadow map of a fin-shadowed light stays on
 //! ([`BevyShadowMapsKept`]) and the compositing pass gives the light

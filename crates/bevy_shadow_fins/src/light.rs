@@ -57,9 +57,11 @@ impl FinLight {
 ///   at most 80°), through orthographic maps fitted to what the
 ///   [`FinShadowView`] cameras see of the scene (out to their far plane;
 ///   [`FinShadowSettings::fit_sun_to_views`]); `0` gives exactly the hard
-///   shadow. Bevy's cascades and contact shadows for it are off. Two suns of
-///   the same direction and colour on different render layers are not told
-///   apart by the compositing pass (it finds a sun in a view's list by them).
+///   shadow. Bevy's cascades and contact shadows for it are off (unless kept,
+///   below). Two suns of the same direction and colour on different render
+///   layers are not told apart by the compositing pass (it finds a sun in a
+///   view's list by them); while Bevy's maps are kept, neither is a fin sun
+///   and a non-fin sun of that direction and colour.
 /// - `RectLight { width, height, .. }`: a rectangle of those sizes (times the
 ///   transform's scale along local X and Y, as Bevy scales it) facing local
 ///   −Z. Fins across an edge are as wide as the rectangle's support function
@@ -72,14 +74,18 @@ impl FinLight {
 ///
 /// Bevy's own shadow map and contact shadows for the light are off while
 /// `FinShadows` is on (in the render world: the light's `shadow_maps_enabled`
-/// is left as the user set it, and comes back when `FinShadows` is removed).
+/// is left as the user set it, and comes back when `FinShadows` is removed),
+/// unless [`BevyShadowMapsKept`](crate::BevyShadowMapsKept) keeps them for
+/// a camera without [`FinShadowView`] or a receiver fin shadows cannot reach.
 /// Fin shadows reach the pixels of cameras with [`FinShadowView`] whose
 /// materials are deferred; elsewhere — other cameras, forward, blended and
 /// transmissive materials (counted in [`FinReceivers`](crate::FinReceivers)),
 /// the diffuse-transmission lobe, and while the light's visibility cannot be
 /// computed (its first frames while pipelines compile, an MSAA camera, maps
-/// over the device's storage limit) — the light shines unshadowed. A
-/// `VolumetricLight` loses its shafts (Bevy draws them from its shadow map).
+/// over the device's storage limit) — the light gets Bevy's own shadow while
+/// the maps are kept (a `RectLight` has none: it shines unshadowed there) and
+/// shines unshadowed otherwise. A `VolumetricLight` loses its shafts while
+/// the maps are off (Bevy draws them from its shadow map).
 #[derive(Component, Debug, Clone, Copy, Default, Reflect)]
 #[reflect(Component, Default, Debug, Clone)]
 #[require(FinShadowSettings)]

@@ -11,7 +11,8 @@
 //! a mesh's material changed.
 
 use bevy::{
-    material::OpaqueRendererMethod, pbr::DefaultOpaqueRendererMethod, prelude::*, reflect::tuple_struct::TupleStruct,
+    light::NotShadowReceiver, material::OpaqueRendererMethod, pbr::DefaultOpaqueRendererMethod, prelude::*,
+    reflect::tuple_struct::TupleStruct,
 };
 
 use crate::{extract::FinFrames, light::NotFinShadowReceiver};
@@ -32,8 +33,12 @@ pub(crate) fn build(app: &mut App) {
 }
 
 impl FinReceivers {
-    /// Counts one mesh of `material` if the compositing pass cannot reach it.
+    /// Counts one mesh of `material` if the compositing pass cannot reach it
+    /// (an unlit material receives no light, hence no shadow, either way).
     fn count(&mut self, material: &StandardMaterial, default_forward: bool) {
+        if material.unlit {
+            return;
+        }
         let blended = !matches!(material.alpha_mode, AlphaMode::Opaque | AlphaMode::Mask(_))
             || material.specular_transmission > 0.0
             || material.diffuse_transmission > 0.0;
@@ -56,13 +61,32 @@ pub(crate) fn count_unreached_receivers(
     default: Res<DefaultOpaqueRendererMethod>,
     materials: Res<Assets<StandardMaterial>>,
     mut events: MessageReader<AssetEvent<StandardMaterial>>,
-    changed: Query<(), Or<(Changed<MeshMaterial3d<StandardMaterial>>, Added<NotFinShadowReceiver>)>>,
-    removed: RemovedComponents<MeshMaterial3d<StandardMaterial>>,
-    meshes: Query<&MeshMaterial3d<StandardMaterial>, Without<NotFinShadowReceiver>>,
+    changed: Query<
+        (),
+        Or<(
+            Changed<MeshMaterial3d<StandardMaterial>>,
+            Added<NotFinShadowReceiver>,
+            Added<NotShadowReceiver>,
+            Changed<InheritedVisibility>,
+        )>,
+    >,
+    removed: (
+        RemovedComponents<MeshMaterial3d<StandardMaterial>>,
+        RemovedComponents<NotFinShadowReceiver>,
+        RemovedComponents<NotShadowReceiver>,
+    ),
+    // Meshes that receive no shadow (opted out, hidden) do not count: they
+    // would keep Bevy's maps on for nothing (`bevy_shadow_maps.rs`).
+    meshes: Query<
+        (&MeshMaterial3d<StandardMaterial>, Option<&InheritedVisibility>),
+        (Without<NotFinShadowReceiver>, Without<NotShadowReceiver>),
+    >,
     mut counted: ResMut<FinReceivers>,
 ) {
     let material_changed = events.read().count() > 0;
-    if !(material_changed || !changed.is_empty() || !removed.is_empty() || default.is_changed()) {
+    let (mut gone_material, mut gone_fin_marker, mut gone_marker) = removed;
+    let removed = gone_material.read().count() + gone_fin_marker.read().count() + gone_marker.read().count() > 0;
+    if !(material_changed || !changed.is_empty() || removed || default.is_changed()) {
         return;
     }
     // `DefaultOpaqueRendererMethod` keeps its method private; Reflect reads it.
@@ -71,7 +95,8 @@ pub(crate) fn count_unreached_receivers(
         .and_then(|f| f.try_downcast_ref::<OpaqueRendererMethod>())
         .is_some_and(|m| *m == OpaqueRendererMethod::Forward);
     let mut now = FinReceivers::default();
-    for material in meshes.iter().filter_map(|m| materials.get(&m.0)) {
+    let drawn = meshes.iter().filter(|(_, v)| v.is_none_or(|v| v.get()));
+    for material in drawn.filter_map(|(m, _)| materials.get(&m.0)) {
         now.count(material, default_forward);
     }
     if *counted != now {

@@ -107,8 +107,10 @@ fn lights_window(
     >,
 ) -> Result {
     let ctx = contexts.ctx_mut()?.clone();
-    // Over the 3D view, clear of the side panels.
-    egui::Window::new("More lights").default_open(false).default_pos(egui::pos2(300.0, 12.0)).show(&ctx, |ui| {
+    // Anchored at the bottom of the 3D view, clear of the side panels (whose
+    // width follows their content) and of what the view shows near its top.
+    let window = egui::Window::new("More lights").default_open(false);
+    window.anchor(egui::Align2::CENTER_BOTTOM, egui::vec2(0.0, -8.0)).show(&ctx, |ui| {
         ui.small("Bevy lights with FinShadows, shadowed together with the main light.");
         let count = extras.iter().count();
         let room = count + 1 < MAX_FIN_LIGHTS;

@@ -112,7 +112,8 @@ fn panels(
         egui::ScrollArea::vertical().show(ui, |ui| {
             ui.heading("Light");
             let mut p = *params;
-            ui.horizontal(|ui| {
+            // Wrapped: four kinds in one row would widen the panel over the view.
+            ui.horizontal_wrapped(|ui| {
                 for kind in LightKind::ALL {
                     ui.radio_value(&mut p.kind, kind, kind.label()).on_hover_text(match kind {
                         LightKind::FinLight => "The plugin's own disk light",

@@ -9,8 +9,9 @@
 //! changed; this system then clears `shadow_maps_enabled` on the extracted
 //! copy of every fin-shadowed Bevy light, before Bevy's `prepare_lights`
 //! allocates shadow maps. The main world marks a light changed when it stops
-//! being fin-shadowed (`extract.rs`), so Bevy extracts it again with the
-//! user's own setting.
+//! being fin-shadowed (`extract.rs`) and when Bevy's maps start or stop being
+//! kept (`bevy_shadow_maps.rs`), so Bevy extracts it again with the user's
+//! own setting.
 
 use bevy::{
     pbr::{ExtractedDirectionalLight, ExtractedPointLight},

@@ -5,8 +5,9 @@
 //! lighting pass: it runs Bevy's own `apply_pbr_lighting` on the G-buffer (so
 //! every Bevy light, probe, SSAO and fog is unchanged), then per fin light:
 //! - a Bevy light (`SpotLight`, `DirectionalLight` or `RectLight` +
-//!   `FinShadows`): Bevy has just shaded it, with its shadow map off (a
-//!   `RectLight` has none); the pass takes `(1 − V)` of it away again,
+//!   `FinShadows`): Bevy has just shaded it times its own shadow `S` — 1 with
+//!   its shadow map off, as it is unless [`crate::BevyShadowMapsKept`] (a
+//!   `RectLight` has none) —; the pass adds `(V − S)` of it, so `V` replaces `S`,
 //!   evaluated by Bevy's own per-light function (`lighting::spot_light` with
 //!   the light's index in Bevy's clustered list, `lighting::directional_light`
 //!   and `lighting::rect_light` with its index in the view's directional or
