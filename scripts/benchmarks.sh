@@ -113,8 +113,10 @@ rect_section() {
   echo "(\`--rect-aspect 4\`; its width along world x). The ground truth samples the rectangle (4096 points of"
   echo "Roberts' R2 sequence), so does \`coverage 256\`; the fins are as wide as the rectangle's support function"
   echo "across each silhouette edge, with the disk's falloff across them (see \`crates/shadow_fins/src/fins.rs\`)."
-  echo "The peers (single sample, plateaus, wedges, convolution) are not yet rectangle-aware: they treat the"
-  echo "rectangle as its bounding disk, which their rows show. The plugin renders this light from Bevy's"
+  echo "The peers take the rectangle itself: single sample's shell and the plateaus' cones its norm, the wedges"
+  echo "its quadrants, the convolution maps an a × b filter box. The wedges still err about as a disk of the"
+  echo "rectangle's long half side does (their outline is the one seen from the light's centre, an error that"
+  echo "grows with the light's longest extent). The plugin renders this light from Bevy's"
   echo "\`RectLight\` (\`tests/render/rect_light.rs\`: the GPU matches the raster oracle below to ≤ 1e-4 mean)."
   echo
   echo "### Exact oracle"
