@@ -428,8 +428,10 @@ impl ConvolutionModel {
             return None;
         }
         // A mipmap is isotropic: the disk's square takes its side; a
-        // rectangle, the square of its area (its long side blurred a 4 : 1
-        // light's short one ×4).
+        // rectangle, the square of its area — a departure from Annen et al.
+        // §4 (rectangular lights), who filter anisotropically: here a 4 : 1
+        // light's short side is blurred ×2 and its long side ×0.5; the
+        // summed-area variant filters the exact a × b box.
         let side = match self.frame.aperture {
             Aperture::Disk => None,
             Aperture::Rect { .. } => Some(2.0 * (h.x * h.y).sqrt()),

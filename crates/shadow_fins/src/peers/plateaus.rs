@@ -29,7 +29,8 @@
 //! recommended sinusoid, as Parker's polynomial `3τ² − 2τ³`.
 //!
 //! **A rectangle light** (`Aperture::Rect`, half sides `a`, `b` along the
-//! frame's axes): a point's penumbra is the light's rectangle seen through
+//! frame's axes; Haines suggests "pyramidal shapes" for rectangular lights,
+//! p. 81): a point's penumbra is the light's rectangle seen through
 //! it, so the cone becomes a pyramid over a parallelogram — the light's
 //! axes carried onto the plane along the vertex's ray (the central
 //! projection linearised at the light's centre), `2a` and `2b` long at
