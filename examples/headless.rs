@@ -6,13 +6,8 @@
 //!
 //! A glTF gets a light of radius 5% of its size, 1× its size above its centre.
 
-use bevy::{
-    asset::RenderAssetUsages,
-    image::Image,
-    render::render_resource::{Extent3d, TextureDimension, TextureFormat},
-};
 use shadow_fins::scenes::SceneId;
-use shadow_fins_app::harness::{Setup, render};
+use shadow_fins_app::harness::{Setup, render, save_srgb8};
 
 fn main() {
     if let Err(e) = run() {
@@ -61,18 +56,8 @@ fn run() -> Result<(), String> {
         Some(stem) => format!("{stem}_visibility.png"),
         None => format!("{out}_visibility.png"),
     };
-    if let Some(dir) = std::path::Path::new(&out).parent() {
-        std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
-    }
     for (pixels, path) in [(&shot.color, &out), (&gray, &visibility_out)] {
-        let image = Image::new(
-            Extent3d { width, height, depth_or_array_layers: 1 },
-            TextureDimension::D2,
-            pixels.iter().flatten().copied().collect(),
-            TextureFormat::Rgba8UnormSrgb,
-            RenderAssetUsages::MAIN_WORLD,
-        );
-        image.try_into_dynamic().map_err(|e| e.to_string())?.to_rgba8().save(path).map_err(|e| e.to_string())?;
+        save_srgb8(width, height, pixels, path)?;
     }
     println!("wrote {visibility_out}");
     let s = shot.stats;

@@ -219,9 +219,9 @@ fn sun_controls(ui: &mut egui::Ui, mut sun: Mut<DirectionalLight>, mut disk: Mut
 mod tests {
     use super::*;
 
-    #[test]
-    fn new_lights_sit_apart_facing_like_the_main_light_and_stay_finite() {
-        let params = LightParams {
+    /// A disk light 4 units above the origin, facing down.
+    fn main_light() -> LightParams {
+        LightParams {
             position: Vec3::new(0.0, 4.0, 0.0),
             direction: Vec3::NEG_Y,
             radius: 0.5,
@@ -232,7 +232,12 @@ mod tests {
             sun_angle: crate::scene::DEFAULT_SUN_ANGLE,
             illuminance: crate::scene::DEFAULT_ILLUMINANCE,
             rect_aspect: crate::scene::DEFAULT_RECT_ASPECT,
-        };
+        }
+    }
+
+    #[test]
+    fn new_lights_sit_apart_facing_like_the_main_light_and_stay_finite() {
+        let params = main_light();
         let (a, ta) = new_light(&params, 0);
         let (_, tb) = new_light(&params, 1);
         assert!(ta.translation.distance(params.position) >= 0.5 && ta.translation.distance(tb.translation) > 0.1);
@@ -245,18 +250,7 @@ mod tests {
 
     #[test]
     fn new_rects_and_suns_are_valid_bevy_lights_for_any_main_light() {
-        let params = LightParams {
-            position: Vec3::new(0.0, 4.0, 0.0),
-            direction: Vec3::NEG_Y,
-            radius: 0.5,
-            intensity: 1e6,
-            color: [1.0; 3],
-            method: Default::default(),
-            kind: crate::scene::LightKind::FinLight,
-            sun_angle: crate::scene::DEFAULT_SUN_ANGLE,
-            illuminance: crate::scene::DEFAULT_ILLUMINANCE,
-            rect_aspect: 4.0,
-        };
+        let params = LightParams { rect_aspect: 4.0, ..main_light() };
         let (rect, t) = new_rect(&params, 0);
         // The main disk's area at 4 : 1, a quarter of its power (as bright on its axis).
         let area = std::f32::consts::PI * 0.25;

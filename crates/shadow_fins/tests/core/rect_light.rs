@@ -307,9 +307,13 @@ fn outer_only_peers_err_under_a_rectangle_about_as_under_the_disk_of_its_area() 
 
 #[test]
 fn outer_only_peers_under_zero_size_or_line_rectangles_stay_hard_or_finite() {
-    // 0 × 0 is exactly each method's hard shadow: what it gives in the same
-    // frame as a disk of radius 0. A line light (one side 0) and a huge
-    // one stay finite in [0, 1].
+    zero_size_or_line_rectangles_stay_hard_or_finite(&OUTER_ONLY);
+}
+
+/// 0 × 0 is exactly each method's hard shadow: what it gives in the same
+/// frame as a disk of radius 0. Line lights (one side 0) and a 1000 × 1 one
+/// stay finite in [0, 1].
+fn zero_size_or_line_rectangles_stay_hard_or_finite(methods: &[PeerMethod]) {
     for id in [SceneId::BoxOverPlane, SceneId::TiltedReceiver, SceneId::NearContact] {
         let s = id.build();
         let (center, normal) = s.light.planar().unwrap();
@@ -317,7 +321,7 @@ fn outer_only_peers_under_zero_size_or_line_rectangles_stay_hard_or_finite() {
         let (ls, receivers) = view_receivers(&s.scene, with(0.0, 0.0), &s.camera, 48, 36);
         let mut ls_disk = LightSpaceScene::new(&s.scene, with(0.0, 0.0));
         ls_disk.frame.aperture = Aperture::Disk;
-        for method in OUTER_ONLY {
+        for method in methods.iter().copied() {
             let (zero, point) = (PeerModel::new(method, &s.scene, &ls), PeerModel::new(method, &s.scene, &ls_disk));
             let mut shadowed = 0;
             for r in &receivers {
@@ -440,34 +444,5 @@ fn light_shaped_peers_err_under_a_rectangle_about_as_under_its_disk() {
 
 #[test]
 fn light_shaped_peers_under_zero_size_or_line_rectangles_stay_hard_or_finite() {
-    // 0 × 0 is exactly each method's hard shadow: what it gives in the same
-    // frame as a disk of radius 0. Line lights (one side 0) and a 1000 × 1
-    // one stay finite in [0, 1].
-    for id in [SceneId::BoxOverPlane, SceneId::TiltedReceiver, SceneId::NearContact] {
-        let s = id.build();
-        let (center, normal) = s.light.planar().unwrap();
-        let with = |w: f32, h: f32| Light::Rect(RectLight::new(center, normal, Vec3::X, w, h).unwrap());
-        let (ls, receivers) = view_receivers(&s.scene, with(0.0, 0.0), &s.camera, 48, 36);
-        let mut ls_disk = LightSpaceScene::new(&s.scene, with(0.0, 0.0));
-        ls_disk.frame.aperture = Aperture::Disk;
-        for method in LIGHT_SHAPED {
-            let (zero, point) = (PeerModel::new(method, &s.scene, &ls), PeerModel::new(method, &s.scene, &ls_disk));
-            let mut shadowed = 0;
-            for r in &receivers {
-                let v = zero.visibility(*r);
-                shadowed += (v == 0.0) as u32;
-                assert!(v == 0.0 || v == 1.0, "{id:?} {}: 0 × 0 gives {v} at {:?}", method.name(), r.position);
-                assert_eq!(v, point.visibility(*r), "{id:?} {}: 0 × 0 at {:?}", method.name(), r.position);
-            }
-            assert!(shadowed > 20, "{id:?}: the view must hold a shadow ({shadowed} px)");
-            for (w, h) in [(2.0, 0.0), (0.0, 2.0), (1e3, 1.0)] {
-                let ls = LightSpaceScene::new(&s.scene, with(w, h));
-                let model = PeerModel::new(method, &s.scene, &ls);
-                for r in &receivers {
-                    let v = model.unclamped_visibility(*r);
-                    assert!(v.is_finite() && (0.0..=1.0).contains(&v), "{id:?} {} {w} × {h}: {v}", method.name());
-                }
-            }
-        }
-    }
+    zero_size_or_line_rectangles_stay_hard_or_finite(&LIGHT_SHAPED);
 }
