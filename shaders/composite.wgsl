@@ -61,14 +61,15 @@ const KIND_BEVY_RECT: u32 = 4u;
 const MAX_FIN_LIGHTS: u32 = 16u;
 struct CompositeLight {
     own: FinLightUniform,
-    // x: kind, y: Bevy's clustered light index, z: 1 when the layer was written,
-    // w: 1 when Bevy's own shadow maps of fin-shadowed lights are kept. A directional light's `own` holds its direction towards the light
+    // x: kind, y: Bevy's clustered light index, z: 1 when the layer was written.
+    // A directional light's `own` holds its direction towards the light
     // (forward_inverse_square_range.xyz) and colour × illuminance (color); a
     // rectangle light's its position and width (position_radius) and height
     // (forward_inverse_square_range.w).
     info: vec4<u32>,
 };
 struct CompositeLights {
+    // x: light slots in use, y: 1 while Bevy's own shadow maps of fin-shadowed lights are kept.
     count: vec4<u32>,
     lights: array<CompositeLight, MAX_FIN_LIGHTS>,
 };
@@ -144,6 +145,21 @@ fn bevy_lit_pixel_with(id: u32, in: PbrInput) -> bool {
     return false;
 }
 
+// `shadow` times Bevy's contact shadow towards `L` where Bevy applies one
+// (`apply_pbr_lighting`: the view has contact shadows, the light enables
+// them, the pixel is not already fully shadowed).
+fn with_bevy_contact_shadow(shadow: f32, in: PbrInput, L: vec3<f32>, light_enables: bool) -> f32 {
+#ifdef CONTACT_SHADOWS
+#ifdef DEPTH_PREPASS
+    let steps = mesh_view_bindings::contact_shadows_settings.linear_steps;
+    if (steps > 0u && shadow > 0.0 && light_enables) {
+        return shadow * pbr_functions::calculate_contact_shadow(in.world_position.xyz, in.frag_coord.xy, L, steps);
+    }
+#endif
+#endif
+    return shadow;
+}
+
 // Bevy's own shadow S of clustered light `id` at this pixel, exactly as
 // `apply_pbr_lighting` computes it (its shadow map, then its contact shadow):
 // 1 when the light's flags say both are off, as fin shadows turn them off
@@ -162,17 +178,9 @@ fn bevy_clustered_shadow(id: u32, in: PbrInput) -> f32 {
             shadow = shadows::fetch_point_shadow(id, in.world_position, in.world_normal, in.frag_coord.xy);
         }
     }
-#ifdef CONTACT_SHADOWS
-#ifdef DEPTH_PREPASS
-    let steps = mesh_view_bindings::contact_shadows_settings.linear_steps;
-    if (steps > 0u && shadow > 0.0
-            && ((*light).flags & mesh_view_types::POINT_LIGHT_FLAGS_CONTACT_SHADOWS_ENABLED_BIT) != 0u) {
-        let L = normalize((*light).position_radius.xyz - in.world_position.xyz);
-        shadow *= pbr_functions::calculate_contact_shadow(in.world_position.xyz, in.frag_coord.xy, L, steps);
-    }
-#endif
-#endif
-    return shadow;
+    let contact = ((*light).flags & mesh_view_types::POINT_LIGHT_FLAGS_CONTACT_SHADOWS_ENABLED_BIT) != 0u;
+    return with_bevy_contact_shadow(shadow, in, normalize((*light).position_radius.xyz - in.world_position.xyz),
+        contact);
 }
 
 // The same for directional light `j` of the view.
@@ -186,17 +194,8 @@ fn bevy_directional_shadow(j: u32, in: PbrInput) -> f32 {
         shadow = shadows::fetch_directional_shadow(j, in.world_position, in.world_normal, view_z_of(in),
             in.frag_coord.xy);
     }
-#ifdef CONTACT_SHADOWS
-#ifdef DEPTH_PREPASS
-    let steps = mesh_view_bindings::contact_shadows_settings.linear_steps;
-    if (steps > 0u && shadow > 0.0
-            && ((*light).flags & mesh_view_types::DIRECTIONAL_LIGHT_FLAGS_CONTACT_SHADOWS_ENABLED_BIT) != 0u) {
-        shadow *= pbr_functions::calculate_contact_shadow(in.world_position.xyz, in.frag_coord.xy,
-            (*light).direction_to_light, steps);
-    }
-#endif
-#endif
-    return shadow;
+    let contact = ((*light).flags & mesh_view_types::DIRECTIONAL_LIGHT_FLAGS_CONTACT_SHADOWS_ENABLED_BIT) != 0u;
+    return with_bevy_contact_shadow(shadow, in, (*light).direction_to_light, contact);
 }
 
 // The index in the view's directional lights of the fin-shadowed sun in
@@ -318,6 +317,7 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
         let receiver = (pbr_input.flags & MESH_FLAGS_SHADOW_RECEIVER_BIT) != 0u;
         var input = lighting_input_of(pbr_input);
         var change = vec3(0.0);
+        let bevy_maps_kept = fin_lights.count.y != 0u;
         for (var i = 0u; i < min(fin_lights.count.x, MAX_FIN_LIGHTS); i += 1u) {
             let light = fin_lights.lights[i];
             if (light.info.z == 0u) {
@@ -335,7 +335,6 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
             }
             visibility = clamp(visibility, 0.0, 1.0);
             // With Bevy's maps off S is 1, and a fully lit pixel has nothing to change.
-            let bevy_maps_kept = light.info.w != 0u;
             let may_change = bevy_maps_kept || visibility < 1.0;
             if (light.info.x == KIND_OWN) {
                 change += visibility * fin_light_direct(&input, light.own);

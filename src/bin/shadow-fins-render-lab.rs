@@ -43,6 +43,24 @@ struct Cli {
     command: Command,
 }
 
+/// What the timing runs (`lights`, `scaling`) share.
+#[derive(Args)]
+struct TimedArgs {
+    /// Frames timed per configuration (median reported).
+    #[arg(long, default_value_t = 20)]
+    frames: u32,
+    #[arg(long, default_value_t = 320)]
+    width: u32,
+    #[arg(long, default_value_t = 240)]
+    height: u32,
+    /// Fin maps' (and Bevy's shadow maps') resolution.
+    #[arg(long, default_value_t = 1024)]
+    map_resolution: u32,
+    /// Also write the table here.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Render a grid of configurations per scene; score and time each.
@@ -70,38 +88,16 @@ enum Command {
         /// Light counts, comma-separated.
         #[arg(long, default_value = "1,2,4,8")]
         counts: String,
-        /// Frames timed per configuration (median reported).
-        #[arg(long, default_value_t = 20)]
-        frames: u32,
-        #[arg(long, default_value_t = 320)]
-        width: u32,
-        #[arg(long, default_value_t = 240)]
-        height: u32,
-        /// Fin maps' and Bevy's shadow maps' resolution.
-        #[arg(long, default_value_t = 1024)]
-        map_resolution: u32,
-        /// Also write the table here.
-        #[arg(long)]
-        out: Option<PathBuf>,
+        #[command(flatten)]
+        timed: TimedArgs,
     },
     /// Frame cost against the object count (cubes of one mesh), static and one moving; main and render world apart.
     Scaling {
         /// Object counts, comma-separated (1 to 100 000).
         #[arg(long, default_value = "10,100,1000,10000")]
         counts: String,
-        /// Frames timed per configuration (median reported).
-        #[arg(long, default_value_t = 20)]
-        frames: u32,
-        #[arg(long, default_value_t = 320)]
-        width: u32,
-        #[arg(long, default_value_t = 240)]
-        height: u32,
-        /// The fin maps' resolution.
-        #[arg(long, default_value_t = 1024)]
-        map_resolution: u32,
-        /// Also write the table here.
-        #[arg(long)]
-        out: Option<PathBuf>,
+        #[command(flatten)]
+        timed: TimedArgs,
     },
     /// A fin-shadowed sun (DirectionalLight) against the truth, beside Bevy's cascades.
     Sun {
@@ -208,12 +204,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Measure(args) => run_measure(args).map(|()| ExitCode::SUCCESS),
         Command::Stability { cases, samples, method, out } => run_stability(&cases, samples, &method, out),
-        Command::Lights { scene, counts, frames, width, height, map_resolution, out } => {
-            run_lights(&scene, &counts, frames, (width, height), map_resolution, out).map(|()| ExitCode::SUCCESS)
-        }
-        Command::Scaling { counts, frames, width, height, map_resolution, out } => {
-            run_scaling(&counts, frames, (width, height), map_resolution, out).map(|()| ExitCode::SUCCESS)
-        }
+        Command::Lights { scene, counts, timed } => run_lights(&scene, &counts, &timed).map(|()| ExitCode::SUCCESS),
+        Command::Scaling { counts, timed } => run_scaling(&counts, &timed).map(|()| ExitCode::SUCCESS),
         Command::Sun { scenes, angles, frames, width, height, map_resolution, samples, layers, out } => {
             let parsed = parse_sun(&scenes, &angles);
             parsed
@@ -244,35 +236,28 @@ fn main() -> ExitCode {
     })
 }
 
-fn run_lights(
-    scene: &str,
-    counts: &str,
-    frames: u32,
-    (width, height): (u32, u32),
-    map_resolution: u32,
-    out: Option<PathBuf>,
-) -> Result<(), LabError> {
+fn run_lights(scene: &str, counts: &str, timed: &TimedArgs) -> Result<(), LabError> {
+    let TimedArgs { frames, width, height, map_resolution, ref out } = *timed;
     let scene = SceneId::parse(scene).ok_or_else(|| usage(format!("unknown scene '{scene}'")))?;
     let max = bevy_shadow_fins::MAX_FIN_LIGHTS;
     let counts =
         parse_list("counts", counts, |s| s.parse::<usize>().ok().filter(|n| (1..=max).contains(n))).map_err(usage)?;
     let run = lights::LightsRun { scene, counts, frames: frames.max(1), width, height, map_resolution };
     let rows = lights::run(&run).map_err(usage)?;
-    let table = lights::markdown(&rows);
-    println!("{table}");
-    if let Some(path) = &out {
-        write(path, &table)?;
-    }
-    Ok(())
+    print_table(&lights::markdown(&rows), out)
 }
 
-fn run_scaling(
-    counts: &str,
-    frames: u32,
-    (width, height): (u32, u32),
-    map_resolution: u32,
-    out: Option<PathBuf>,
-) -> Result<(), LabError> {
+/// Prints a timing run's table, and writes it to `out` when given.
+fn print_table(table: &str, out: &Option<PathBuf>) -> Result<(), LabError> {
+    println!("{table}");
+    match out {
+        Some(path) => write(path, table),
+        None => Ok(()),
+    }
+}
+
+fn run_scaling(counts: &str, timed: &TimedArgs) -> Result<(), LabError> {
+    let TimedArgs { frames, width, height, map_resolution, ref out } = *timed;
     let counts = parse_list("counts", counts, |s| s.parse::<usize>().ok().filter(|n| (1..=100_000).contains(n)))
         .map_err(usage)?;
     let run = scaling::ScalingRun {
@@ -282,12 +267,7 @@ fn run_scaling(
         height: height.clamp(1, 4096),
         map_resolution,
     };
-    let table = scaling::markdown(&scaling::run(&run).map_err(usage)?);
-    println!("{table}");
-    if let Some(path) = &out {
-        write(path, &table)?;
-    }
-    Ok(())
+    print_table(&scaling::markdown(&scaling::run(&run).map_err(usage)?), out)
 }
 
 /// The sun run's scenes and angles (`scene` or a finite angle in [0, 1.4] rad).

@@ -26,6 +26,15 @@ fn run(app: &mut App, slot: &harness::Slot, frames: u32) -> Vec<f32> {
     harness::unpad(WIDTH, HEIGHT, &data).map(f32::from_le_bytes).collect()
 }
 
+/// `setup` with the box of `SceneId::BoxOverPlane` moved by `offset`.
+fn with_box_moved(setup: &harness::Setup, offset: Vec3) -> harness::Setup {
+    let mut moved = setup.clone();
+    for o in moved.scene.objects.iter_mut().filter(|o| o.name == "box") {
+        o.transform.translation += bevy::math::Vec3A::from(offset);
+    }
+    moved
+}
+
 /// The box of `SceneId::BoxOverPlane`: the mesh above the ground.
 fn the_box(world: &mut World) -> Entity {
     let mut meshes = world.query::<(Entity, &Mesh3d, &GlobalTransform)>();
@@ -193,10 +202,7 @@ fn parent_move_mesh_edit_and_despawn(settings: FinShadowSettings) {
     use bevy::mesh::VertexAttributeValues;
     let setup = setup(SceneId::BoxOverPlane, settings);
     let offset = Vec3::new(0.4, 0.0, -0.3);
-    let mut moved = setup.clone();
-    for o in moved.scene.objects.iter_mut().filter(|o| o.name == "box") {
-        o.transform.translation += bevy::math::Vec3A::from(offset);
-    }
+    let moved = with_box_moved(&setup, offset);
     let mut without_box = setup.clone();
     without_box.scene.objects.retain(|o| o.name != "box");
     let (expected_moved, expected_gone) = (render(&moved).visibility, render(&without_box).visibility);
@@ -250,10 +256,7 @@ fn a_still_scene_is_not_walked_again_and_a_moved_caster_moves_its_shadow() {
     // its shadow is then the one a fresh app renders with the box there.
     let setup = setup(SceneId::BoxOverPlane, settings());
     let offset = Vec3::new(0.4, 0.0, -0.3);
-    let mut moved = setup.clone();
-    for o in moved.scene.objects.iter_mut().filter(|o| o.name == "box") {
-        o.transform.translation += bevy::math::Vec3A::from(offset);
-    }
+    let moved = with_box_moved(&setup, offset);
     let expected = render(&moved).visibility;
     let mut session = harness::Session::new(&setup);
     let before = session.settle(6).expect("render").visibility;

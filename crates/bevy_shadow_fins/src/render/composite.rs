@@ -139,9 +139,7 @@ const KIND_BEVY_RECT: u32 = 4;
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 struct CompositeLight {
     own: FinLightUniform,
-    /// x: kind, y: Bevy's light index, z: 1 when this view's layer was written,
-    /// w: 1 when Bevy's own shadow map of the light is kept
-    /// ([`crate::BevyShadowMapsKept`]): the shader replaces its shadow by V.
+    /// x: kind, y: Bevy's light index, z: 1 when this view's layer was written.
     info: [u32; 4],
 }
 
@@ -149,6 +147,9 @@ struct CompositeLight {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 struct CompositeLights {
+    /// x: the light slots in use; y: 1 while Bevy's own shadow maps of
+    /// fin-shadowed lights are kept ([`crate::BevyShadowMapsKept`]: the shader
+    /// replaces their shadow by V).
     count: [u32; 4],
     lights: [CompositeLight; MAX_FIN_LIGHTS],
 }
@@ -309,6 +310,7 @@ fn composite_lights(
 ) -> CompositeLights {
     let mut out = CompositeLights::zeroed();
     out.count[0] = frames.0.len().min(MAX_FIN_LIGHTS) as u32;
+    out.count[1] = bevy_maps_kept as u32;
     for (slot, frame) in frames.0.iter().take(MAX_FIN_LIGHTS).enumerate() {
         let none = (KIND_NONE, FinLightUniform::zeroed(), 0);
         let (kind, own, id) = match frame.shading {
@@ -323,7 +325,7 @@ fn composite_lights(
                     .map_or(none, |&id| (KIND_BEVY, FinLightUniform::zeroed(), id as u32)),
             },
         };
-        out.lights[slot] = CompositeLight { own, info: [kind, id, 0, bevy_maps_kept as u32] };
+        out.lights[slot] = CompositeLight { own, info: [kind, id, 0, 0] };
     }
     out
 }

@@ -396,16 +396,20 @@ fn sheet_tau(s: &Sheet, q: Vec2) -> f32 {
 mod tests {
     use super::*;
 
-    /// Brute force over `u`: the closed form finds the same minimum.
-    #[test]
-    fn the_sheet_minimum_in_closed_form_matches_a_dense_search() {
-        let mut seed = 7u32;
-        let mut rnd = || {
+    /// Uniform numbers in [0, 1] from a xorshift32 generator seeded with `seed`.
+    fn xorshift(mut seed: u32) -> impl FnMut() -> f32 {
+        move || {
             seed ^= seed << 13;
             seed ^= seed >> 17;
             seed ^= seed << 5;
             seed as f32 / u32::MAX as f32
-        };
+        }
+    }
+
+    /// Brute force over `u`: the closed form finds the same minimum.
+    #[test]
+    fn the_sheet_minimum_in_closed_form_matches_a_dense_search() {
+        let mut rnd = xorshift(7);
         for _ in 0..500 {
             let s = Sheet {
                 p1: Vec2::new(rnd(), rnd()) * 4.0,
@@ -433,13 +437,7 @@ mod tests {
     /// The same for parallelogram cones: the ends and kinks hold the minimum.
     #[test]
     fn the_parallelogram_sheet_minimum_at_ends_and_kinks_matches_a_dense_search() {
-        let mut seed = 11u32;
-        let mut rnd = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed as f32 / u32::MAX as f32
-        };
+        let mut rnd = xorshift(11);
         for _ in 0..500 {
             // Sheared and unequal, but far from flat (det ≥ 0.25), so the
             // dense search's steps stay fine against the norm's slope.

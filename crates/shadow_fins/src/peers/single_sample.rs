@@ -50,7 +50,7 @@ use crate::{
     bvh::{Bvh, ray_hits_box},
     light::{Aperture, Projection},
     oracle::Receiver,
-    peers::across,
+    peers::{across, clip_convex},
     refine::Falloff,
     scene::{LightSpaceScene, surface_epsilon},
 };
@@ -185,9 +185,9 @@ impl SingleSampleModel {
                 }
                 // Between the receiver's depth and the light's plane: where a
                 // point can stand between the receiver and some of the light.
-                let mut poly: Vec<Vec3> = clip(tri, |p| o.z - p.z - t_min);
+                let mut poly: Vec<Vec3> = clip_convex(tri, |p| o.z - p.z - t_min);
                 if perspective {
-                    poly = clip(&poly, |p| p.z);
+                    poly = clip_convex(&poly, |p| p.z);
                 }
                 if poly.len() < 3 {
                     return;
@@ -234,9 +234,9 @@ fn angular_distance(
     perspective: bool,
 ) -> Option<f32> {
     let mut poly: Vec<Vec3> = tri.to_vec();
-    poly = clip(&poly, |p| (p - o).dot(v) - t_min);
+    poly = clip_convex(&poly, |p| (p - o).dot(v) - t_min);
     if perspective {
-        poly = clip(&poly, |p| p.z);
+        poly = clip_convex(&poly, |p| p.z);
     }
     if poly.len() < 3 {
         return None;
@@ -251,23 +251,6 @@ fn angular_distance(
         })
         .collect();
     Some(distance_to_convex_polygon(&projected))
-}
-
-/// Sutherland–Hodgman: the part of a convex polygon where `side(p) >= 0`.
-fn clip(poly: &[Vec3], side: impl Fn(Vec3) -> f32) -> Vec<Vec3> {
-    let mut out = Vec::with_capacity(poly.len() + 1);
-    for i in 0..poly.len() {
-        let (p, q) = (poly[i], poly[(i + 1) % poly.len()]);
-        let (sp, sq) = (side(p), side(q));
-        if sp >= 0.0 {
-            out.push(p);
-        }
-        if (sp >= 0.0) != (sq >= 0.0) {
-            let t = sp / (sp - sq);
-            out.push(p + (q - p) * t);
-        }
-    }
-    out
 }
 
 /// Distance from the origin to a convex polygon (0 inside).
@@ -362,7 +345,7 @@ mod tests {
     #[test]
     fn clipping_keeps_the_part_in_front() {
         let tri = [Vec3::new(0.0, 0.0, -1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0)];
-        let front = clip(&tri, |p| p.z);
+        let front = clip_convex(&tri, |p| p.z);
         assert_eq!(front.len(), 4);
         assert!(front.iter().all(|p| p.z >= -1e-6));
     }

@@ -77,6 +77,7 @@ use crate::{
     light::{Aperture, LightFrame},
     mesh::NO_FACE,
     oracle::{FinExtractor, Receiver},
+    peers::clip_convex,
     scene::{LightSpaceScene, Scene, surface_epsilon},
     silhouette::NO_PATCH,
 };
@@ -243,27 +244,11 @@ pub fn area_behind_rect(a: Vec2, b: Vec2, h: Vec2, k: usize) -> Option<(f32, Vec
     let n = if n.dot(p1) < 0.0 { -n } else { n };
     let far = n.dot(p1);
     let mut poly = vec![DVec2::ZERO, DVec2::new(sg.x * h.x, 0.0), sg * h, DVec2::new(0.0, sg.y * h.y)];
-    poly = clip_polygon(&poly, |s| o * p1.perp_dot(s));
-    poly = clip_polygon(&poly, |s| o * s.perp_dot(p2));
-    poly = clip_polygon(&poly, |s| n.dot(s) - far);
+    poly = clip_convex(&poly, |s| o * p1.perp_dot(s));
+    poly = clip_convex(&poly, |s| o * s.perp_dot(p2));
+    poly = clip_convex(&poly, |s| n.dot(s) - far);
     let area = 0.5 * (0..poly.len()).map(|i| poly[i].perp_dot(poly[(i + 1) % poly.len()])).sum::<f64>().abs();
     Some((area as f32, p1.as_vec2(), p2.as_vec2()))
-}
-
-/// The part of a convex polygon where `side ≥ 0` (Sutherland–Hodgman).
-fn clip_polygon(poly: &[DVec2], side: impl Fn(DVec2) -> f64) -> Vec<DVec2> {
-    let mut out = Vec::with_capacity(poly.len() + 1);
-    for i in 0..poly.len() {
-        let (p, q) = (poly[i], poly[(i + 1) % poly.len()]);
-        let (sp, sq) = (side(p), side(q));
-        if sp >= 0.0 {
-            out.push(p);
-        }
-        if (sp >= 0.0) != (sq >= 0.0) {
-            out.push(p + (q - p) * (sp / (sp - sq)));
-        }
-    }
-    out
 }
 
 /// Does the segment from the origin to `u` cross the segment `a b`?
