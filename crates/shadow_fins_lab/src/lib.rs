@@ -1,8 +1,10 @@
 //! The lab's library: scenes and method settings from flags, evaluation of a
 //! method or the ground truth over receivers, side-by-side comparisons, PNG
-//! pictures and plots. The `shadow-fins-lab` binary (CPU oracle) and the
-//! `shadow-fins-render-lab` binary (the plugin rendered by Bevy) share it.
+//! pictures and plots, and our own glTF test assets. The `shadow-fins-lab`
+//! binary (CPU oracle) and the `shadow-fins-render-lab` binary (the plugin
+//! rendered by Bevy) share it.
 
+pub mod assets;
 pub mod compare;
 pub mod eval;
 pub mod grid;

@@ -4,7 +4,9 @@
 //! - `image`: a camera view rendered by each method beside the ground truth,
 //!   with error heat maps, and the error table;
 //! - `report`: the error table of every built-in scene (for BENCHMARKS.md);
-//! - `export-gltf`: writes a built-in scene as a glTF file.
+//! - `export-gltf`: writes a built-in scene as a glTF file;
+//! - `make-assets`: writes our glTF test assets (courtyard, leaf cards,
+//!   skinned arm, morph blob), the same bytes every run.
 
 use std::{io::Write, path::PathBuf};
 
@@ -104,6 +106,14 @@ enum Command {
         #[arg(long, default_value = "box-over-plane")]
         scene: String,
         #[arg(long)]
+        out: PathBuf,
+    },
+    /// Write our own glTF test assets (a textured courtyard with a node
+    /// hierarchy, a spot light and a camera; alpha-masked leaf cards; a
+    /// skinned arm; a morph-target blob), the same bytes every run.
+    MakeAssets {
+        /// Folder to write them into (made if missing).
+        #[arg(long, default_value = "assets")]
         out: PathBuf,
     },
 }
@@ -345,6 +355,11 @@ fn run(command: Command) -> Result<(), LabError> {
             let text = shadow_fins::gltf_import::write_gltf(&id.build().scene);
             write_text(Some(&out), &text)?;
             eprintln!("wrote {}", out.display());
+        }
+        Command::MakeAssets { out } => {
+            for path in shadow_fins_lab::assets::write_all(&out)? {
+                eprintln!("wrote {}", path.display());
+            }
         }
     }
     Ok(())
