@@ -19,6 +19,9 @@
 //! - [`ground_truth`]: many-sample disk visibility through a [`bvh::Bvh`];
 //! - [`metrics`]: error against ground truth over the shadowed region;
 //! - [`scenes`]: procedural scenes mirroring the paper's figures;
+//! - [`default_view`]: a light and a camera that make any scene readable —
+//!   the subject without the ground that dwarfs it, rooms seen from inside,
+//!   the same view at any scale;
 //! - `gltf` (feature `gltf`): glTF files into the core's meshes.
 //!
 //! The exact semantics are in the repository's `DESIGN.md` §3.
@@ -39,6 +42,7 @@ pub mod bvh;
 pub mod camera;
 pub mod cell_grid;
 pub mod coverage;
+pub mod default_view;
 pub mod error;
 pub mod fins;
 #[cfg(feature = "gltf")]

@@ -19,16 +19,13 @@ pub struct BuiltinScene {
     pub camera: Camera,
 }
 
-/// A light and a camera for an arbitrary scene (an imported glTF): a disk of
-/// radius 5% of the scene's diagonal, one diagonal above its centre, facing
-/// down, and a camera 1.2 diagonals away looking at the centre. `None` for an
-/// empty scene.
+/// A light and a camera for an arbitrary scene (an imported glTF): the light
+/// and camera of [`crate::default_view::default_view_of`], which finds the
+/// subject without its ground, sees a room from inside and scales with the
+/// scene; use that for the light's power distance and the clip planes.
+/// `None` for an empty scene.
 pub fn default_view(scene: &Scene) -> Option<(Light, Camera)> {
-    let (lo, hi) = scene.bounds()?;
-    let (center, size) = ((lo + hi) * 0.5, (hi - lo).length().max(1e-6));
-    let light = DiskLight::new(center + Vec3::Y * size, Vec3::NEG_Y, size * 0.05).ok()?;
-    let camera = Camera::looking_at(center + Vec3::new(0.6, 0.7, 0.9).normalize() * size * 1.2, center);
-    Some((Light::Disk(light), camera))
+    crate::default_view::default_view_of(scene).map(|view| (view.light, view.camera))
 }
 
 /// The built-in scenes.
