@@ -168,6 +168,9 @@ pub(crate) enum LightShading {
 pub struct FinLightFrame {
     /// The light's (main-world) entity.
     pub light: Entity,
+    /// The light as the core crate models it (its disk, rectangle or sun):
+    /// what an oracle or a ground truth of this light should be given.
+    pub shape: Light,
     pub(crate) shading: LightShading,
     pub data: Arc<FinFrameData>,
 }
@@ -192,7 +195,7 @@ impl FinFrames {
 #[derive(Component, Debug, Clone, Copy, Default, PartialEq)]
 pub struct FinLightStats(pub FinFrameStats);
 
-type CachedMesh = Result<(Arc<CoreMesh>, Arc<Topology>, Arc<GpuMeshGeometry>), FinSceneError>;
+pub(crate) type CachedMesh = Result<(Arc<CoreMesh>, Arc<Topology>, Arc<GpuMeshGeometry>), FinSceneError>;
 
 /// Per light: what its frame was built from and the GPU extraction's state.
 #[derive(Default)]
@@ -460,11 +463,11 @@ pub(crate) struct CasterFlags {
 }
 
 impl CasterFlagsItem<'_, '_> {
-    fn drawn(&self) -> bool {
+    pub(crate) fn drawn(&self) -> bool {
         self.visibility.is_none_or(|v| v.get())
     }
 
-    fn casts(&self) -> bool {
+    pub(crate) fn casts(&self) -> bool {
         !self.not_fin_caster && !self.not_bevy_caster
     }
 
@@ -715,7 +718,7 @@ fn update_fin_frames(
         let sees = LightSees { reach: source.reach, layers: &source.layers };
         let data = light_frame(scene, light, source.window, sees, source.settings, generation, limits, state);
         set_stats(&mut light_stats, source.entity, data.stats);
-        next.push(FinLightFrame { light: source.entity, shading: source.shading, data: Arc::new(data) });
+        next.push(FinLightFrame { light: source.entity, shape: light, shading: source.shading, data: Arc::new(data) });
     }
     if !changed {
         return;
@@ -1324,7 +1327,7 @@ fn gpu_fin(f: &Fin, layer: u32) -> GpuFin {
 
 /// A Bevy mesh's triangles as the core's mesh, with its topology and its
 /// packed GPU geometry.
-fn core_mesh(mesh: &Mesh) -> CachedMesh {
+pub(crate) fn core_mesh(mesh: &Mesh) -> CachedMesh {
     if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
         return Err(FinSceneError::NotTriangles);
     }

@@ -88,7 +88,11 @@
 //! [`NotFinShadowReceiver`]; a mesh hidden by `Visibility` casts nothing;
 //! a mesh casts only for lights whose `RenderLayers` it shares, as in Bevy's
 //! own shadow maps — without the component both are on layer 0); materials are
-//! unchanged. 3D cameras that show fin-shadowed scenes carry
+//! unchanged. [`scene_snapshot`] hands that set to the core crate as a
+//! `Scene` (what a CPU oracle or ground truth of the world must trace: a
+//! glTF as Bevy spawned it, say), and [`give_gltf_lights_fin_shadows`] gives
+//! a spawned glTF's spot and directional lights fin shadows with a physical
+//! radius from their `extras` (Bevy 0.19's loader sets it to the range). 3D cameras that show fin-shadowed scenes carry
 //! [`FinShadowView`], which adds the deferred prepass the compositing reads.
 //! Forward materials are not lit by a [`FinLight`] (it has no Bevy
 //! counterpart to fall back on).
@@ -150,10 +154,12 @@ mod bevy_shadow_maps;
 mod budget;
 mod coverage_frame;
 mod extract;
+mod gltf_lights;
 mod gpu_scene;
 mod light;
 mod receivers;
 mod render;
+mod snapshot;
 mod sun_fit;
 
 pub use bevy_shadow_maps::BevyShadowMapsKept;
@@ -162,12 +168,14 @@ pub use extract::{
     FinCasterScans, FinFrameStats, FinFrames, FinLightFrame, FinLightStats, FinSceneError, FinShadowStats,
     MAX_FIN_LIGHTS,
 };
+pub use gltf_lights::{GltfLightsAdopted, give_gltf_lights_fin_shadows, gltf_light_radius};
 pub use light::{
     FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster,
     NotFinShadowReceiver,
 };
 pub use receivers::FinReceivers;
 pub use shadow_fins;
+pub use snapshot::{FinSceneSnapshot, FinSnapshotSkip, scene_snapshot};
 
 use bevy::prelude::*;
 

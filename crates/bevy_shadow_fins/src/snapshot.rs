@@ -1,0 +1,83 @@
+//! The scene as the plugin sees it, as the core crate's [`Scene`]: what a CPU
+//! oracle or a ground truth of a Bevy world (a glTF as Bevy loaded it, say)
+//! must be given to judge the plugin on the same triangles.
+
+use bevy::{ecs::system::SystemState, prelude::*};
+use shadow_fins::scene::{Scene, SceneObject};
+
+use crate::{
+    NotFinShadowReceiver,
+    extract::{CasterFlags, FinSceneError, core_mesh},
+};
+
+/// A Bevy world's meshes as the core's scene, and the meshes left out.
+#[derive(Debug, Clone, Default)]
+pub struct FinSceneSnapshot {
+    /// Every drawn mesh the plugin reads, at its `GlobalTransform`: casters
+    /// as the plugin's casters (not `NotFinShadowCaster`, not Bevy's
+    /// `NotShadowCaster`), receivers as its receivers.
+    pub scene: Scene,
+    /// Drawn meshes that are not in `scene`, and why: not loaded yet, not a
+    /// triangle list, GPU-only data, invalid geometry or a degenerate transform.
+    pub skipped: Vec<(Entity, FinSnapshotSkip)>,
+}
+
+/// Why a drawn mesh is not in a [`FinSceneSnapshot`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum FinSnapshotSkip {
+    /// Its `Mesh` asset is not loaded (or was removed).
+    NotLoaded,
+    /// The plugin cannot read it either (it casts no fin shadow).
+    Unreadable(FinSceneError),
+    /// Its `GlobalTransform` is degenerate (zero scale) or not finite.
+    BadTransform,
+}
+
+/// The drawn meshes of `world` (those under `root` only, when given: the
+/// entities spawned for one glTF scene, say) as the core's [`Scene`], with
+/// the same triangles, transforms and caster/receiver flags the plugin's
+/// extraction uses. Hidden meshes (`InheritedVisibility`) are left out, as
+/// the plugin leaves them out. Skinned and morphed meshes are their bind pose
+/// (as the plugin's casters are, for now). Object names are the entities'
+/// `Name`s where they have one.
+pub fn scene_snapshot(world: &mut World, root: Option<Entity>) -> FinSceneSnapshot {
+    #[allow(clippy::type_complexity)]
+    let mut state: SystemState<(
+        Query<(Entity, &Mesh3d, &GlobalTransform, CasterFlags, Has<NotFinShadowReceiver>, Option<&Name>)>,
+        Query<&ChildOf>,
+        Res<Assets<Mesh>>,
+    )> = SystemState::new(world);
+    // No `Assets<Mesh>` (a world without Bevy's render plugins): no meshes.
+    let Ok((meshes, parents, assets)) = state.get(world) else { return FinSceneSnapshot::default() };
+    let under_root =
+        |entity: Entity| root.is_none_or(|root| entity == root || parents.iter_ancestors(entity).any(|a| a == root));
+    let mut converted = bevy::platform::collections::HashMap::new();
+    let mut snapshot = FinSceneSnapshot::default();
+    for (entity, mesh3d, transform, flags, not_receiver, name) in &meshes {
+        if !flags.drawn() || !under_root(entity) {
+            continue;
+        }
+        let Some(mesh) = assets.get(mesh3d.id()) else {
+            snapshot.skipped.push((entity, FinSnapshotSkip::NotLoaded));
+            continue;
+        };
+        let core = converted.entry(mesh3d.id()).or_insert_with(|| core_mesh(mesh));
+        let (core, topology, _) = match core {
+            Ok(c) => c,
+            Err(e) => {
+                snapshot.skipped.push((entity, FinSnapshotSkip::Unreadable(e.clone())));
+                continue;
+            }
+        };
+        let name = name.map_or_else(|| format!("{entity}"), |n| n.as_str().to_owned());
+        match SceneObject::shared(name, core.clone(), topology.clone(), transform.affine()) {
+            Ok(mut object) => {
+                object.casts_shadows = flags.casts();
+                object.receives_shadows = !not_receiver;
+                snapshot.scene.objects.push(object);
+            }
+            Err(_) => snapshot.skipped.push((entity, FinSnapshotSkip::BadTransform)),
+        }
+    }
+    snapshot
+}
