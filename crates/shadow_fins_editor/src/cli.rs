@@ -96,6 +96,7 @@ fn take_screenshot_when_due(
     state: Res<EditorState>,
     main_light: Query<&bevy_shadow_fins::FinLightStats, With<crate::scene::EditorLight>>,
     frames: Res<bevy_shadow_fins::FinFrames>,
+    loading: Query<(), With<crate::gltf_scene::PendingGltf>>,
     mut requested_at: Local<Option<u32>>,
     mut exit: MessageWriter<AppExit>,
 ) {
@@ -108,8 +109,9 @@ fn take_screenshot_when_due(
         return;
     }
     let due = options.frames.max(1);
-    // Every light's counts, the main light's and those of "More lights".
-    let settled = main_light.iter().all(|s| s.0.up_to_date) || frames.0.is_empty();
+    // Every light's counts, the main light's and those of "More lights"; a
+    // glTF still loading is not the scene asked for.
+    let settled = (main_light.iter().all(|s| s.0.up_to_date) || frames.0.is_empty()) && loading.is_empty();
     if state.frames < due || (!settled && state.frames < due + SETTLE_LIMIT_FRAMES) {
         return;
     }
@@ -117,6 +119,12 @@ fn take_screenshot_when_due(
         warn!("fin shadows not settled {SETTLE_LIMIT_FRAMES} frames after --frames; taking the screenshot anyway");
     }
     *requested_at = Some(state.frames);
+    // What the panel shows, for whoever runs the editor from a script.
+    for (label, line) in [("status", &state.status), ("error", &state.error)] {
+        if let Some(line) = line {
+            println!("editor {label}: {line}");
+        }
+    }
     commands.spawn(Screenshot::primary_window()).observe(
         move |captured: On<ScreenshotCaptured>, mut exit: MessageWriter<AppExit>| {
             let saved = captured.image.clone().try_into_dynamic().map_err(|e| e.to_string()).and_then(|image| {

@@ -15,8 +15,10 @@
 
 mod autosave;
 mod cli;
+mod gltf_scene;
 mod lights;
 mod orbit;
+mod picking;
 mod scene;
 mod settings_file;
 mod truth;
@@ -25,6 +27,7 @@ mod views;
 
 pub use autosave::AutosaveOption;
 pub use cli::{CliError, EditorOptions};
+pub use gltf_scene::{READABLE_LUX, readable_lumens};
 pub use scene::{EditorMethod, LightParams, SceneSource};
 pub use settings_file::{EditorSettings, SettingsFileError, check_settings_text};
 pub use truth::GroundTruthStatus;
@@ -70,6 +73,7 @@ impl Plugin for EditorPlugin {
         truth::build(app);
         ui::build(app);
         lights::build(app);
+        picking::build(app);
         cli::build(app);
         autosave::build(app);
     }
@@ -90,14 +94,20 @@ pub fn main_from_args() -> AppExit {
 /// Runs the editor with `options` in a window.
 pub fn run(options: EditorOptions) -> AppExit {
     App::new()
-        .add_plugins(DefaultPlugins.set(WindowPlugin {
-            primary_window: Some(Window {
-                title: "shadow fins editor".into(),
-                resolution: WindowResolution::new(1280, 800),
-                ..default()
-            }),
-            ..default()
-        }))
+        .add_plugins(
+            DefaultPlugins
+                .set(WindowPlugin {
+                    primary_window: Some(Window {
+                        title: "shadow fins editor".into(),
+                        resolution: WindowResolution::new(1280, 800),
+                        ..default()
+                    }),
+                    ..default()
+                })
+                // The user opens glTFs from anywhere (a path, a drop), not
+                // only from Bevy's asset folder.
+                .set(AssetPlugin { unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow, ..default() }),
+        )
         .add_plugins(EditorPlugin { options })
         .run()
 }

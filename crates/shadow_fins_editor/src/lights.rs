@@ -32,7 +32,9 @@ fn new_light_transform(params: &LightParams, index: usize) -> Transform {
     let direction = params.direction.try_normalize().unwrap_or(Vec3::NEG_Y);
     let (u, v) = direction.any_orthonormal_pair();
     let a = index as f32 * 2.4;
-    let offset = (u * a.cos() + v * a.sin()) * (params.position.length() * 0.25).max(0.5);
+    // At least two light radii apart, whatever the scene's scale.
+    let apart = (params.position.length() * 0.25).max(params.radius.max(1e-6) * 2.0);
+    let offset = (u * a.cos() + v * a.sin()) * apart;
     LightParams { position: params.position + offset, ..*params }.transform()
 }
 

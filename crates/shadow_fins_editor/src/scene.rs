@@ -13,13 +13,12 @@ use bevy::{
 use bevy_egui::input::EguiWantsInput;
 use bevy_shadow_fins::{FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster};
 use shadow_fins::{
-    camera::Camera as CoreCamera,
     light::{DiskLight, Light, RectLight as RectArea, SunLight},
     scene::Scene,
     scenes::SceneId,
 };
 
-use crate::{EditorOptions, EditorState, orbit::OrbitCamera, settings_file::EditorSettings};
+use crate::{EditorOptions, EditorState, gltf_scene, orbit::OrbitCamera, settings_file::EditorSettings};
 
 /// Where the scene comes from.
 #[derive(Debug, Clone, PartialEq)]
@@ -36,6 +35,9 @@ pub struct LoadedScene {
     pub scene: Arc<Scene>,
     /// Bumped on every load, so derived data (ground truth) restarts.
     pub generation: u64,
+    /// The scene's bounding-box diagonal: what the light's range, the
+    /// camera's near plane and zoom, and the light marker scale by.
+    pub extent: f32,
 }
 
 /// How the light is rendered.
@@ -229,27 +231,17 @@ impl LoadScene {
 }
 
 pub(crate) fn build(app: &mut App) {
-    app.add_message::<LoadScene>()
-        .add_systems(Startup, (spawn_rig, request_initial_scene).chain())
-        .add_systems(Update, (load_dropped_files, load_scene, drag_light_with_shift, sync_light, sync_marker).chain());
+    app.add_message::<LoadScene>().add_systems(Startup, (spawn_rig, request_initial_scene).chain()).add_systems(
+        Update,
+        (load_dropped_files, load_scene, gltf_scene::finish_gltf_loads, drag_light_with_shift, sync_light, sync_marker)
+            .chain(),
+    );
 }
 
-/// Reads a scene: the built-in demo, or a glTF through the core's importer.
-pub fn read_scene(source: &SceneSource) -> Result<(String, Scene, Light, CoreCamera), String> {
-    match source {
-        SceneSource::Demo => {
-            let demo = SceneId::Demo.build();
-            Ok(("demo".into(), demo.scene, demo.light, demo.camera))
-        }
-        SceneSource::Gltf(path) => {
-            let import = shadow_fins::gltf_import::load_gltf(path)
-                .map_err(|e| format!("could not open {}: {e}", path.display()))?;
-            let (light, camera) = shadow_fins::scenes::default_view(&import.scene)
-                .ok_or_else(|| format!("{} has no usable mesh", path.display()))?;
-            let name = path.file_name().map_or("scene".into(), |n| n.to_string_lossy().into_owned());
-            Ok((name, import.scene, light, camera))
-        }
-    }
+/// The light's range: the whole scene from anywhere in it, at any scale
+/// (at least Bevy's default range, so a small scene's light is not cut).
+pub(crate) fn light_range(scene: Option<&LoadedScene>) -> f32 {
+    scene.map_or(1000.0, |s| (s.extent * 10.0).max(1000.0))
 }
 
 /// Whether the settings the editor started from (`--settings` or the
@@ -354,33 +346,37 @@ fn load_dropped_files(mut drops: MessageReader<FileDragAndDrop>, mut load: Messa
     }
 }
 
-/// Replaces the scene's meshes; a broken file leaves the current scene and
-/// shows the error.
+/// Replaces the scene: the demo at once; a glTF is handed to Bevy's loader
+/// and replaces the scene once spawned (`gltf_scene.rs`). A broken file
+/// leaves the current scene and shows the error.
 #[allow(clippy::too_many_arguments)]
 fn load_scene(
     mut commands: Commands,
     mut requests: MessageReader<LoadScene>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
-    old: Query<Entity, With<EditorMesh>>,
-    mut params: ResMut<LightParams>,
-    mut cameras: Query<&mut OrbitCamera>,
+    assets: Res<AssetServer>,
+    old: Query<Entity, Or<(With<EditorMesh>, With<gltf_scene::EditorSceneRoot>)>>,
     loaded: Option<Res<LoadedScene>>,
     mut state: ResMut<EditorState>,
 ) {
     let Some(LoadScene { source, keep_light }) = requests.read().last().cloned() else { return };
-    let (name, scene, light, camera) = match read_scene(&source) {
-        Ok(s) => s,
-        Err(e) => {
-            state.error = Some(e);
+    let path = match source {
+        SceneSource::Gltf(path) => {
+            // An earlier error (a bad settings file, a broken glTF) stays until dismissed.
+            match gltf_scene::start_gltf_load(&mut commands, &assets, &path, keep_light) {
+                Ok(()) => state.status = Some(format!("loading {}…", path.display())),
+                Err(e) => state.error = Some(e),
+            }
             return;
         }
+        SceneSource::Demo => SceneId::Demo.build(),
     };
     for e in &old {
         commands.entity(e).despawn();
     }
     let material = materials.add(StandardMaterial { perceptual_roughness: 0.8, ..default() });
-    for object in &scene.objects {
+    for object in &path.scene.objects {
         let mesh = meshes.add(bevy_shadow_fins::mesh_from_core(&object.mesh));
         let mut e = commands.spawn((
             EditorMesh,
@@ -392,19 +388,11 @@ fn load_scene(
             e.insert(NotFinShadowCaster);
         }
     }
-    // A new glTF gets its own light and view; the demo keeps the user's light.
-    if let (SceneSource::Gltf(_), Light::Disk(disk), false) = (&source, light, keep_light) {
-        params.position = disk.center;
-        params.direction = disk.normal;
-        params.radius = disk.radius;
-        for mut orbit in &mut cameras {
-            *orbit = OrbitCamera::looking_at(camera.position, camera.target);
-        }
-    }
+    // The demo keeps the user's light and view.
     let generation = loaded.map_or(1, |l| l.generation + 1);
-    commands.insert_resource(LoadedScene { name: name.clone(), scene: Arc::new(scene), generation });
-    // An earlier error (a bad settings file, a broken glTF) stays until dismissed.
-    state.status = Some(format!("loaded {name}"));
+    let extent = path.scene.bounds().map_or(1.0, |(lo, hi)| (hi - lo).length());
+    commands.insert_resource(LoadedScene { name: "demo".into(), scene: Arc::new(path.scene), generation, extent });
+    state.status = Some("loaded demo".into());
 }
 
 /// The light's "drag gizmo": Shift + drag in the viewport moves the light
@@ -449,6 +437,7 @@ pub(crate) fn rect_intensity(intensity: f32) -> f32 {
 fn sync_light(
     mut commands: Commands,
     params: Res<LightParams>,
+    loaded: Option<Res<LoadedScene>>,
     mut lights: Query<
         (
             Entity,
@@ -471,7 +460,7 @@ fn sync_light(
     let color = Color::srgb(params.color[0], params.color[1], params.color[2]);
     let radius = params.radius.max(0.0);
     let intensity = params.intensity.max(0.0);
-    let range = 1000.0;
+    let range = light_range(loaded.as_deref());
     match params.method.fin_method() {
         Some(method) => {
             if settings.method != method {
@@ -579,16 +568,22 @@ fn sync_light(
     }
 }
 
-fn sync_marker(params: Res<LightParams>, mut marker: Query<&mut Transform, With<LightMarker>>) {
-    if params.is_changed() {
+fn sync_marker(
+    params: Res<LightParams>,
+    loaded: Option<Res<LoadedScene>>,
+    mut marker: Query<&mut Transform, With<LightMarker>>,
+) {
+    if params.is_changed() || loaded.as_ref().is_some_and(|l| l.is_changed()) {
+        // Seen at any scale: at least half a percent of the scene.
+        let least = loaded.map_or(0.02, |l| l.extent * 0.005);
         for mut t in &mut marker {
             let scale = match params.kind {
                 // The rectangle as a flat box of its half sizes.
                 LightKind::Rect => {
                     let (w, h) = params.rect_size();
-                    Vec3::new((w * 0.5).max(0.02), (h * 0.5).max(0.02), 0.05 * params.radius.max(0.02))
+                    Vec3::new((w * 0.5).max(least), (h * 0.5).max(least), 0.05 * params.radius.max(least))
                 }
-                _ => Vec3::new(1.0, 1.0, 0.05) * params.radius.max(0.02),
+                _ => Vec3::new(1.0, 1.0, 0.05) * params.radius.max(least),
             };
             *t = params.transform().with_scale(scale);
         }
@@ -607,7 +602,7 @@ mod tests {
     /// The scene loading alone, on a headless app.
     fn app() -> App {
         let mut app = App::new();
-        app.add_plugins(MinimalPlugins)
+        app.add_plugins((MinimalPlugins, AssetPlugin::default()))
             .init_resource::<Assets<Mesh>>()
             .init_resource::<Assets<StandardMaterial>>()
             .init_resource::<EditorState>()

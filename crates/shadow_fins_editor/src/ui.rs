@@ -112,6 +112,10 @@ fn panels(
         egui::ScrollArea::vertical().show(ui, |ui| {
             ui.heading("Light");
             let mut p = *params;
+            // Slider ranges follow the scene's size (egui clamps a value to
+            // its slider's range: a fixed range would cut a kilometre light).
+            let extent = scene.as_ref().map_or(10.0, |s| s.extent);
+            let (max_radius, max_lumens) = slider_ranges(extent);
             // Wrapped: four kinds in one row would widen the panel over the view.
             ui.horizontal_wrapped(|ui| {
                 for kind in LightKind::ALL {
@@ -131,7 +135,7 @@ fn panels(
                     });
                 }
             });
-            vec3_row(ui, "position", &mut p.position, 0.05);
+            vec3_row(ui, "position", &mut p.position, (extent * 0.005) as f64);
             vec3_row(ui, "direction", &mut p.direction, 0.01);
             ui.small("Shift+drag in the view moves the light; Shift+Ctrl+drag raises it.");
             if p.kind == LightKind::Sun {
@@ -147,17 +151,17 @@ fn panels(
                 ui.add(egui::Slider::new(&mut p.illuminance, 0.0..=1e5).text("illuminance (lx)").logarithmic(true));
             } else {
                 ui.add(
-                    egui::Slider::new(&mut p.radius, 0.0..=5.0)
+                    egui::Slider::new(&mut p.radius, 0.0..=max_radius)
                         .text("radius")
                         .logarithmic(true)
-                        .smallest_positive(1e-3),
+                        .smallest_positive((max_radius as f64) * 1e-4),
                 );
                 if p.kind == LightKind::Rect {
                     ui.add(egui::Slider::new(&mut p.rect_aspect, 0.05..=20.0).text("width ÷ height").logarithmic(true));
                     let (w, h) = p.rect_size();
                     ui.small(format!("{w:.3} × {h:.3} (the area of the disk of this radius)"));
                 }
-                ui.add(egui::Slider::new(&mut p.intensity, 0.0..=1e8).text("intensity (lm)").logarithmic(true));
+                ui.add(egui::Slider::new(&mut p.intensity, 0.0..=max_lumens).text("intensity (lm)").logarithmic(true));
             }
             ui.horizontal(|ui| {
                 ui.label("colour");
@@ -365,12 +369,22 @@ fn panels(
 }
 
 fn vec3_row(ui: &mut egui::Ui, label: &str, v: &mut Vec3, speed: f64) {
+    // Enough decimals to show one drag step (a millimetre scene's too).
+    let decimals = ((-speed.log10()).ceil() as usize + 1).clamp(3, 12);
     ui.horizontal(|ui| {
         ui.label(label);
         for c in [&mut v.x, &mut v.y, &mut v.z] {
-            ui.add(egui::DragValue::new(c).speed(speed).max_decimals(3));
+            ui.add(egui::DragValue::new(c).speed(speed).max_decimals(decimals));
         }
     });
+}
+
+/// The radius and power sliders' upper ends for a scene `extent` across:
+/// half the scene, and a hundred times the light a surface a scene away
+/// needs to read well ([`crate::readable_lumens`]), at least 10⁸ lm.
+pub(crate) fn slider_ranges(extent: f32) -> (f32, f32) {
+    let extent = if extent.is_finite() && extent > 0.0 { extent } else { 10.0 };
+    ((extent * 0.5).max(1e-6), (crate::readable_lumens(extent) * 100.0).max(1e8))
 }
 
 /// GPU time (orange) and MAE (cyan) over the last frames, each scaled to its maximum.
@@ -401,4 +415,21 @@ fn plot(ui: &mut egui::Ui, history: &History) {
         egui::FontId::proportional(11.0),
         egui::Color32::GRAY,
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slider_ranges_hold_the_default_view_of_any_scale() {
+        // The default view's light is 5% of the subject across and needs
+        // `readable_lumens` of its height: both must fit inside the sliders.
+        for extent in [5e-4_f32, 1.0, 25.0, 4000.0] {
+            let (radius, lumens) = slider_ranges(extent);
+            assert!(radius >= extent * 0.05 && lumens >= crate::readable_lumens(extent), "{extent}");
+        }
+        let (radius, lumens) = slider_ranges(f32::NAN);
+        assert!(radius.is_finite() && lumens.is_finite());
+    }
 }

@@ -1,0 +1,292 @@
+//! A glTF opened in the editor, loaded by Bevy's own loader — materials,
+//! textures, hierarchy, `KHR_lights_punctual` lights and cameras, as a Bevy
+//! game gets them — and, when it brings no light or camera, a first view
+//! that is readable at any scale and from inside a room.
+//!
+//! The ground truth and the analysis views trace what the plugin sees:
+//! [`bevy_shadow_fins::scene_snapshot`] of the spawned entities, not a
+//! second reading of the file.
+
+use std::{
+    path::{Path, PathBuf},
+    sync::{
+        Arc,
+        atomic::{AtomicBool, Ordering},
+    },
+};
+
+use bevy::{asset::LoadState, gltf::GltfAssetLabel, light::SunDisk, prelude::*};
+use bevy_shadow_fins::FinShadowSettings;
+use shadow_fins::{
+    default_view::{DefaultView, default_view_of},
+    light::Light,
+};
+
+use crate::{
+    EditorState,
+    orbit::OrbitCamera,
+    scene::{EditorCamera, EditorLight, EditorMesh, LightKind, LightParams, LoadedScene},
+};
+
+/// The illuminance the default light gives the surface under it, lux: a white
+/// surface reads mid-grey at Bevy's default exposure (EV100 9.7), as the demo's
+/// 1 Mlm light 6 m above its ground does.
+pub const READABLE_LUX: f32 = 2000.0;
+
+/// Bevy's point and spot lights attenuate by `1 / max(d², 10⁻⁴)`
+/// (`getDistanceAttenuation`, `pbr_lighting.wgsl`): nothing is lit as if
+/// nearer than a centimetre.
+pub const BEVY_MIN_DISTANCE_SQUARED: f32 = 1e-4;
+
+/// The lumens of a light `distance` above a surface that give it
+/// [`READABLE_LUX`]: Bevy spreads a point or spot light's lumens over the
+/// sphere (`E = Φ / 4π·max(d², 10⁻⁴)`), so the light's power follows the
+/// scene's scale squared down to Bevy's centimetre floor (a kilometre valley
+/// gets 10¹⁰ lm, a millimetre box 2.5 lm).
+pub fn readable_lumens(distance: f32) -> f32 {
+    let d = if distance.is_finite() && distance > 0.0 { distance } else { 1.0 };
+    (4.0 * std::f32::consts::PI * (d * d).max(BEVY_MIN_DISTANCE_SQUARED) * READABLE_LUX).min(f32::MAX / 2.0)
+}
+
+/// The current glTF scene's root entity.
+#[derive(Component)]
+pub(crate) struct EditorSceneRoot;
+
+/// A glTF being loaded; the scene it replaces stays until it is spawned.
+#[derive(Component)]
+pub(crate) struct PendingGltf {
+    name: String,
+    handle: Handle<WorldAsset>,
+    keep_light: bool,
+    /// Set by the root's `WorldInstanceReady`.
+    ready: Arc<AtomicBool>,
+}
+
+/// Starts loading `path` with Bevy's loader. A file that does not exist or
+/// that the core's importer rejects (its errors are typed and it refuses
+/// hostile sizes before reading them) is an error at once; Bevy's own
+/// errors arrive later, in [`finish_gltf_loads`].
+pub(crate) fn start_gltf_load(
+    commands: &mut Commands,
+    assets: &AssetServer,
+    path: &Path,
+    keep_light: bool,
+) -> Result<(), String> {
+    let import =
+        shadow_fins::gltf_import::load_gltf(path).map_err(|e| format!("could not open {}: {e}", path.display()))?;
+    if import.scene.objects.is_empty() {
+        return Err(format!("could not open {}: it has no mesh", path.display()));
+    }
+    // Absolute: Bevy reads a relative path from its asset folder.
+    let path: PathBuf = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let handle: Handle<WorldAsset> = assets.load(GltfAssetLabel::Scene(0).from_asset(path.clone()));
+    let ready = Arc::new(AtomicBool::new(false));
+    let flag = ready.clone();
+    let name = path.file_name().map_or("scene".into(), |n| n.to_string_lossy().into_owned());
+    commands
+        .spawn((PendingGltf { name, handle: handle.clone(), keep_light, ready }, WorldAssetRoot(handle)))
+        .observe(move |_: On<bevy::world_serialization::WorldInstanceReady>| flag.store(true, Ordering::Relaxed));
+    Ok(())
+}
+
+/// Every descendant of `root` with a `T`, in entity order.
+fn under<T: Component>(world: &mut World, root: Entity) -> Vec<Entity> {
+    let mut children = world.query::<&Children>();
+    let (mut out, mut stack) = (vec![], vec![root]);
+    while let Some(e) = stack.pop() {
+        if world.get::<T>(e).is_some() {
+            out.push(e);
+        }
+        if let Ok(c) = children.get(world, e) {
+            stack.extend(c.iter());
+        }
+    }
+    out.sort();
+    out
+}
+
+/// Replaces the scene with a glTF once Bevy has spawned it (the frame after,
+/// so its transforms and visibility are propagated): its first light becomes
+/// the editor's light, its first camera the editor's view, unless the user's
+/// light is kept; without them the default view is used.
+pub(crate) fn finish_gltf_loads(world: &mut World) {
+    let mut pending = world.query::<(Entity, &PendingGltf)>();
+    let loads: Vec<(Entity, String, Handle<WorldAsset>, bool, bool)> = pending
+        .iter(world)
+        .map(|(e, p)| (e, p.name.clone(), p.handle.clone(), p.keep_light, p.ready.load(Ordering::Relaxed)))
+        .collect();
+    for (root, name, handle, keep_light, ready) in loads {
+        if let LoadState::Failed(e) = world.resource::<AssetServer>().load_state(&handle) {
+            world.resource_mut::<EditorState>().error = Some(format!("could not open {name}: {e}"));
+            world.despawn(root);
+            continue;
+        }
+        if !ready {
+            continue;
+        }
+        let snapshot = bevy_shadow_fins::scene_snapshot(world, Some(root));
+        let Some(view) = default_view_of(&snapshot.scene) else {
+            world.resource_mut::<EditorState>().error =
+                Some(format!("could not open {name}: no mesh Bevy drew is readable"));
+            world.despawn(root);
+            continue;
+        };
+        // The new scene replaces the old one.
+        let old: Vec<Entity> =
+            world.query_filtered::<Entity, Or<(With<EditorMesh>, With<EditorSceneRoot>)>>().iter(world).collect();
+        for e in old {
+            world.despawn(e);
+        }
+        world.entity_mut(root).remove::<PendingGltf>().insert(EditorSceneRoot);
+        let extent = snapshot.scene.bounds().map_or(1.0, |(lo, hi)| (hi - lo).length().max(1e-6));
+        let lights = adopt_lights(world, root, keep_light, &view, extent);
+        let camera = adopt_camera(world, root, keep_light, &view, extent);
+        let generation = world.get_resource::<LoadedScene>().map_or(1, |l| l.generation + 1);
+        let (objects, triangles) = (snapshot.scene.objects.len(), snapshot.scene.triangle_count());
+        world.insert_resource(LoadedScene { name: name.clone(), scene: Arc::new(snapshot.scene), generation, extent });
+        let skipped = match snapshot.skipped.len() {
+            0 => String::new(),
+            n => format!("; {n} meshes unreadable (not in the ground truth, no fin shadow)"),
+        };
+        let inside = if view.inside { ", seen from inside" } else { "" };
+        world.resource_mut::<EditorState>().status = Some(format!(
+            "loaded {name}: {objects} meshes, {triangles} triangles, {lights}, {camera}{inside}{skipped}"
+        ));
+    }
+}
+
+/// The glTF's lights: the first spot, directional or point light becomes the
+/// editor's light (its position, direction, colour, power; a point light
+/// becomes the editor's disk facing down, as fins do not model spheres yet)
+/// and is despawned; the others keep shining with fin shadows
+/// (`give_gltf_lights_fin_shadows`). Without any, the default view's light,
+/// with [`readable_lumens`]. Returns what it did, for the status line.
+fn adopt_lights(world: &mut World, root: Entity, keep_light: bool, view: &DefaultView, extent: f32) -> String {
+    let spots = under::<SpotLight>(world, root);
+    let suns = under::<DirectionalLight>(world, root);
+    let points = under::<PointLight>(world, root);
+    let first = spots.first().or(suns.first()).or(points.first()).copied();
+    let fallback_radius = match view.light {
+        Light::Disk(d) => d.radius,
+        _ => extent * 0.05,
+    };
+    let settings =
+        world.query_filtered::<&FinShadowSettings, With<EditorLight>>().iter(world).next().copied().unwrap_or_default();
+    let count = spots.len() + suns.len() + points.len();
+    if !keep_light {
+        let mut params = *world.resource::<LightParams>();
+        match first {
+            Some(light) => {
+                let radius = world
+                    .get::<bevy::gltf::GltfExtras>(light)
+                    .and_then(|e| bevy_shadow_fins::gltf_light_radius(&e.value))
+                    .unwrap_or(fallback_radius);
+                let transform = world.get::<GlobalTransform>(light).copied().unwrap_or_default();
+                params.position = transform.translation();
+                params.direction = (transform.affine().matrix3 * bevy::math::Vec3A::NEG_Z).into();
+                params.radius = radius;
+                let e = world.entity(light);
+                if let Some(spot) = e.get::<SpotLight>() {
+                    (params.kind, params.intensity) = (LightKind::Spot, spot.intensity);
+                    params.color = spot.color.to_linear().to_f32_array_no_alpha();
+                } else if let Some(sun) = e.get::<DirectionalLight>() {
+                    (params.kind, params.illuminance) = (LightKind::Sun, sun.illuminance);
+                    params.color = sun.color.to_linear().to_f32_array_no_alpha();
+                    params.sun_angle = e.get::<SunDisk>().map_or(SunDisk::EARTH.angular_size, |d| d.angular_size);
+                } else if let Some(point) = e.get::<PointLight>() {
+                    (params.kind, params.intensity) = (LightKind::FinLight, point.intensity);
+                    params.color = point.color.to_linear().to_f32_array_no_alpha();
+                    params.direction = Vec3::NEG_Y;
+                }
+                world.despawn(light);
+            }
+            None => {
+                if let Light::Disk(d) = view.light {
+                    (params.position, params.direction, params.radius) = (d.center, d.normal, d.radius);
+                }
+                params.intensity = readable_lumens(view.light_distance);
+                if params.kind == LightKind::Sun {
+                    // A sun has no distance: the editor's own (the glTF set none).
+                    params.kind = LightKind::FinLight;
+                }
+            }
+        }
+        world.insert_resource(params);
+    }
+    let adopted = bevy_shadow_fins::give_gltf_lights_fin_shadows(world, root, settings, fallback_radius);
+    match (count, keep_light) {
+        (0, _) => "no light in the file (default light)".into(),
+        (n, false) => {
+            format!("{n} lights from the file (the first is the editor's, {} more fin-shadowed)", adopted.lights.len())
+        }
+        (n, true) => format!("{n} lights from the file beside the kept light"),
+    }
+}
+
+/// The glTF's cameras are turned off (they would draw over the editor's
+/// view); the first gives the editor its view unless the user's is kept,
+/// else the default view does. Near plane and zoom follow the scene's size.
+fn adopt_camera(world: &mut World, root: Entity, keep_light: bool, view: &DefaultView, extent: f32) -> String {
+    let cameras = under::<Camera3d>(world, root);
+    for &c in &cameras {
+        if let Some(mut camera) = world.get_mut::<Camera>(c) {
+            camera.is_active = false;
+        }
+    }
+    let from_file = cameras.first().map(|&c| {
+        let transform = world.get::<GlobalTransform>(c).copied().unwrap_or_default();
+        let fov = match world.get::<Projection>(c) {
+            Some(Projection::Perspective(p)) => Some(p.fov),
+            _ => None,
+        };
+        (transform, fov)
+    });
+    let mut editor = world.query_filtered::<(&mut OrbitCamera, &mut Projection), With<EditorCamera>>();
+    let Ok((mut orbit, mut projection)) = editor.single_mut(world) else { return "no editor camera".into() };
+    if let Projection::Perspective(p) = &mut *projection {
+        p.near = view.near.min(extent * 1e-3).max(f32::MIN_POSITIVE);
+        p.far = view.far.max(extent * 100.0);
+    }
+    orbit.scale = extent;
+    if keep_light {
+        return "the kept view".into();
+    }
+    match from_file {
+        Some((transform, fov)) => {
+            let position = transform.translation();
+            let forward = Vec3::from(transform.affine().matrix3 * bevy::math::Vec3A::NEG_Z).normalize_or(Vec3::NEG_Z);
+            // Orbit about the point ahead of it nearest to the subject.
+            let ahead = (view.camera.target - position).dot(forward).max(extent * 0.05);
+            *orbit = OrbitCamera { scale: extent, ..OrbitCamera::looking_at(position, position + forward * ahead) };
+            if let (Projection::Perspective(p), Some(fov)) = (&mut *projection, fov) {
+                p.fov = fov;
+            }
+            format!("the file's camera ({} in it)", cameras.len())
+        }
+        None => {
+            *orbit = OrbitCamera { scale: extent, ..OrbitCamera::looking_at(view.camera.position, view.camera.target) };
+            if let Projection::Perspective(p) = &mut *projection {
+                p.fov = view.camera.vertical_fov.to_radians();
+            }
+            "the default view".into()
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn readable_lumens_give_the_same_illuminance_at_any_scale_down_to_bevys_floor() {
+        let lux = |d: f32| readable_lumens(d) / (4.0 * std::f32::consts::PI * (d * d).max(BEVY_MIN_DISTANCE_SQUARED));
+        for d in [1e-4_f32, 1e-3, 0.5, 6.0, 500.0, 5e4] {
+            assert!((lux(d) / READABLE_LUX - 1.0).abs() < 1e-4, "{d}: {} lux", lux(d));
+        }
+        // The demo's 1 Mlm light ~6 m above its ground is about this readable.
+        assert!((readable_lumens(6.0) / 1e6 - 0.9).abs() < 0.1);
+        for bad in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+            assert!(readable_lumens(bad).is_finite() && readable_lumens(bad) > 0.0);
+        }
+    }
+}
