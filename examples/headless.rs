@@ -1,10 +1,14 @@
-//! Renders the demo scene (or a glTF given as argument) headless with the
+//! Renders the demo scene (or a glTF given as argument, loaded by Bevy's own
+//! loader with its materials, textures, lights and camera) headless with the
 //! plugin and writes the final image as a PNG, and its visibility
 //! (illuminance) buffer beside it (`…_visibility.png`).
 //!
 //! `cargo run --release --example headless -- [scene.gltf] [--out out/headless.png]`
 //!
-//! A glTF gets a light of radius 5% of its size, 1× its size above its centre.
+//! A glTF's own spot and directional lights get fin shadows (radius from
+//! their `extras`, else 5% of the scene's size) and its first camera is the
+//! view; without them, the core's default view (inside a room when the
+//! scene is one) and a light bright enough for Bevy's default exposure.
 
 use shadow_fins::scenes::SceneId;
 use shadow_fins_app::harness::{Setup, render, save_srgb8};
@@ -25,22 +29,28 @@ fn run() -> Result<(), String> {
         .cloned()
         .unwrap_or("out/headless.png".into());
     let gltf = args.iter().find(|a| !a.starts_with("--") && Some(*a) != Some(&out));
-    let (scene, light, camera) = match gltf {
+    let (width, height) = (640, 480);
+    let mut setup = match gltf {
         Some(path) => {
+            // The core's reading sizes the default view (Bevy's sizes the rest).
             let import = shadow_fins::gltf_import::load_gltf(path).map_err(|e| e.to_string())?;
             for s in &import.skipped {
                 eprintln!("warning: skipped {s}");
             }
-            let (light, camera) = shadow_fins::scenes::default_view(&import.scene).ok_or("empty scene")?;
-            (import.scene, light, camera)
+            let view = shadow_fins::default_view::default_view_of(&import.scene).ok_or("no mesh in the file")?;
+            let extent = import.scene.bounds().map_or(1.0, |(lo, hi)| (hi - lo).length());
+            let mut setup = Setup::new(import.scene, view.light, view.camera, Default::default(), (width, height));
+            setup.gltf = Some(path.into());
+            (setup.gltf_lights, setup.gltf_camera, setup.gltf_light_radius) = (true, true, extent * 0.05);
+            setup.intensity = shadow_fins_editor::readable_lumens(view.light_distance);
+            (setup.near, setup.far) = (Some(view.near), Some(view.far));
+            setup
         }
         None => {
             let demo = SceneId::Demo.build();
-            (demo.scene, demo.light, demo.camera)
+            Setup::new(demo.scene, demo.light, demo.camera, Default::default(), (width, height))
         }
     };
-    let (width, height) = (640, 480);
-    let mut setup = Setup::new(scene, light, camera, Default::default(), (width, height));
     setup.hdr = true;
     setup.tonemapping = bevy::core_pipeline::tonemapping::Tonemapping::TonyMcMapface;
     let shot = render(&setup, 8)?;

@@ -84,6 +84,20 @@ pub struct Setup {
     /// Render without Bevy's pipelined rendering: each `update` runs the main
     /// world, then the render world (to time them apart).
     pub sequential_rendering: bool,
+    /// A glTF file loaded by Bevy's own loader (`WorldAssetRoot` of its first
+    /// scene: materials, textures, hierarchy, lights and cameras as a Bevy app
+    /// gets them), spawned instead of `scene`'s meshes. `scene` then only
+    /// sizes the lights' range; judge the render on [`Session::scene_snapshot`].
+    pub gltf: Option<std::path::PathBuf>,
+    /// With `gltf`: its own spot and directional lights get `FinShadows` with
+    /// `settings` (`give_gltf_lights_fin_shadows`, radius from their extras,
+    /// else [`Setup::gltf_light_radius`]) and the harness spawns `light` only
+    /// if the file has no light.
+    pub gltf_lights: bool,
+    /// The radius a glTF light without one in its extras gets.
+    pub gltf_light_radius: f32,
+    /// With `gltf`: the first camera takes the glTF's first camera's view.
+    pub gltf_camera: bool,
 }
 
 /// Marks `Setup::extra_spots` (kept when the main light is replaced).
@@ -131,6 +145,10 @@ impl Setup {
             extra_spots: vec![],
             sun_illuminance: 3000.0,
             sequential_rendering: false,
+            gltf: None,
+            gltf_lights: false,
+            gltf_light_radius: 0.0,
+            gltf_camera: false,
         }
     }
 }
@@ -171,6 +189,9 @@ pub struct Shot {
 /// Frames [`render`] waits at most for the image to settle.
 pub const MAX_FRAMES: u32 = 60;
 
+/// How long [`Session::wait_for_gltf`] waits for Bevy's loader.
+pub const GLTF_LOAD_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(60);
+
 /// The latest read-back of one image (rows padded to 256 bytes).
 pub type Slot = Arc<Mutex<Option<Vec<u8>>>>;
 
@@ -191,7 +212,9 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
         .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, ..default() })
         .set(RenderPlugin { synchronous_pipeline_compilation: true, ..default() })
         // Headless: no event loop (it needs a display); the caller drives `update`.
-        .disable::<bevy::winit::WinitPlugin>();
+        .disable::<bevy::winit::WinitPlugin>()
+        // A glTF given by path may live anywhere, as a file opened in an editor does.
+        .set(AssetPlugin { unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow, ..default() });
     if setup.sequential_rendering {
         plugins = plugins.disable::<bevy::render::pipelined_rendering::PipelinedRenderingPlugin>();
     }
@@ -204,7 +227,8 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
     let world = app.world_mut();
     let (w, h) = (setup.width, setup.height);
     let material = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial::default());
-    for object in &setup.scene.objects {
+    let own_meshes = if setup.gltf.is_some() { &[][..] } else { &setup.scene.objects[..] };
+    for object in own_meshes {
         let mesh = world.resource_mut::<Assets<Mesh>>().add(bevy_shadow_fins::mesh_from_core(&object.mesh));
         let mut e = world.spawn((
             Mesh3d(mesh),
@@ -222,7 +246,15 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
         let mesh = world.resource_mut::<Assets<Mesh>>().add(mesh.clone());
         world.spawn((Mesh3d(mesh), MeshMaterial3d(material.clone()), Transform::from_translation(*at)));
     }
-    let main = replace_light(world, setup);
+    let main = if setup.gltf.is_some() && setup.gltf_lights {
+        if let Some(brightness) = setup.ambient {
+            world.resource_mut::<GlobalAmbientLight>().brightness = brightness;
+        }
+        None
+    } else {
+        replace_light(world, setup)
+    };
+
     let extras: Vec<Entity> = setup
         .extra_spots
         .iter()
@@ -288,7 +320,106 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
         }
         slots.push(view);
     }
+    if let Some(path) = &setup.gltf {
+        let main_camera = world
+            .query_filtered::<(Entity, &Camera), With<FinShadowView>>()
+            .iter(world)
+            .find(|(_, c)| c.order == 0)
+            .map(|(e, _)| e);
+        spawn_gltf(world, path, GltfAdoption { setup: setup.clone(), main_camera });
+    }
     (app, slots)
+}
+
+/// A glTF being loaded by Bevy's loader for [`Setup::gltf`].
+#[derive(Resource)]
+struct GltfLoad {
+    root: Entity,
+    handle: Handle<WorldAsset>,
+    /// Set by the root's `WorldInstanceReady`.
+    ready: Arc<std::sync::atomic::AtomicBool>,
+    /// Whether its lights and camera were taken over ([`Session::update`]).
+    adopted: bool,
+    adoption: GltfAdoption,
+}
+
+fn spawn_gltf(world: &mut World, path: &std::path::Path, adoption: GltfAdoption) {
+    // Absolute: a relative path would be read from Bevy's asset folder.
+    let path = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let handle: Handle<WorldAsset> =
+        world.resource::<AssetServer>().load(bevy::gltf::GltfAssetLabel::Scene(0).from_asset(path));
+    let ready = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let flag = ready.clone();
+    let root = world
+        .spawn(WorldAssetRoot(handle.clone()))
+        .observe(move |_: On<bevy::world_serialization::WorldInstanceReady>| {
+            flag.store(true, std::sync::atomic::Ordering::Relaxed);
+        })
+        .id();
+    world.insert_resource(GltfLoad { root, handle, ready, adopted: false, adoption });
+}
+
+/// Once the glTF is spawned: its lights get fin shadows and its camera gives
+/// the first camera its view, as [`Setup`] asks; its own cameras are turned
+/// off (they would draw over the harness's).
+fn adopt_gltf(world: &mut World) {
+    let Some((root, setup)) = world
+        .get_resource::<GltfLoad>()
+        .filter(|l| !l.adopted && l.ready.load(std::sync::atomic::Ordering::Relaxed))
+        .map(|l| (l.root, l.adoption.clone()))
+    else {
+        return;
+    };
+    world.resource_mut::<GltfLoad>().adopted = true;
+    if setup.setup.gltf_lights {
+        let s = &setup.setup;
+        let adopted = bevy_shadow_fins::give_gltf_lights_fin_shadows(world, root, s.settings, s.gltf_light_radius);
+        // A file without lights gets the setup's.
+        if adopted.lights.is_empty() && adopted.point_lights.is_empty() {
+            replace_light(world, s);
+        }
+    }
+    let mut cameras = world.query_filtered::<(Entity, &GlobalTransform, &Projection), With<Camera3d>>();
+    let mut gltf_cameras: Vec<(Entity, GlobalTransform, Projection)> =
+        cameras.iter(world).map(|(e, t, p)| (e, *t, p.clone())).collect();
+    gltf_cameras.retain(|(e, ..)| is_under(world, *e, root));
+    for (e, ..) in &gltf_cameras {
+        if let Some(mut camera) = world.get_mut::<Camera>(*e) {
+            camera.is_active = false;
+        }
+    }
+    if let (true, Some((_, transform, projection)), Some(main)) =
+        (setup.setup.gltf_camera, gltf_cameras.first(), setup.main_camera)
+    {
+        let mut e = world.entity_mut(main);
+        e.insert(transform.compute_transform());
+        if let (Projection::Perspective(theirs), Some(mut ours)) = (projection, e.get_mut::<Projection>())
+            && let Projection::Perspective(ours) = &mut *ours
+        {
+            ours.fov = theirs.fov;
+        }
+    }
+}
+
+/// Whether `entity` is `root` or one of its descendants.
+fn is_under(world: &World, mut entity: Entity, root: Entity) -> bool {
+    loop {
+        if entity == root {
+            return true;
+        }
+        match world.get::<ChildOf>(entity) {
+            Some(parent) => entity = parent.parent(),
+            None => return false,
+        }
+    }
+}
+
+/// What [`adopt_gltf`] does with the glTF's lights and cameras: what the
+/// setup asks, to the first camera.
+#[derive(Clone)]
+struct GltfAdoption {
+    setup: Setup,
+    main_camera: Option<Entity>,
 }
 
 /// Despawns every fin light and Bevy point light, then spawns the light
@@ -449,6 +580,7 @@ impl Session {
     /// One frame; the read-backs that arrived are kept for [`Session::shot`].
     pub fn update(&mut self) {
         self.app.update();
+        adopt_gltf(self.app.world_mut());
         let take = |slot: &Slot| slot.lock().unwrap().take();
         for (view, latest) in self.slots.iter().zip(&mut self.latest) {
             if let Some(v) = take(&view.visibility) {
@@ -478,6 +610,7 @@ impl Session {
         for slot in &mut self.latest_lights {
             *slot = None;
         }
+        self.wait_for_gltf()?;
         for frame in 0..MAX_FRAMES {
             self.update();
             let color = self.latest[0].1.clone();
@@ -497,6 +630,59 @@ impl Session {
             }
         }
         self.shot()
+    }
+
+    /// Runs frames until [`Setup::gltf`] is spawned (at once without one);
+    /// a file Bevy's loader rejects is an error, as is one still loading
+    /// after [`GLTF_LOAD_TIMEOUT`].
+    pub fn wait_for_gltf(&mut self) -> Result<(), String> {
+        let start = std::time::Instant::now();
+        loop {
+            let world = self.app.world();
+            let Some(load) = world.get_resource::<GltfLoad>() else { return Ok(()) };
+            if load.adopted {
+                return Ok(());
+            }
+            if let bevy::asset::LoadState::Failed(e) = world.resource::<AssetServer>().load_state(&load.handle) {
+                return Err(format!("Bevy could not load the glTF: {e}"));
+            }
+            if start.elapsed() > GLTF_LOAD_TIMEOUT {
+                return Err("the glTF was still loading after a minute".into());
+            }
+            self.update();
+        }
+    }
+
+    /// The glTF's root entity (`None` without [`Setup::gltf`]).
+    pub fn gltf_root(&self) -> Option<Entity> {
+        self.app.world().get_resource::<GltfLoad>().map(|l| l.root)
+    }
+
+    /// The meshes the plugin sees (those of the glTF only, with one), as
+    /// the core's scene: what the oracle and the ground truth must be run on.
+    pub fn scene_snapshot(&mut self) -> bevy_shadow_fins::FinSceneSnapshot {
+        let root = self.gltf_root();
+        bevy_shadow_fins::scene_snapshot(self.app.world_mut(), root)
+    }
+
+    /// The first camera's view as the core's camera (after [`Setup::gltf_camera`]
+    /// gave it the file's): what an oracle of this view must be run from.
+    pub fn main_camera(&mut self) -> Option<CoreCamera> {
+        let world = self.app.world_mut();
+        let mut cameras = world.query::<(&Camera, &Transform, &Projection, &FinShadowView)>();
+        let (_, transform, projection, _) = cameras.iter(world).find(|(c, ..)| c.order == 0)?;
+        let Projection::Perspective(p) = projection else { return None };
+        Some(CoreCamera {
+            position: transform.translation,
+            target: transform.translation + transform.forward().as_vec3(),
+            up: transform.up().as_vec3(),
+            vertical_fov: p.fov.to_degrees(),
+        })
+    }
+
+    /// Every fin-shadowed light's entity and shape, as the plugin models it.
+    pub fn fin_lights(&self) -> Vec<(Entity, Light)> {
+        self.app.world().resource::<FinFrames>().0.iter().map(|f| (f.light, f.shape)).collect()
     }
 
     /// The latest read-backs of every camera.

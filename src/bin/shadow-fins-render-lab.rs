@@ -135,7 +135,7 @@ struct MeasureArgs {
     /// Built-in scenes, comma-separated.
     #[arg(long, default_value = "large-light,near-contact")]
     scenes: String,
-    /// A glTF/GLB file instead (lit by a disk above its bounds).
+    /// A glTF/GLB file instead, loaded by Bevy's own loader (lit by the core's default view's disk).
     #[arg(long)]
     gltf: Option<PathBuf>,
     /// Instead of scenes: the bumpy blob over a plane at these triangle counts (GPU scaling run).
@@ -307,7 +307,13 @@ fn inputs(args: &MeasureArgs) -> Result<Vec<measure::Input>, LabError> {
                 let blob = SceneObject::new("blob", shapes::bumpy_blob(n), Affine3A::from_translation(Vec3::Y * 1.5))
                     .map_err(|e| usage(format!("blob of {n} triangles: {e}")))?;
                 let scene = Scene::new(vec![b.scene.objects[0].clone(), blob]);
-                Ok(measure::Input { name: format!("blob-{n}"), scene, light: disk(b.light)?, camera: b.camera })
+                Ok(measure::Input {
+                    name: format!("blob-{n}"),
+                    scene,
+                    gltf: None,
+                    light: disk(b.light)?,
+                    camera: b.camera,
+                })
             })
             .collect();
     }
@@ -332,6 +338,7 @@ fn inputs(args: &MeasureArgs) -> Result<Vec<measure::Input>, LabError> {
             Ok(measure::Input {
                 name: loaded.name.rsplit('/').next().unwrap_or(&loaded.name).to_string(),
                 scene: loaded.scene,
+                gltf: args.gltf.clone(),
                 light: disk(loaded.light)?,
                 camera: loaded.camera,
             })

@@ -138,3 +138,133 @@ fn the_editors_rect_light_casts_a_soft_shadow_that_its_size_changes() {
     println!("{changed} sampled viewport pixels differ between a 0 × 0 and a sized rect light");
     assert!(changed > 300, "the rectangle's size changed almost nothing ({changed} pixels differ)");
 }
+
+/// Runs the editor on `scene` for a screenshot; returns it with what the
+/// editor printed (its status and error lines).
+fn screenshot_of_scene(name: &str, scene: &std::path::Path) -> (Image, String) {
+    let path = out_dir().join(format!("{name}.png"));
+    let _ = std::fs::remove_file(&path);
+    let output = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1280x800x24"])
+        .arg(editor_binary())
+        .arg(scene)
+        .args(["--no-autosave", "--screenshot", path.to_str().unwrap(), "--frames", "12"])
+        .output()
+        .expect("xvfb-run (scripts/setup.sh installs xvfb)");
+    let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
+    assert!(output.status.success() && path.exists(), "the editor failed ({}):\n{stdout}", output.status);
+    let bytes = std::fs::read(&path).unwrap();
+    let image = Image::from_buffer(
+        &bytes,
+        ImageType::Extension("png"),
+        CompressedImageFormats::NONE,
+        true,
+        ImageSampler::Default,
+        RenderAssetUsages::MAIN_WORLD,
+    )
+    .expect("a PNG");
+    (image, stdout)
+}
+
+/// Over the viewport's middle (clear of the panels): the mean sRGB luma and
+/// the shares of near-black and near-white pixels.
+fn exposure(image: &Image) -> (f32, f32, f32) {
+    let (w, h) = (image.width(), image.height());
+    let (mut sum, mut black, mut white, mut n) = (0.0, 0, 0, 0);
+    for y in (h / 4..h * 3 / 4).step_by(2) {
+        for x in (w * 3 / 8..w * 5 / 8).step_by(2) {
+            let c = image.get_color_at(x, y).unwrap().to_srgba();
+            let luma = 0.2126 * c.red + 0.7152 * c.green + 0.0722 * c.blue;
+            sum += luma;
+            black += (luma < 0.03) as u32;
+            white += (luma > 0.97) as u32;
+            n += 1;
+        }
+    }
+    (sum / n as f32, black as f32 / n as f32, white as f32 / n as f32)
+}
+
+/// A readable first view: neither mostly black nor blown out, with shading.
+fn assert_readable(name: &str, image: &Image) {
+    let (mean, black, white) = exposure(image);
+    let (w, h) = (image.width(), image.height());
+    let colours = distinct_colours(image, (w * 3 / 8, w * 5 / 8, h / 4, h * 3 / 4));
+    println!(
+        "{name}: mean luma {mean:.3}, {:.1}% black, {:.1}% white, {colours} colours",
+        black * 100.0,
+        white * 100.0
+    );
+    assert!((0.12..0.85).contains(&mean), "{name}: the view is too dark or too bright (mean luma {mean})");
+    assert!(black < 0.35 && white < 0.2, "{name}: {black} of the view is black, {white} white");
+    assert!(colours >= 12, "{name}: the view is flat ({colours} colours)");
+}
+
+#[test]
+fn the_editor_opens_a_gltf_as_bevy_loads_it_with_its_own_light_and_camera() {
+    let scene = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/courtyard.gltf");
+    let (image, stdout) = screenshot_of_scene("gltf-courtyard", &scene);
+    assert!(!stdout.contains("editor error"), "{stdout}");
+    assert!(stdout.contains("loaded courtyard.gltf"), "{stdout}");
+    assert!(stdout.contains("lights from the file") && stdout.contains("the file's camera"), "{stdout}");
+    assert_readable("courtyard", &image);
+}
+
+/// A scene of slabs (half sizes, centres) scaled by `scale`, written as a glTF.
+fn slab_scene(name: &str, slabs: &[([f32; 3], [f32; 3])], scale: f32) -> PathBuf {
+    use shadow_fins::{
+        scene::{Scene, SceneObject},
+        shapes,
+    };
+    let objects = slabs
+        .iter()
+        .enumerate()
+        .map(|(i, (half, at))| {
+            let transform = bevy::math::Affine3A::from_scale_rotation_translation(
+                bevy::math::Vec3::splat(scale),
+                bevy::math::Quat::IDENTITY,
+                bevy::math::Vec3::from_array(*at) * scale,
+            );
+            SceneObject::new(format!("slab{i}"), shapes::cuboid(bevy::math::Vec3::from_array(*half)), transform)
+                .unwrap()
+        })
+        .collect();
+    let path = out_dir().join(format!("{name}.gltf"));
+    std::fs::write(&path, shadow_fins::gltf_import::write_gltf(&Scene::new(objects))).unwrap();
+    path
+}
+
+#[test]
+fn a_millimetre_cornell_box_opens_from_inside_lit_and_readable() {
+    // A Cornell box open at +z (floor, ceiling, back, two sides, two
+    // blocks) 0.555 mm across: the light must go under its ceiling and the
+    // camera inside, at a millimetre scale.
+    let t = 5.0;
+    let box_ = [
+        ([277.5, t, 277.5], [0.0, -t, 0.0]),
+        ([277.5, t, 277.5], [0.0, 555.0 + t, 0.0]),
+        ([277.5, 277.5, t], [0.0, 277.5, -277.5 - t]),
+        ([t, 277.5, 277.5], [-277.5 - t, 277.5, 0.0]),
+        ([t, 277.5, 277.5], [277.5 + t, 277.5, 0.0]),
+        ([82.5, 82.5, 82.5], [90.0, 82.5, 60.0]),
+        ([82.5, 165.0, 82.5], [-90.0, 165.0, -80.0]),
+    ];
+    let scene = slab_scene("cornell-mm", &box_, 1e-3 * 1e-3);
+    let (image, stdout) = screenshot_of_scene("gltf-cornell-mm", &scene);
+    assert!(!stdout.contains("editor error"), "{stdout}");
+    assert!(stdout.contains("seen from inside") && stdout.contains("default light"), "{stdout}");
+    assert_readable("cornell box (mm)", &image);
+}
+
+#[test]
+fn a_kilometre_scene_opens_lit_and_readable() {
+    // Two towers on a 4 km plain.
+    let slabs = [
+        ([2000.0, 1.0, 2000.0], [0.0, -1.0, 0.0]),
+        ([60.0, 150.0, 60.0], [0.0, 150.0, 0.0]),
+        ([40.0, 80.0, 90.0], [200.0, 80.0, 100.0]),
+    ];
+    let scene = slab_scene("towers-km", &slabs, 1.0);
+    let (image, stdout) = screenshot_of_scene("gltf-towers-km", &scene);
+    assert!(!stdout.contains("editor error"), "{stdout}");
+    assert_readable("towers (km)", &image);
+}

@@ -11,7 +11,7 @@ use shadow_fins_lab::grid::{Axes, Technique};
 fn near_contact() -> measure::Input {
     let b = SceneId::NearContact.build();
     let Light::Disk(light) = b.light else { unreachable!("near-contact has a disk light") };
-    measure::Input { name: "near-contact".into(), scene: b.scene, light, camera: b.camera }
+    measure::Input { name: "near-contact".into(), scene: b.scene, gltf: None, light, camera: b.camera }
 }
 
 #[test]

@@ -1,0 +1,184 @@
+//! glTF scenes as a Bevy app loads them (`WorldAssetRoot`, Bevy's own glTF
+//! loader: materials, textures, hierarchy, `KHR_lights_punctual`), shadowed by
+//! the plugin and judged on the triangles the plugin saw
+//! (`bevy_shadow_fins::scene_snapshot`).
+
+use bevy::prelude::*;
+use shadow_fins::{
+    bvh::Bvh,
+    camera::pixel_receiver,
+    ground_truth::GroundTruth,
+    light::Light,
+    oracle::Method,
+    scene::{LightSpaceScene, Scene},
+};
+use shadow_fins_app::harness::{Session, Setup};
+
+use super::common::{HEIGHT, WIDTH, assert_not_trivial, compare, linear, oracle, save, settings};
+
+fn asset(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets").join(name)
+}
+
+/// The core importer's reading of `name` and a setup that loads it through
+/// Bevy's loader instead, seen by the core's default view.
+fn gltf_setup(name: &str) -> (Scene, Setup) {
+    let import = shadow_fins::gltf_import::load_gltf(asset(name)).expect("the core importer reads it");
+    assert!(import.skipped.is_empty(), "{name}: {:?}", import.skipped);
+    let (light, camera) = shadow_fins::scenes::default_view(&import.scene).expect("a view");
+    let mut setup = Setup::new(import.scene.clone(), light, camera, settings(), (WIDTH, HEIGHT));
+    setup.gltf = Some(asset(name));
+    (import.scene, setup)
+}
+
+/// Every world-space triangle.
+fn world_triangles(scene: &Scene) -> Vec<[Vec3; 3]> {
+    scene.objects.iter().flat_map(|o| o.mesh.triangles().map(|t| t.map(|p| o.transform.transform_point3(p)))).collect()
+}
+
+/// The largest distance from a triangle of `a` to its nearest triangle of
+/// `b` (vertex by vertex, in either's winding start), relative to the
+/// scene's size; `None` if the counts differ. Nearest, not sorted: the two
+/// readers compose transforms in different orders, so a vertex may differ
+/// in its last bit, which would reorder a sort.
+fn largest_vertex_gap(a: &Scene, b: &Scene) -> Option<f32> {
+    let (ta, tb) = (world_triangles(a), world_triangles(b));
+    if ta.len() != tb.len() {
+        return None;
+    }
+    let (lo, hi) = a.bounds()?;
+    let size = (hi - lo).length();
+    let distance = |x: &[Vec3; 3], y: &[Vec3; 3]| {
+        (0..3).map(|r| (0..3).map(|i| x[i].distance(y[(i + r) % 3])).fold(0.0, f32::max)).fold(f32::INFINITY, f32::min)
+    };
+    let gap = ta.iter().map(|x| tb.iter().map(|y| distance(x, y)).fold(f32::INFINITY, f32::min)).fold(0.0, f32::max);
+    Some(gap / size)
+}
+
+#[test]
+fn bevys_gltf_loader_and_the_core_importer_place_the_same_triangles() {
+    // The courtyard's table is a hierarchy three nodes deep with rotations,
+    // non-uniform scales and a `matrix` node: the ground truth may read glTF
+    // through the core importer only if it places every triangle where Bevy does.
+    for name in ["courtyard.gltf", "kitbash.gltf"] {
+        let (core, setup) = gltf_setup(name);
+        let mut session = Session::new(&setup);
+        session.wait_for_gltf().expect("Bevy loads it");
+        let snapshot = session.scene_snapshot();
+        assert!(snapshot.skipped.is_empty(), "{name}: {:?}", snapshot.skipped);
+        assert_eq!(snapshot.scene.triangle_count(), core.triangle_count(), "{name}");
+        let gap = largest_vertex_gap(&core, &snapshot.scene).expect("same triangle count");
+        println!("{name}: {} triangles, largest vertex gap {gap:.1e} of the scene's size", core.triangle_count());
+        assert!(gap < 1e-5, "{name}: Bevy and the core importer disagree by {gap} of the scene's size");
+    }
+}
+
+/// Linear luminance of an sRGB pixel.
+fn luminance(p: [u8; 4]) -> f32 {
+    0.2126 * linear(p[0]) + 0.7152 * linear(p[1]) + 0.0722 * linear(p[2])
+}
+
+#[test]
+fn a_bevy_loaded_textured_gltf_with_its_own_spot_light_is_fin_shadowed_as_the_oracle_says() {
+    let (_, mut setup) = gltf_setup("courtyard.gltf");
+    // Its own light and its own camera; twice the usual size, as the table
+    // is a fifth of the file's view.
+    (setup.gltf_lights, setup.gltf_camera, setup.gltf_light_radius) = (true, true, 0.1);
+    (setup.width, setup.height) = (2 * WIDTH, 2 * HEIGHT);
+    let mut session = Session::new(&setup);
+    let shot = session.settle(16).expect("headless render");
+    save(&shot, "gltf_courtyard");
+    // Its materials are the glTF's, textures included.
+    let world = session.app.world_mut();
+    let textured = world
+        .query::<&MeshMaterial3d<StandardMaterial>>()
+        .iter(world)
+        .filter(|m| {
+            world.resource::<Assets<StandardMaterial>>().get(&m.0).is_some_and(|m| m.base_color_texture.is_some())
+        })
+        .count();
+    assert!(textured > 0, "no mesh has the glTF's base-colour texture");
+    // Its one spot light, with the radius its extras give (not Bevy's range).
+    let lights = session.fin_lights();
+    assert_eq!(lights.len(), 1, "the glTF's spot light is the one fin-shadowed light");
+    let Light::Disk(disk) = lights[0].1 else { panic!("a spot light is a disk: {:?}", lights[0].1) };
+    assert!((disk.radius - 0.4).abs() < 1e-6, "radius {} is not the extras' 0.4", disk.radius);
+    // Judged on what the plugin saw.
+    let snapshot = session.scene_snapshot();
+    let mut judged = setup.clone();
+    judged.scene = snapshot.scene;
+    judged.light = lights[0].1;
+    judged.camera = session.main_camera().expect("the view");
+    println!("the file's camera: {:?}", judged.camera);
+    assert_not_trivial(&shot);
+    let expected = oracle(&judged, Method::MultiLayer);
+    let (mad, far) = compare(&shot.visibility, &expected);
+    let shadowed = |v: &[f32]| v.iter().filter(|v| **v < 0.5).count();
+    let worst = shot.visibility.iter().zip(&expected).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+    println!(
+        "courtyard as Bevy loads it: mean |GPU − oracle| {mad:.2e}, worst {worst:.3}, {:.2}% of pixels off by > 0.1; \
+         {} pixels in shadow (GPU), {} (oracle)",
+        far * 100.0,
+        shadowed(&shot.visibility),
+        shadowed(&expected)
+    );
+    assert!(shadowed(&expected) > 100, "the oracle sees too little shadow for the test to mean anything");
+    assert!(mad <= 0.01, "mean |GPU − oracle| {mad}");
+
+    // The same scene with the light's shadows off: the shadowed image is darker
+    // exactly where the ground truth says shadow.
+    let world = session.app.world_mut();
+    let light = lights[0].0;
+    world.entity_mut(light).remove::<bevy_shadow_fins::FinShadows>();
+    world.get_mut::<SpotLight>(light).unwrap().shadow_maps_enabled = false;
+    let unshadowed = session.settle(16).expect("headless render");
+    save(&unshadowed, "gltf_courtyard_unshadowed");
+    let ls = LightSpaceScene::new(&judged.scene, judged.light);
+    let truth = GroundTruth::new(&ls, 256);
+    let bvh = Bvh::new(&ls.casters);
+    let (mut umbra, mut lit) = (vec![], vec![]);
+    let (w, h) = (setup.width, setup.height);
+    for y in (0..h).step_by(2) {
+        for x in (0..w).step_by(2) {
+            let Some(r) = pixel_receiver(&judged.camera, (x, y, w, h), &ls, &bvh) else { continue };
+            if !r.faces_light(&ls.frame) {
+                continue;
+            }
+            let i = (y * w + x) as usize;
+            let kept = luminance(shot.color[i]) / luminance(unshadowed.color[i]).max(1e-4);
+            match truth.visibility(r) {
+                v if v < 0.05 => umbra.push(kept),
+                v if v > 0.99 => lit.push(kept),
+                _ => {}
+            }
+        }
+    }
+    let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len().max(1) as f32;
+    println!(
+        "luminance kept: {:.3} over {} umbra pixels, {:.3} over {} lit pixels (ground truth, 256 samples)",
+        mean(&umbra),
+        umbra.len(),
+        mean(&lit),
+        lit.len()
+    );
+    assert!(
+        umbra.len() > 10 && lit.len() > 10,
+        "the view shows too little umbra ({}) or light ({})",
+        umbra.len(),
+        lit.len()
+    );
+    assert!(mean(&umbra) < 0.6, "the umbra is not darker in the shadowed image: kept {}", mean(&umbra));
+    assert!(mean(&lit) > 0.97, "lit pixels got darker: kept {}", mean(&lit));
+}
+
+#[test]
+fn a_gltf_bevy_cannot_read_is_an_error_not_a_hang() {
+    let broken = std::env::temp_dir().join(format!("fins-broken-{}.gltf", std::process::id()));
+    std::fs::write(&broken, br#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":4294967296}]}"#).unwrap();
+    let (_, mut setup) = gltf_setup("kitbash.gltf");
+    setup.gltf = Some(broken.clone());
+    let result = Session::new(&setup).settle(3);
+    std::fs::remove_file(&broken).ok();
+    let error = result.err().expect("a broken glTF is an error");
+    assert!(error.contains("could not load"), "{error}");
+}
