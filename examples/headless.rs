@@ -38,12 +38,13 @@ fn run() -> Result<(), String> {
                 eprintln!("warning: skipped {s}");
             }
             let view = shadow_fins::default_view::default_view_of(&import.scene).ok_or("no mesh in the file")?;
-            let extent = import.scene.bounds().map_or(1.0, |(lo, hi)| (hi - lo).length());
+            let extent = import.scene.diagonal().unwrap_or(1.0);
             let mut setup = Setup::new(import.scene, view.light, view.camera, Default::default(), (width, height));
             setup.gltf = Some(path.into());
             (setup.gltf_lights, setup.gltf_camera, setup.gltf_light_radius) = (true, true, extent * 0.05);
             setup.intensity = shadow_fins_editor::readable_lumens(view.light_distance);
-            (setup.near, setup.far) = (Some(view.near), Some(view.far));
+            // Wide enough for the file's camera too (the view's are the default camera's).
+            (setup.near, setup.far) = (Some(view.near.min(extent * 1e-3)), Some(view.far.max(extent * 100.0)));
             setup
         }
         None => {

@@ -92,7 +92,8 @@ pub struct Setup {
     /// With `gltf`: its own spot and directional lights get `FinShadows` with
     /// `settings` (`give_gltf_lights_fin_shadows`, radius from their extras,
     /// else [`Setup::gltf_light_radius`]) and the harness spawns `light` only
-    /// if the file has no light.
+    /// if the file has no light at all (one with only point lights has no
+    /// fin-shadowed light: they keep Bevy's shadows).
     pub gltf_lights: bool,
     /// The radius a glTF light without one in its extras gets.
     pub gltf_light_radius: f32,
@@ -335,37 +336,29 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
 #[derive(Resource)]
 struct GltfLoad {
     root: Entity,
-    handle: Handle<WorldAsset>,
-    /// Set by the root's `WorldInstanceReady`.
-    ready: Arc<std::sync::atomic::AtomicBool>,
+    loading: bevy_shadow_fins::GltfSceneLoading,
     /// Whether its lights and camera were taken over ([`Session::update`]).
     adopted: bool,
     adoption: GltfAdoption,
 }
 
 fn spawn_gltf(world: &mut World, path: &std::path::Path, adoption: GltfAdoption) {
-    // Absolute: a relative path would be read from Bevy's asset folder.
-    let path = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
-    let handle: Handle<WorldAsset> =
-        world.resource::<AssetServer>().load(bevy::gltf::GltfAssetLabel::Scene(0).from_asset(path));
-    let ready = Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let flag = ready.clone();
-    let root = world
-        .spawn(WorldAssetRoot(handle.clone()))
-        .observe(move |_: On<bevy::world_serialization::WorldInstanceReady>| {
-            flag.store(true, std::sync::atomic::Ordering::Relaxed);
-        })
-        .id();
-    world.insert_resource(GltfLoad { root, handle, ready, adopted: false, adoption });
+    // The scene the core's importer reads (the file's default) is the one Bevy spawns.
+    let scene_index = shadow_fins::gltf_import::load_gltf(path).ok().and_then(|import| import.scene_index).unwrap_or(0);
+    let assets = world.resource::<AssetServer>().clone();
+    let root = bevy_shadow_fins::spawn_gltf_scene(&mut world.commands(), &assets, path, scene_index);
+    world.flush();
+    let loading = world.get::<bevy_shadow_fins::GltfSceneLoading>(root).expect("just spawned").clone();
+    world.insert_resource(GltfLoad { root, loading, adopted: false, adoption });
 }
 
 /// Once the glTF is spawned: its lights get fin shadows and its camera gives
-/// the first camera its view, as [`Setup`] asks; its own cameras are turned
-/// off (they would draw over the harness's).
+/// the first camera its view, as [`Setup`] asks (its own cameras are off:
+/// `spawn_gltf_scene` turns them off).
 fn adopt_gltf(world: &mut World) {
     let Some((root, setup)) = world
         .get_resource::<GltfLoad>()
-        .filter(|l| !l.adopted && l.ready.load(std::sync::atomic::Ordering::Relaxed))
+        .filter(|l| !l.adopted && l.loading.is_ready())
         .map(|l| (l.root, l.adoption.clone()))
     else {
         return;
@@ -379,37 +372,21 @@ fn adopt_gltf(world: &mut World) {
             replace_light(world, s);
         }
     }
-    let mut cameras = world.query_filtered::<(Entity, &GlobalTransform, &Projection), With<Camera3d>>();
-    let mut gltf_cameras: Vec<(Entity, GlobalTransform, Projection)> =
-        cameras.iter(world).map(|(e, t, p)| (e, *t, p.clone())).collect();
-    gltf_cameras.retain(|(e, ..)| is_under(world, *e, root));
-    for (e, ..) in &gltf_cameras {
-        if let Some(mut camera) = world.get_mut::<Camera>(*e) {
-            camera.is_active = false;
-        }
-    }
-    if let (true, Some((_, transform, projection)), Some(main)) =
+    let gltf_cameras: Vec<(GlobalTransform, Projection)> = bevy_shadow_fins::descendants_with::<Camera3d>(world, root)
+        .into_iter()
+        .filter_map(|e| Some((*world.get::<GlobalTransform>(e)?, world.get::<Projection>(e)?.clone())))
+        .filter(|(t, _)| t.translation().is_finite())
+        .collect();
+    if let (true, Some((transform, projection)), Some(main)) =
         (setup.setup.gltf_camera, gltf_cameras.first(), setup.main_camera)
     {
         let mut e = world.entity_mut(main);
-        e.insert(transform.compute_transform());
+        // Its place and turn, not its node's scale (a scaled node would skew the view).
+        e.insert(Transform { scale: Vec3::ONE, ..transform.compute_transform() });
         if let (Projection::Perspective(theirs), Some(mut ours)) = (projection, e.get_mut::<Projection>())
             && let Projection::Perspective(ours) = &mut *ours
         {
             ours.fov = theirs.fov;
-        }
-    }
-}
-
-/// Whether `entity` is `root` or one of its descendants.
-fn is_under(world: &World, mut entity: Entity, root: Entity) -> bool {
-    loop {
-        if entity == root {
-            return true;
-        }
-        match world.get::<ChildOf>(entity) {
-            Some(parent) => entity = parent.parent(),
-            None => return false,
         }
     }
 }
@@ -643,7 +620,7 @@ impl Session {
             if load.adopted {
                 return Ok(());
             }
-            if let bevy::asset::LoadState::Failed(e) = world.resource::<AssetServer>().load_state(&load.handle) {
+            if let Some(e) = load.loading.failed(world.resource::<AssetServer>()) {
                 return Err(format!("Bevy could not load the glTF: {e}"));
             }
             if start.elapsed() > GLTF_LOAD_TIMEOUT {

@@ -104,7 +104,16 @@ pub fn measure(
     // Judged on the triangles Bevy drew.
     let input = &if input.gltf.is_some() {
         session.wait_for_gltf()?;
-        Input { scene: session.scene_snapshot().scene, ..input.clone() }
+        let snapshot = session.scene_snapshot();
+        if !snapshot.skipped.is_empty() || !snapshot.approximated.is_empty() {
+            eprintln!(
+                "warning: {}: {} meshes Bevy draws are not in the ground truth, {} are modelled as rest pose / solid",
+                input.name,
+                snapshot.skipped.len(),
+                snapshot.approximated.len()
+            );
+        }
+        Input { scene: snapshot.scene, ..input.clone() }
     } else {
         input.clone()
     };

@@ -251,6 +251,7 @@ fn a_millimetre_cornell_box_opens_from_inside_lit_and_readable() {
     let scene = slab_scene("cornell-mm", &box_, 1e-3 * 1e-3);
     let (image, stdout) = screenshot_of_scene("gltf-cornell-mm", &scene);
     assert!(!stdout.contains("editor error"), "{stdout}");
+    assert!(stdout.contains("loaded cornell-mm.gltf"), "{stdout}");
     assert!(stdout.contains("seen from inside") && stdout.contains("default light"), "{stdout}");
     assert_readable("cornell box (mm)", &image);
 }
@@ -266,5 +267,6 @@ fn a_kilometre_scene_opens_lit_and_readable() {
     let scene = slab_scene("towers-km", &slabs, 1.0);
     let (image, stdout) = screenshot_of_scene("gltf-towers-km", &scene);
     assert!(!stdout.contains("editor error"), "{stdout}");
+    assert!(stdout.contains("loaded towers-km.gltf") && stdout.contains("default light"), "{stdout}");
     assert_readable("towers (km)", &image);
 }

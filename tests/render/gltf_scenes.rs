@@ -51,8 +51,11 @@ fn largest_vertex_gap(a: &Scene, b: &Scene) -> Option<f32> {
     let distance = |x: &[Vec3; 3], y: &[Vec3; 3]| {
         (0..3).map(|r| (0..3).map(|i| x[i].distance(y[(i + r) % 3])).fold(0.0, f32::max)).fold(f32::INFINITY, f32::min)
     };
-    let gap = ta.iter().map(|x| tb.iter().map(|y| distance(x, y)).fold(f32::INFINITY, f32::min)).fold(0.0, f32::max);
-    Some(gap / size)
+    // Both ways: duplicates on one side cannot hide a triangle missing from it.
+    let one_way = |p: &[[Vec3; 3]], q: &[[Vec3; 3]]| {
+        p.iter().map(|x| q.iter().map(|y| distance(x, y)).fold(f32::INFINITY, f32::min)).fold(0.0, f32::max)
+    };
+    Some(one_way(&ta, &tb).max(one_way(&tb, &ta)) / size)
 }
 
 #[test]
@@ -124,6 +127,13 @@ fn a_bevy_loaded_textured_gltf_with_its_own_spot_light_is_fin_shadowed_as_the_or
     );
     assert!(shadowed(&expected) > 100, "the oracle sees too little shadow for the test to mean anything");
     assert!(mad <= 0.01, "mean |GPU − oracle| {mad}");
+    // Not only on average: the shadowed pixels themselves (a missing shadow
+    // would cost the mean little over a mostly lit view).
+    assert!(far < 0.002, "{:.3}% of pixels off by > 0.1", far * 100.0);
+    let shaded: Vec<(f32, f32)> =
+        shot.visibility.iter().zip(&expected).filter(|(a, b)| a.min(**b) < 0.999).map(|(a, b)| (*a, *b)).collect();
+    let shaded_mad = shaded.iter().map(|(a, b)| (a - b).abs()).sum::<f32>() / shaded.len().max(1) as f32;
+    assert!(shaded_mad <= 0.01, "mean |GPU − oracle| over the {} shaded pixels {shaded_mad}", shaded.len());
 
     // The same scene with the light's shadows off: the shadowed image is darker
     // exactly where the ground truth says shadow.

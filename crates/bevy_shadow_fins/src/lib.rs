@@ -92,7 +92,8 @@
 //! `Scene` (what a CPU oracle or ground truth of the world must trace: a
 //! glTF as Bevy spawned it, say), and [`give_gltf_lights_fin_shadows`] gives
 //! a spawned glTF's spot and directional lights fin shadows with a physical
-//! radius from their `extras` (Bevy 0.19's loader sets it to the range). 3D cameras that show fin-shadowed scenes carry
+//! radius from their `extras` (Bevy 0.19's loader sets a spot's to its range).
+//! [`spawn_gltf_scene`] spawns one with Bevy's loader, its cameras off. 3D cameras that show fin-shadowed scenes carry
 //! [`FinShadowView`], which adds the deferred prepass the compositing reads.
 //! Forward materials are not lit by a [`FinLight`] (it has no Bevy
 //! counterpart to fall back on).
@@ -154,7 +155,7 @@ mod bevy_shadow_maps;
 mod budget;
 mod coverage_frame;
 mod extract;
-mod gltf_lights;
+mod gltf;
 mod gpu_scene;
 mod light;
 mod receivers;
@@ -168,14 +169,17 @@ pub use extract::{
     FinCasterScans, FinFrameStats, FinFrames, FinLightFrame, FinLightStats, FinSceneError, FinShadowStats,
     MAX_FIN_LIGHTS,
 };
-pub use gltf_lights::{GltfLightsAdopted, give_gltf_lights_fin_shadows, gltf_light_radius};
+pub use gltf::{
+    GltfLightsAdopted, GltfSceneLoading, descendants_with, give_gltf_lights_fin_shadows, gltf_light_radius,
+    gltf_light_radius_or, spawn_gltf_scene,
+};
 pub use light::{
     FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster,
     NotFinShadowReceiver,
 };
 pub use receivers::FinReceivers;
 pub use shadow_fins;
-pub use snapshot::{FinSceneSnapshot, FinSnapshotSkip, scene_snapshot};
+pub use snapshot::{FinSceneSnapshot, FinSnapshotApproximation, FinSnapshotSkip, scene_snapshot};
 
 use bevy::prelude::*;
 

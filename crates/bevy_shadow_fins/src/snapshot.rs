@@ -20,6 +20,21 @@ pub struct FinSceneSnapshot {
     /// Drawn meshes that are not in `scene`, and why: not loaded yet, not a
     /// triangle list, GPU-only data, invalid geometry or a degenerate transform.
     pub skipped: Vec<(Entity, FinSnapshotSkip)>,
+    /// Meshes in `scene` that Bevy draws differently (see [`FinSnapshotApproximation`]).
+    pub approximated: Vec<(Entity, FinSnapshotApproximation)>,
+}
+
+/// A mesh in a [`FinSceneSnapshot`] that Bevy draws otherwise than the
+/// plugin (and so the snapshot) models it: the ground truth of the snapshot
+/// shares the plugin's error there.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FinSnapshotApproximation {
+    /// Skinned: modelled in its bind pose at its entity's transform.
+    Skinned,
+    /// Morph targets: modelled without them.
+    Morphed,
+    /// An alpha-masked material: modelled solid (no holes).
+    AlphaMasked,
 }
 
 /// Why a drawn mesh is not in a [`FinSceneSnapshot`].
@@ -38,22 +53,34 @@ pub enum FinSnapshotSkip {
 /// the same triangles, transforms and caster/receiver flags the plugin's
 /// extraction uses. Hidden meshes (`InheritedVisibility`) are left out, as
 /// the plugin leaves them out. Skinned and morphed meshes are their bind pose
-/// (as the plugin's casters are, for now). Object names are the entities'
-/// `Name`s where they have one.
+/// (as the plugin's casters are, for now), listed in `approximated`. A
+/// mesh's `RenderLayers` are not applied: the snapshot is every light's
+/// (the plugin drops casters a light does not share a layer with). Object
+/// names are the entities' `Name`s where they have one.
 pub fn scene_snapshot(world: &mut World, root: Option<Entity>) -> FinSceneSnapshot {
     #[allow(clippy::type_complexity)]
     let mut state: SystemState<(
-        Query<(Entity, &Mesh3d, &GlobalTransform, CasterFlags, Has<NotFinShadowReceiver>, Option<&Name>)>,
+        Query<(
+            Entity,
+            &Mesh3d,
+            &GlobalTransform,
+            CasterFlags,
+            (Has<NotFinShadowReceiver>, Has<bevy::light::NotShadowReceiver>),
+            Option<&Name>,
+            (Has<bevy::mesh::skinning::SkinnedMesh>, Has<bevy::mesh::morph::MeshMorphWeights>),
+            Option<&MeshMaterial3d<StandardMaterial>>,
+        )>,
         Query<&ChildOf>,
         Res<Assets<Mesh>>,
+        Option<Res<Assets<StandardMaterial>>>,
     )> = SystemState::new(world);
     // No `Assets<Mesh>` (a world without Bevy's render plugins): no meshes.
-    let Ok((meshes, parents, assets)) = state.get(world) else { return FinSceneSnapshot::default() };
+    let Ok((meshes, parents, assets, materials)) = state.get(world) else { return FinSceneSnapshot::default() };
     let under_root =
         |entity: Entity| root.is_none_or(|root| entity == root || parents.iter_ancestors(entity).any(|a| a == root));
     let mut converted = bevy::platform::collections::HashMap::new();
     let mut snapshot = FinSceneSnapshot::default();
-    for (entity, mesh3d, transform, flags, not_receiver, name) in &meshes {
+    for (entity, mesh3d, transform, flags, not_receiver, name, (skinned, morphed), material) in &meshes {
         if !flags.drawn() || !under_root(entity) {
             continue;
         }
@@ -73,8 +100,22 @@ pub fn scene_snapshot(world: &mut World, root: Option<Entity>) -> FinSceneSnapsh
         match SceneObject::shared(name, core.clone(), topology.clone(), transform.affine()) {
             Ok(mut object) => {
                 object.casts_shadows = flags.casts();
-                object.receives_shadows = !not_receiver;
+                // Bevy's own opt-out turns fin shadows off too (`NotFinShadowReceiver` adds it).
+                object.receives_shadows = !(not_receiver.0 || not_receiver.1);
                 snapshot.scene.objects.push(object);
+                let masked = material
+                    .zip(materials.as_ref())
+                    .and_then(|(m, all)| all.get(&m.0))
+                    .is_some_and(|m| matches!(m.alpha_mode, AlphaMode::Mask(_)));
+                for (is, what) in [
+                    (skinned, FinSnapshotApproximation::Skinned),
+                    (morphed, FinSnapshotApproximation::Morphed),
+                    (masked, FinSnapshotApproximation::AlphaMasked),
+                ] {
+                    if is {
+                        snapshot.approximated.push((entity, what));
+                    }
+                }
             }
             Err(_) => snapshot.skipped.push((entity, FinSnapshotSkip::BadTransform)),
         }

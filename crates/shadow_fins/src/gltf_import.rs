@@ -35,6 +35,10 @@ use crate::{
 #[derive(Debug)]
 pub struct GltfImport {
     pub scene: Scene,
+    /// The glTF scene read: the file's default scene, else its first; `None`
+    /// when it has no scene (then every node is read). Bevy's loader must be
+    /// asked for the same one (`GltfAssetLabel::Scene(index)`).
+    pub scene_index: Option<usize>,
     /// Primitives that were skipped, with why.
     pub skipped: Vec<GltfError>,
 }
@@ -63,6 +67,7 @@ pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, G
     let mut objects = Vec::new();
     let mut skipped = Vec::new();
     let scene = gltf.default_scene().or_else(|| gltf.scenes().next());
+    let scene_index = scene.as_ref().map(|s| s.index());
     let roots: Vec<gltf::Node> = match &scene {
         Some(s) => s.nodes().collect(),
         None => gltf.nodes().collect(),
@@ -112,7 +117,7 @@ pub fn parse_gltf(bytes: &[u8], base_dir: Option<&Path>) -> Result<GltfImport, G
     if objects.is_empty() {
         return Err(skipped.into_iter().next().unwrap_or(GltfError::NoMeshes));
     }
-    Ok(GltfImport { scene: Scene::new(objects), skipped })
+    Ok(GltfImport { scene: Scene::new(objects), scene_index, skipped })
 }
 
 /// The file's buffers, each source read once (the GLB blob and every

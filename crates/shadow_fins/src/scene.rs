@@ -70,6 +70,11 @@ impl Scene {
         self.objects.iter().map(|o| o.mesh.triangle_count()).sum()
     }
 
+    /// The length of the bounds' diagonal (`None` when empty): the scene's size.
+    pub fn diagonal(&self) -> Option<f32> {
+        self.bounds().map(|(lo, hi)| (hi - lo).length())
+    }
+
     /// World-space axis-aligned bounds of every object (`None` when empty).
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         let mut lo = DVec3::splat(f64::INFINITY);

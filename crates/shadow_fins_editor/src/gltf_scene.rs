@@ -7,16 +7,10 @@
 //! [`bevy_shadow_fins::scene_snapshot`] of the spawned entities, not a
 //! second reading of the file.
 
-use std::{
-    path::{Path, PathBuf},
-    sync::{
-        Arc,
-        atomic::{AtomicBool, Ordering},
-    },
-};
+use std::{path::Path, sync::Arc};
 
-use bevy::{asset::LoadState, gltf::GltfAssetLabel, light::SunDisk, prelude::*};
-use bevy_shadow_fins::FinShadowSettings;
+use bevy::{light::SunDisk, prelude::*};
+use bevy_shadow_fins::{FinShadowSettings, GltfSceneLoading};
 use shadow_fins::{
     default_view::{DefaultView, default_view_of},
     light::Light,
@@ -52,23 +46,26 @@ pub fn readable_lumens(distance: f32) -> f32 {
 #[derive(Component)]
 pub(crate) struct EditorSceneRoot;
 
-/// A glTF being loaded; the scene it replaces stays until it is spawned.
+/// A glTF being loaded (beside the plugin's `GltfSceneLoading`); the
+/// scene it replaces stays until it is spawned.
 #[derive(Component)]
 pub(crate) struct PendingGltf {
     name: String,
-    handle: Handle<WorldAsset>,
     keep_light: bool,
-    /// Set by the root's `WorldInstanceReady`.
-    ready: Arc<AtomicBool>,
 }
 
-/// Starts loading `path` with Bevy's loader. A file that does not exist or
-/// that the core's importer rejects (its errors are typed and it refuses
-/// hostile sizes before reading them) is an error at once; Bevy's own
-/// errors arrive later, in [`finish_gltf_loads`].
+/// How long a load that neither fails nor spawns is waited for.
+pub const GLTF_LOAD_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(60);
+
+/// Starts loading `path` with Bevy's loader, in place of any load still
+/// pending (the last request wins). A file that does not exist or that the
+/// core's importer rejects (its errors are typed and it refuses hostile
+/// sizes before reading them) is an error at once; Bevy's own errors arrive
+/// later, in [`finish_gltf_loads`].
 pub(crate) fn start_gltf_load(
     commands: &mut Commands,
     assets: &AssetServer,
+    pending: impl Iterator<Item = Entity>,
     path: &Path,
     keep_light: bool,
 ) -> Result<(), String> {
@@ -77,32 +74,24 @@ pub(crate) fn start_gltf_load(
     if import.scene.objects.is_empty() {
         return Err(format!("could not open {}: it has no mesh", path.display()));
     }
-    // Absolute: Bevy reads a relative path from its asset folder.
-    let path: PathBuf = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
-    let handle: Handle<WorldAsset> = assets.load(GltfAssetLabel::Scene(0).from_asset(path.clone()));
-    let ready = Arc::new(AtomicBool::new(false));
-    let flag = ready.clone();
+    cancel_pending(commands, pending);
+    // The scene the core read is the one Bevy must spawn.
+    let root = bevy_shadow_fins::spawn_gltf_scene(commands, assets, path, import.scene_index.unwrap_or(0));
     let name = path.file_name().map_or("scene".into(), |n| n.to_string_lossy().into_owned());
-    commands
-        .spawn((PendingGltf { name, handle: handle.clone(), keep_light, ready }, WorldAssetRoot(handle)))
-        .observe(move |_: On<bevy::world_serialization::WorldInstanceReady>| flag.store(true, Ordering::Relaxed));
+    commands.entity(root).insert(PendingGltf { name, keep_light });
     Ok(())
 }
 
-/// Every descendant of `root` with a `T`, in entity order.
-fn under<T: Component>(world: &mut World, root: Entity) -> Vec<Entity> {
-    let mut children = world.query::<&Children>();
-    let (mut out, mut stack) = (vec![], vec![root]);
-    while let Some(e) = stack.pop() {
-        if world.get::<T>(e).is_some() {
-            out.push(e);
-        }
-        if let Ok(c) = children.get(world, e) {
-            stack.extend(c.iter());
-        }
+/// Drops loads still pending (a newer request replaces them).
+pub(crate) fn cancel_pending(commands: &mut Commands, pending: impl Iterator<Item = Entity>) {
+    for e in pending {
+        commands.entity(e).despawn();
     }
-    out.sort();
-    out
+}
+
+/// Descendants of `root` with a `T`, in the file's order.
+fn under<T: Component>(world: &mut World, root: Entity) -> Vec<Entity> {
+    bevy_shadow_fins::descendants_with::<T>(world, root)
 }
 
 /// Replaces the scene with a glTF once Bevy has spawned it (the frame after,
@@ -110,18 +99,20 @@ fn under<T: Component>(world: &mut World, root: Entity) -> Vec<Entity> {
 /// the editor's light, its first camera the editor's view, unless the user's
 /// light is kept; without them the default view is used.
 pub(crate) fn finish_gltf_loads(world: &mut World) {
-    let mut pending = world.query::<(Entity, &PendingGltf)>();
-    let loads: Vec<(Entity, String, Handle<WorldAsset>, bool, bool)> = pending
-        .iter(world)
-        .map(|(e, p)| (e, p.name.clone(), p.handle.clone(), p.keep_light, p.ready.load(Ordering::Relaxed)))
-        .collect();
-    for (root, name, handle, keep_light, ready) in loads {
-        if let LoadState::Failed(e) = world.resource::<AssetServer>().load_state(&handle) {
+    let mut pending = world.query::<(Entity, &PendingGltf, &GltfSceneLoading)>();
+    let loads: Vec<(Entity, String, bool, GltfSceneLoading)> =
+        pending.iter(world).map(|(e, p, l)| (e, p.name.clone(), p.keep_light, l.clone())).collect();
+    for (root, name, keep_light, loading) in loads {
+        let failed = loading.failed(world.resource::<AssetServer>()).or_else(|| {
+            (!loading.is_ready() && loading.started.elapsed() > GLTF_LOAD_TIMEOUT)
+                .then(|| format!("Bevy had not spawned it after {} s", GLTF_LOAD_TIMEOUT.as_secs()))
+        });
+        if let Some(e) = failed {
             world.resource_mut::<EditorState>().error = Some(format!("could not open {name}: {e}"));
             world.despawn(root);
             continue;
         }
-        if !ready {
+        if !loading.is_ready() {
             continue;
         }
         let snapshot = bevy_shadow_fins::scene_snapshot(world, Some(root));
@@ -137,17 +128,24 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
         for e in old {
             world.despawn(e);
         }
-        world.entity_mut(root).remove::<PendingGltf>().insert(EditorSceneRoot);
-        let extent = snapshot.scene.bounds().map_or(1.0, |(lo, hi)| (hi - lo).length().max(1e-6));
+        world.entity_mut(root).remove::<(PendingGltf, GltfSceneLoading)>().insert(EditorSceneRoot);
+        let extent = snapshot.scene.diagonal().unwrap_or(1.0).max(1e-6);
         let lights = adopt_lights(world, root, keep_light, &view, extent);
         let camera = adopt_camera(world, root, keep_light, &view, extent);
         let generation = world.get_resource::<LoadedScene>().map_or(1, |l| l.generation + 1);
         let (objects, triangles) = (snapshot.scene.objects.len(), snapshot.scene.triangle_count());
         world.insert_resource(LoadedScene { name: name.clone(), scene: Arc::new(snapshot.scene), generation, extent });
-        let skipped = match snapshot.skipped.len() {
+        let mut skipped = match snapshot.skipped.len() {
             0 => String::new(),
             n => format!("; {n} meshes unreadable (not in the ground truth, no fin shadow)"),
         };
+        if !snapshot.approximated.is_empty() {
+            skipped += &format!(
+                "; {} skinned, morphed or alpha-masked meshes modelled as their rest pose, solid \
+                 (the ground truth shares that)",
+                snapshot.approximated.len()
+            );
+        }
         let inside = if view.inside { ", seen from inside" } else { "" };
         world.resource_mut::<EditorState>().status = Some(format!(
             "loaded {name}: {objects} meshes, {triangles} triangles, {lights}, {camera}{inside}{skipped}"
@@ -165,7 +163,16 @@ fn adopt_lights(world: &mut World, root: Entity, keep_light: bool, view: &Defaul
     let spots = under::<SpotLight>(world, root);
     let suns = under::<DirectionalLight>(world, root);
     let points = under::<PointLight>(world, root);
-    let first = spots.first().or(suns.first()).or(points.first()).copied();
+    // The file's first light (its order) whose place is finite.
+    let usable = |world: &World, e: Entity| {
+        world.get::<GlobalTransform>(e).is_some_and(|t| {
+            t.translation().is_finite() && Vec3::from(t.affine().matrix3 * bevy::math::Vec3A::NEG_Z).length() > 0.0
+        })
+    };
+    let mut all: Vec<Entity> = spots.iter().chain(&suns).chain(&points).copied().collect();
+    let order = under::<ChildOf>(world, root);
+    all.sort_by_key(|e| order.iter().position(|x| x == e));
+    let first = all.into_iter().find(|&e| usable(world, e));
     let fallback_radius = match view.light {
         Light::Disk(d) => d.radius,
         _ => extent * 0.05,
@@ -177,10 +184,7 @@ fn adopt_lights(world: &mut World, root: Entity, keep_light: bool, view: &Defaul
         let mut params = *world.resource::<LightParams>();
         match first {
             Some(light) => {
-                let radius = world
-                    .get::<bevy::gltf::GltfExtras>(light)
-                    .and_then(|e| bevy_shadow_fins::gltf_light_radius(&e.value))
-                    .unwrap_or(fallback_radius);
+                let radius = bevy_shadow_fins::gltf_light_radius_or(world, light, fallback_radius);
                 let transform = world.get::<GlobalTransform>(light).copied().unwrap_or_default();
                 params.position = transform.translation();
                 params.direction = (transform.affine().matrix3 * bevy::math::Vec3A::NEG_Z).into();
@@ -223,17 +227,25 @@ fn adopt_lights(world: &mut World, root: Entity, keep_light: bool, view: &Defaul
     }
 }
 
+/// Near and far planes that hold a scene `extent` across from anywhere the
+/// orbit may go (the default view's, widened).
+pub(crate) fn fit_clip_planes(projection: &mut Projection, view: Option<&DefaultView>, extent: f32) {
+    if let Projection::Perspective(p) = projection {
+        let near = view.map_or(p.near, |v| v.near).min(extent * 1e-3);
+        p.near = near.max(f32::MIN_POSITIVE);
+        p.far = view.map_or(p.far, |v| v.far).max(extent * 100.0);
+    }
+}
+
 /// The glTF's cameras are turned off (they would draw over the editor's
 /// view); the first gives the editor its view unless the user's is kept,
 /// else the default view does. Near plane and zoom follow the scene's size.
 fn adopt_camera(world: &mut World, root: Entity, keep_light: bool, view: &DefaultView, extent: f32) -> String {
+    // Already off (`spawn_gltf_scene` turns them off as they spawn).
     let cameras = under::<Camera3d>(world, root);
-    for &c in &cameras {
-        if let Some(mut camera) = world.get_mut::<Camera>(c) {
-            camera.is_active = false;
-        }
-    }
-    let from_file = cameras.first().map(|&c| {
+    let finite =
+        |world: &World, c: Entity| world.get::<GlobalTransform>(c).is_some_and(|t| t.translation().is_finite());
+    let from_file = cameras.iter().copied().find(|&c| finite(world, c)).map(|c| {
         let transform = world.get::<GlobalTransform>(c).copied().unwrap_or_default();
         let fov = match world.get::<Projection>(c) {
             Some(Projection::Perspective(p)) => Some(p.fov),
@@ -243,10 +255,7 @@ fn adopt_camera(world: &mut World, root: Entity, keep_light: bool, view: &Defaul
     });
     let mut editor = world.query_filtered::<(&mut OrbitCamera, &mut Projection), With<EditorCamera>>();
     let Ok((mut orbit, mut projection)) = editor.single_mut(world) else { return "no editor camera".into() };
-    if let Projection::Perspective(p) = &mut *projection {
-        p.near = view.near.min(extent * 1e-3).max(f32::MIN_POSITIVE);
-        p.far = view.far.max(extent * 100.0);
-    }
+    fit_clip_planes(&mut projection, Some(view), extent);
     orbit.scale = extent;
     if keep_light {
         return "the kept view".into();

@@ -357,6 +357,8 @@ fn load_scene(
     mut materials: ResMut<Assets<StandardMaterial>>,
     assets: Res<AssetServer>,
     old: Query<Entity, Or<(With<EditorMesh>, With<gltf_scene::EditorSceneRoot>)>>,
+    pending: Query<Entity, With<gltf_scene::PendingGltf>>,
+    mut cameras: Query<(&mut OrbitCamera, &mut Projection), With<EditorCamera>>,
     loaded: Option<Res<LoadedScene>>,
     mut state: ResMut<EditorState>,
 ) {
@@ -364,7 +366,7 @@ fn load_scene(
     let path = match source {
         SceneSource::Gltf(path) => {
             // An earlier error (a bad settings file, a broken glTF) stays until dismissed.
-            match gltf_scene::start_gltf_load(&mut commands, &assets, &path, keep_light) {
+            match gltf_scene::start_gltf_load(&mut commands, &assets, pending.iter(), &path, keep_light) {
                 Ok(()) => state.status = Some(format!("loading {}…", path.display())),
                 Err(e) => state.error = Some(e),
             }
@@ -372,6 +374,8 @@ fn load_scene(
         }
         SceneSource::Demo => SceneId::Demo.build(),
     };
+    // The demo replaces the scene, and any glTF still loading.
+    gltf_scene::cancel_pending(&mut commands, pending.iter());
     for e in &old {
         commands.entity(e).despawn();
     }
@@ -390,7 +394,14 @@ fn load_scene(
     }
     // The demo keeps the user's light and view.
     let generation = loaded.map_or(1, |l| l.generation + 1);
-    let extent = path.scene.bounds().map_or(1.0, |(lo, hi)| (hi - lo).length());
+    let extent = path.scene.diagonal().unwrap_or(1.0);
+    // A glTF before may have left a far near plane and a kilometre zoom.
+    for (mut orbit, mut projection) in &mut cameras {
+        orbit.scale = extent;
+        *projection =
+            Projection::Perspective(PerspectiveProjection { fov: path.camera.vertical_fov.to_radians(), ..default() });
+        gltf_scene::fit_clip_planes(&mut projection, None, extent);
+    }
     commands.insert_resource(LoadedScene { name: "demo".into(), scene: Arc::new(path.scene), generation, extent });
     state.status = Some("loaded demo".into());
 }
@@ -625,6 +636,24 @@ mod tests {
 
     fn meshes(app: &mut App) -> Vec<Entity> {
         app.world_mut().query_filtered::<Entity, With<EditorMesh>>().iter(app.world()).collect()
+    }
+
+    #[test]
+    fn the_last_load_asked_for_wins_over_one_still_pending() {
+        let mut app = app();
+        let courtyard = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/courtyard.gltf");
+        let pending = |app: &mut App| {
+            app.world_mut().query_filtered::<Entity, With<gltf_scene::PendingGltf>>().iter(app.world()).count()
+        };
+        for _ in 0..2 {
+            app.world_mut().write_message(LoadScene::new(SceneSource::Gltf(courtyard.clone())));
+            app.update();
+        }
+        assert_eq!(pending(&mut app), 1, "a second request replaces the first");
+        app.world_mut().write_message(LoadScene::new(SceneSource::Demo));
+        app.update();
+        assert_eq!(pending(&mut app), 0, "the demo replaces a pending glTF");
+        assert!(meshes(&mut app).len() > 3, "and is shown");
     }
 
     #[test]

@@ -116,6 +116,8 @@ fn panels(
             // its slider's range: a fixed range would cut a kilometre light).
             let extent = scene.as_ref().map_or(10.0, |s| s.extent);
             let (max_radius, max_lumens) = slider_ranges(extent);
+            // Never below a value the user has (a kept or autosaved light).
+            let (max_radius, max_lumens) = (max_radius.max(p.radius), max_lumens.max(p.intensity));
             // Wrapped: four kinds in one row would widen the panel over the view.
             ui.horizontal_wrapped(|ui| {
                 for kind in LightKind::ALL {
