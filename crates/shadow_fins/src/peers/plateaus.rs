@@ -173,6 +173,10 @@ impl PlateauModel {
 
     /// The texture on a given plane.
     pub fn on_plane(scene: &Scene, light_space: &LightSpaceScene, plane: ReceiverPlane) -> Self {
+        // Plane coordinates from the foot of the light's axis on it (the
+        // frame origin's nearest point), where the frame keeps its digits: from
+        // a corner of a 60-wide ground they were f32 at 30, 2e-6 apart.
+        let plane = ReceiverPlane { point: plane.normal * plane.point.dot(plane.normal), ..plane };
         let extent = light_space.extent;
         let on_plane_tolerance = 1e-5 * extent.max(1e-30);
         let off_plane: Vec<[Vec3; 3]> = light_space
@@ -245,6 +249,10 @@ impl PlateauModel {
                 (lo.min(*a), hi.max(*b))
             });
         let (lo, size) = if lo.x <= hi.x { (lo, (hi - lo).max(Vec2::splat(1e-20))) } else { (Vec2::ZERO, Vec2::ONE) };
+        // Padded by 1e-3 of its size: a sheet on the grid's border whose
+        // reach is below the f32 steps of `lo` and `size` (a light a
+        // millionth of the scene) fell outside `CellGrid::cell`'s range.
+        let (lo, size) = (lo - size * 1e-3, size * (1.0 + 2e-3));
         let mut side = ((sheets.len() as f32).sqrt() * 2.0).clamp(1.0, 512.0) as usize;
         // Wide sheets (a large light) cover many cells: coarser cells until
         // the lists fit, as the coverage index does.
@@ -356,15 +364,19 @@ fn footprint(
 /// monotone, so the minimum is at an end or a kink (where a coordinate
 /// `cᵢ(u)` or `|c₁| − |c₂|` is 0).
 fn sheet_tau(s: &Sheet, q: Vec2) -> f32 {
-    let d = q - s.p1;
-    let e = s.p2 - s.p1;
-    let dr = s.r2 - s.r1;
+    // In f64: a line light's zero side, kept a sliver of 1e-6, and a light a
+    // millionth of its edges' length put `c` at 1e6–1e7 while `τ` is about
+    // 1, and where the kinks cancel it, f32 kept τ to steps of 1/8 or worse.
+    let d = q.as_dvec2() - s.p1.as_dvec2();
+    let e = s.p2.as_dvec2() - s.p1.as_dvec2();
+    let (r1, dr) = (s.r1 as f64, s.r2 as f64 - s.r1 as f64);
     if let Footprint::Parallelogram { to_axes, .. } = s.shape {
+        let to_axes = to_axes.as_dmat2();
         let (c0, ce) = (to_axes * d, to_axes * e);
-        let at = |u: f32| {
-            let r = s.r1 + u * dr;
+        let at = |u: f64| {
+            let r = r1 + u * dr;
             let c = c0 - ce * u;
-            if r > 0.0 { c.x.abs().max(c.y.abs()) / r } else { f32::INFINITY }
+            if r > 0.0 { c.x.abs().max(c.y.abs()) / r } else { f64::INFINITY }
         };
         let mut best = at(0.0).min(at(1.0));
         for (num, den) in [(c0.x, ce.x), (c0.y, ce.y), (c0.x - c0.y, ce.x - ce.y), (c0.x + c0.y, ce.x + ce.y)] {
@@ -375,21 +387,21 @@ fn sheet_tau(s: &Sheet, q: Vec2) -> f32 {
                 }
             }
         }
-        return best;
+        return best as f32;
     }
-    let at = |u: f32| {
-        let r = s.r1 + u * dr;
-        if r > 0.0 { (d - e * u).length() / r } else { f32::INFINITY }
+    let at = |u: f64| {
+        let r = r1 + u * dr;
+        if r > 0.0 { (d - e * u).length() / r } else { f64::INFINITY }
     };
     let mut best = at(0.0).min(at(1.0));
-    let denom = s.r1 * e.length_squared() + dr * d.dot(e);
+    let denom = r1 * e.length_squared() + dr * d.dot(e);
     if denom != 0.0 {
-        let u = (s.r1 * d.dot(e) + dr * d.length_squared()) / denom;
+        let u = (r1 * d.dot(e) + dr * d.length_squared()) / denom;
         if (0.0..=1.0).contains(&u) {
             best = best.min(at(u));
         }
     }
-    best
+    best as f32
 }
 
 #[cfg(test)]

@@ -311,8 +311,15 @@ fn outer_only_peers_under_zero_size_or_line_rectangles_stay_hard_or_finite() {
 }
 
 /// 0 × 0 is exactly each method's hard shadow: what it gives in the same
-/// frame as a disk of radius 0. Line lights (one side 0) and a 1000 × 1 one
-/// stay finite in [0, 1].
+/// frame as a disk of radius 0 (both take the zero-size shortcut, before
+/// any rectangle code). A square a millionth of the scene wide does run the
+/// rectangle's code and must give that hard shadow too (the convolution
+/// maps: their filtered test before the point lookup's rounding), at all
+/// but 1 in 500 receivers. Line lights (one side 0) are the limit of thin
+/// rectangles: within 0.02 of a `2 × 2e-4` one at all but 1 in 500. Both
+/// are compared by differences, which a NaN fails — the models map a NaN
+/// to 0 or drop it in a `min`, so "finite in [0, 1]" alone passed whatever
+/// the line light's own code computed. A 1000 × 1 one stays finite in [0, 1].
 fn zero_size_or_line_rectangles_stay_hard_or_finite(methods: &[PeerMethod]) {
     for id in [SceneId::BoxOverPlane, SceneId::TiltedReceiver, SceneId::NearContact] {
         let s = id.build();
@@ -321,23 +328,54 @@ fn zero_size_or_line_rectangles_stay_hard_or_finite(methods: &[PeerMethod]) {
         let (ls, receivers) = view_receivers(&s.scene, with(0.0, 0.0), &s.camera, 48, 36);
         let mut ls_disk = LightSpaceScene::new(&s.scene, with(0.0, 0.0));
         ls_disk.frame.aperture = Aperture::Disk;
+        let (lo, hi) = s.scene.bounds().unwrap();
+        let tiny = 1e-6 * (hi - lo).length();
+        let ls_tiny = LightSpaceScene::new(&s.scene, with(tiny, tiny));
+        let allowed = receivers.len() / 500;
         for method in methods.iter().copied() {
             let (zero, point) = (PeerModel::new(method, &s.scene, &ls), PeerModel::new(method, &s.scene, &ls_disk));
-            let mut shadowed = 0;
+            let small = PeerModel::new(method, &s.scene, &ls_tiny);
+            let filtered = matches!(method, PeerMethod::Convolution | PeerMethod::ConvolutionMipmap);
+            let (mut shadowed, mut off_hard) = (0, 0);
             for r in &receivers {
                 let v = zero.visibility(*r);
                 shadowed += (v == 0.0) as u32;
                 assert!(v == 0.0 || v == 1.0, "{id:?} {}: 0 × 0 gives {v} at {:?}", method.name(), r.position);
                 assert_eq!(v, point.visibility(*r), "{id:?} {}: 0 × 0 at {:?}", method.name(), r.position);
+                let t = small.unclamped_visibility(*r);
+                // The point lookup's rounding, NaN kept.
+                let t = if filtered && !t.is_nan() { (t >= 0.5) as u32 as f32 } else { t };
+                off_hard += !((t - v).abs() <= 1e-3) as usize;
             }
             assert!(shadowed > 20, "{id:?}: the view must hold a shadow ({shadowed} px)");
-            for (w, h) in [(2.0, 0.0), (0.0, 2.0), (1e3, 1.0)] {
-                let ls = LightSpaceScene::new(&s.scene, with(w, h));
-                let model = PeerModel::new(method, &s.scene, &ls);
+            assert!(
+                off_hard <= allowed,
+                "{id:?} {}: {off_hard} of {} receivers under the {tiny} square are off the hard shadow",
+                method.name(),
+                receivers.len()
+            );
+            for ((w, h), thin) in [((2.0, 0.0), (2.0, 2e-4)), ((0.0, 2.0), (2e-4, 2.0))] {
+                let line = PeerModel::new(method, &s.scene, &LightSpaceScene::new(&s.scene, with(w, h)));
+                let thin = PeerModel::new(method, &s.scene, &LightSpaceScene::new(&s.scene, with(thin.0, thin.1)));
+                let (mut apart, mut soft) = (0, 0);
                 for r in &receivers {
-                    let v = model.unclamped_visibility(*r);
-                    assert!(v.is_finite() && (0.0..=1.0).contains(&v), "{id:?} {} {w} × {h}: {v}", method.name());
+                    let (v, t) = (line.unclamped_visibility(*r), thin.unclamped_visibility(*r));
+                    apart += !((v - t).abs() <= 0.02) as usize;
+                    soft += (v > 0.0 && v < 1.0) as usize;
                 }
+                assert!(
+                    apart <= allowed,
+                    "{id:?} {} {w} × {h}: {apart} of {} receivers off the thin rectangle's",
+                    method.name(),
+                    receivers.len()
+                );
+                assert!(soft > 5, "{id:?} {} {w} × {h}: no penumbra ({soft} px)", method.name());
+            }
+            let ls = LightSpaceScene::new(&s.scene, with(1e3, 1.0));
+            let model = PeerModel::new(method, &s.scene, &ls);
+            for r in &receivers {
+                let v = model.unclamped_visibility(*r);
+                assert!((0.0..=1.0).contains(&v), "{id:?} {} 1000 × 1: {v}", method.name());
             }
         }
     }
@@ -445,4 +483,93 @@ fn light_shaped_peers_err_under_a_rectangle_about_as_under_its_disk() {
 #[test]
 fn light_shaped_peers_under_zero_size_or_line_rectangles_stay_hard_or_finite() {
     zero_size_or_line_rectangles_stay_hard_or_finite(&LIGHT_SHAPED);
+}
+
+#[test]
+fn peers_under_a_line_light_soften_an_edge_only_across_its_length() {
+    // A 2 × 0 light (and 0 × 2): across the edge its length crosses, each
+    // peer's penumbra is the 2 × 0.4 rectangle's (whose sides the tests
+    // above pin: `2h(d)` wide for the outer-only ones, the box filter for
+    // the wedges, the box for the summed-area maps); across the edge along
+    // it, the hard shadow's step. Compared as differences, which a NaN the
+    // models turned into 0 or 1 would fail as well as a NaN itself. Mipmaps
+    // choose their level by the light's area, so only their step is checked.
+    for (w, h) in [(2.0f32, 0.0f32), (0.0, 2.0)] {
+        let (line, rectangle) = (rect(w, h), rect(w.max(0.4), h.max(0.4)));
+        for (edge_along_z, soft) in [(true, w > 0.0), (false, h > 0.0)] {
+            let scene = half_plane(edge_along_z);
+            let at_edge = |s: f32| if edge_along_z { Vec3::new(s, 0.0, 0.3) } else { Vec3::new(0.3, 0.0, s) };
+            let (ls, ls_rect) = (LightSpaceScene::new(&scene, line), LightSpaceScene::new(&scene, rectangle));
+            for method in OUTER_ONLY.into_iter().chain(LIGHT_SHAPED) {
+                let model = PeerModel::new(method, &scene, &ls);
+                let at = |s: f32| model.unclamped_visibility(ground_receivers(&ls, &[at_edge(s)])[0]);
+                let name = format!("{} {w} × {h}, edge along z {edge_along_z}", method.name());
+                if soft {
+                    if method == PeerMethod::ConvolutionMipmap {
+                        // Its level from the light's area (a sliver) blurs
+                        // it by less: a ramp about 1 wide (the box's is 3).
+                        assert!(at(-1.6) == 0.0 && at(1.6) == 1.0, "{name}: {} and {} off the ramp", at(-1.6), at(1.6));
+                        assert!((at(0.0) - 0.5).abs() < 0.1, "{name}: {} at the hard edge", at(0.0));
+                        continue;
+                    }
+                    let reference = PeerModel::new(method, &scene, &ls_rect);
+                    for i in -40..=80 {
+                        let s = (i as f32 + 0.5) * 0.05;
+                        let (v, r) = (at(s), reference.visibility(ground_receivers(&ls_rect, &[at_edge(s)])[0]));
+                        assert!((v - r).abs() <= 0.01, "{name}, s {s}: {v}, the 2 × 0.4 rectangle's {r}");
+                    }
+                } else {
+                    // A hard step: exact for the ray-traced and wedge peers,
+                    // within two texels (0.16 each) for the maps.
+                    let d = if LIGHT_SHAPED[2..].contains(&method) { 0.35 } else { 0.01 };
+                    assert!(at(-d) == 0.0 && at(d) == 1.0, "{name}: {} and {} either side", at(-d), at(d));
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn peers_behind_a_straight_edge_keep_the_rectangles_shape_at_a_millionth_of_its_size() {
+    // The 2 × 0.4 light scaled by 1e-6: the rectangle's own code at the
+    // degenerate limit (a 0 × 0 light never reaches it). The outer-only
+    // peers' penumbra is then the disk's of the same support across the
+    // edge (radius a across the width, b across the height), `2h(d)` wide;
+    // the wedges' is the rectangle's box filter. Both within 0.01, as at
+    // full size. The wedges at 1e-5: at 1e-6 the edge index they share
+    // with the coverage method (`EdgeIndex::may_reach`, an f32 distance
+    // from the receiver to an edge 10 map units long, ulps of 1e-6 against
+    // a reach of 3e-7) drops the edge for the outer tenth of the penumbra.
+    // (The maps' texels cannot hold it: their hard step is in the built-in
+    // scenes' millionth square above.)
+    for (scale, methods) in [(1e-6f32, &OUTER_ONLY[..]), (1e-5, &LIGHT_SHAPED[..2])] {
+        let light = rect(2.0 * scale, 0.4 * scale);
+        for (edge_along_z, half) in [(true, 1.0 * scale), (false, 0.2 * scale)] {
+            let scene = half_plane(edge_along_z);
+            let at_edge = |s: f32| if edge_along_z { Vec3::new(s, 0.0, 0.3) } else { Vec3::new(0.3, 0.0, s) };
+            let ls = LightSpaceScene::new(&scene, light);
+            let disk = LightSpaceScene::new(&scene, down_light(Vec3::new(0.0, 5.0, 0.0), half));
+            for method in methods.iter().copied() {
+                let model = PeerModel::new(method, &scene, &ls);
+                let same_support = PeerModel::new(method, &scene, &disk);
+                let mut soft = 0;
+                for i in -40..=80 {
+                    let s = (i as f32 + 0.5) / 20.0 * 1.5 * half;
+                    let v = model.unclamped_visibility(ground_receivers(&ls, &[at_edge(s)])[0]);
+                    let expected = if OUTER_ONLY.contains(&method) {
+                        same_support.visibility(ground_receivers(&disk, &[at_edge(s)])[0])
+                    } else {
+                        box_fraction(s, 1.5 * half)
+                    };
+                    soft += (v > 0.05 && v < 0.95) as u32;
+                    assert!(
+                        (v - expected).abs() <= 0.01,
+                        "{} at {scale}, edge along z {edge_along_z}, s {s}: {v}, expected {expected}",
+                        method.name()
+                    );
+                }
+                assert!(soft > 10, "{} at {scale}: {soft} points in the penumbra", method.name());
+            }
+        }
+    }
 }
