@@ -930,18 +930,8 @@ fn leaf_png(size: u32) -> Result<Vec<u8>, LabError> {
     png_bytes(size, png::ColorType::Rgba, &data)
 }
 
-/// Standard base64 with padding (RFC 4648 §4), for `data:` URIs.
-fn base64(data: &[u8]) -> String {
-    const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::with_capacity(data.len().div_ceil(3) * 4);
-    for chunk in data.chunks(3) {
-        let n = chunk.iter().enumerate().fold(0u32, |a, (i, &b)| a | (b as u32) << (16 - 8 * i));
-        for i in 0..4 {
-            out.push(if i <= chunk.len() { T[(n >> (18 - 6 * i) & 63) as usize] as char } else { '=' });
-        }
-    }
-    out
-}
+/// Standard base64 with padding: the core's, which writes every other glTF here.
+use shadow_fins::gltf_import::base64_encode as base64;
 
 #[cfg(test)]
 mod tests {
