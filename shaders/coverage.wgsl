@@ -45,9 +45,50 @@
 const MAX_REFERENCE: i32 = 127;
 const LIT: u32 = 0xffffffffu;
 const DARK: u32 = 0xfffffffeu;
+// A point light's cube face leaves a receiver in another face's frustum alone.
+const OTHER_FACE: u32 = 0xfffffffdu;
 
 fn perspective() -> bool {
-    return params.info.w == 1u;
+    return params.info.w != 0u;
+}
+
+// A point light's cube face: the light is the sphere's outline seen from
+// each receiver (radius in axis_n.w), and the face shades its frustum only.
+fn sphere() -> bool {
+    return params.info.w == 2u;
+}
+
+// The light as receiver p sees it (perspective lights): a disk of centre
+// `center` and radius `radius` spanned by e1, e2 — the disk light itself, or
+// a sphere's outline (`sphere_light::outline_seen_from`: the tangent circle,
+// its axes glam's `any_orthonormal_pair` of the direction to p, as the CPU's).
+struct LightAt {
+    center: vec3<f32>,
+    radius: f32,
+    e1: vec3<f32>,
+    e2: vec3<f32>,
+}
+
+fn light_at(p: vec3<f32>) -> LightAt {
+    if (!sphere()) {
+        return LightAt(vec3<f32>(0.0), params.light.x, vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0));
+    }
+    let r = params.axis_n.w;
+    let d2 = max(dot(p, p), r * r * (1.0 + 1e-6) + 1e-30);
+    let a = p / sqrt(d2);
+    let s = select(-1.0, 1.0, a.z >= 0.0);
+    let k = -1.0 / (s + a.z);
+    let b = a.x * a.y * k;
+    let e1 = vec3<f32>(1.0 + s * a.x * a.x * k, s * b, -s * a.x);
+    let e2 = vec3<f32>(b, s + a.y * a.y * k, -a.y);
+    return LightAt(p * (r * r / d2), sqrt(max(r * r * (1.0 - r * r / d2), 0.0)), e1, e2);
+}
+
+// The cube face's frustum |x|, |y| ≤ z, widened by a relative 1e-5 (as the
+// fins' visibility pass), so no receiver between two faces is left out.
+fn in_face(p: vec3<f32>) -> bool {
+    let z = p.z * (1.0 + 1e-5);
+    return p.z > 0.0 && abs(p.x) <= z && abs(p.y) <= z;
 }
 
 fn map_point(p: vec3<f32>) -> vec2<f32> {
@@ -57,7 +98,8 @@ fn map_point(p: vec3<f32>) -> vec2<f32> {
 // The vector from receiver p towards light sample q (unit-disk coordinates).
 fn sample_vector(p: vec3<f32>, q: vec2<f32>) -> vec3<f32> {
     if (perspective()) {
-        return vec3<f32>(q * params.light.x, 0.0) - p;
+        let l = light_at(p);
+        return l.center + (l.e1 * q.x + l.e2 * q.y) * l.radius - p;
     }
     return vec3<f32>(q * params.light.x, -1.0);
 }
@@ -65,7 +107,8 @@ fn sample_vector(p: vec3<f32>, q: vec2<f32>) -> vec3<f32> {
 // The plane test w · u(q) as a line in q: (n.x, n.y, c).
 fn line_of(w: vec3<f32>, p: vec3<f32>) -> vec3<f32> {
     if (perspective()) {
-        return vec3<f32>(w.xy * params.light.x, -dot(w, p));
+        let l = light_at(p);
+        return vec3<f32>(dot(w, l.e1) * l.radius, dot(w, l.e2) * l.radius, dot(w, l.center - p));
     }
     return vec3<f32>(w.xy * params.light.x, -w.z);
 }
@@ -390,13 +433,16 @@ fn word_moved(word: u32, edge_line: vec3<f32>, r_side: bool, line_a: vec3<f32>, 
 
 // The samples of quad `i` above the receiver's horizon: normal · u(q) ≥ 0.
 fn quad_above(i: u32, p: vec3<f32>, normal: vec3<f32>) -> u32 {
-    let r = params.light.x;
-    let x = samples[2u * i] * r;
-    let y = samples[2u * i + 1u] * r;
-    var d = normal.x * x + normal.y * y - vec4<f32>(normal.z);
+    let x = samples[2u * i];
+    let y = samples[2u * i + 1u];
     if (perspective()) {
-        d = normal.x * (x - p.x) + normal.y * (y - p.y) + normal.z * (0.0 - p.z);
+        // normal · (centre + r (x e1 + y e2) − p)
+        let l = light_at(p);
+        let d = (dot(normal, l.e1) * x + dot(normal, l.e2) * y) * l.radius + vec4<f32>(dot(normal, l.center - p));
+        return bits_of(d >= vec4<f32>(0.0));
     }
+    let r = params.light.x;
+    let d = normal.x * x * r + normal.y * y * r - vec4<f32>(normal.z);
     return bits_of(d >= vec4<f32>(0.0));
 }
 
@@ -418,8 +464,9 @@ fn sample_words() -> u32 {
 
 // The receiver a pixel shades, in the light frame, lifted off its surface.
 struct Receiver {
-    // 0: none (background, outside the viewport, nothing casts); 1: in front
-    // of the near plane; 2: a receiver
+    // 0: none (background, outside the viewport, nothing casts, inside a
+    // sphere light); 1: in front of the near plane; 2: a receiver; 3: in
+    // another cube face's frustum
     kind: u32,
     p: vec3<f32>,
     normal: vec3<f32>,
@@ -430,8 +477,7 @@ fn receiver_at(id: vec2<u32>) -> Receiver {
     let pixel = vec2<i32>(id);
     let depth = textureLoad(depth_prepass, pixel, 0);
     let in_viewport = all(vec2<f32>(id) >= view.viewport.xy) && all(vec2<f32>(id) < view.viewport.xy + view.viewport.zw);
-    // No caster at all (no depth-list work and no edge): lit, as the fins' pass.
-    if ((params.counts.w == 0u && params.lists.w == 0.0) || depth <= 0.0 || !in_viewport) {
+    if (depth <= 0.0 || !in_viewport) {
         return r;
     }
     let uv = (vec2<f32>(id) + 0.5 - view.viewport.xy) / view.viewport.zw;
@@ -446,6 +492,16 @@ fn receiver_at(id: vec2<u32>) -> Receiver {
     let raster_error = fin_view.translation.w + 2.0 * 1.1920929e-7 * length(in_view.xyz / in_view.w);
     let eps = max(max(params.light.w * length(position), params.light.z), raster_error);
     r.p = position + r.normal * eps;
+    if (sphere() && !in_face(r.p)) {
+        r.kind = 3u;
+        return r;
+    }
+    // No caster at all (no depth-list work and no edge): lit, as the fins'
+    // pass; so is a receiver inside a sphere light (nothing comes between).
+    if ((params.counts.w == 0u && params.lists.w == 0.0) || (sphere() && dot(r.p, r.p) <= params.axis_n.w * params.axis_n.w)) {
+        r.kind = 0u;
+        return r;
+    }
     r.kind = select(2u, 1u, perspective() && !(r.p.z > params.light.y));
     return r;
 }
@@ -463,6 +519,10 @@ fn coverage_reference(@builtin(global_invocation_id) id: vec3<u32>) {
     let at = pixel_index(id.xy);
     atomicStore(&tally[at], 0u);
     let r = receiver_at(id.xy);
+    if (r.kind == 3u) {
+        reference[at] = OTHER_FACE;
+        return;
+    }
     if (r.kind != 2u) {
         reference[at] = select(DARK, LIT, r.kind == 0u);
         return;
@@ -488,7 +548,7 @@ fn coverage_samples(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let at = pixel_index(id.xy);
     let d_c = reference[at];
-    if (d_c >= DARK) {
+    if (d_c >= OTHER_FACE) {
         return;
     }
     let r = receiver_at(id.xy);
@@ -540,6 +600,9 @@ fn coverage_resolve(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let at = pixel_index(id.xy);
     let d_c = reference[at];
+    if (d_c == OTHER_FACE) {
+        return;
+    }
     let t = atomicLoad(&tally[at]);
     var v = f32(t & 0xffffu) / f32(max(t >> 16u, 1u));
     if (d_c == LIT) {

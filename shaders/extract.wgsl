@@ -45,8 +45,9 @@ struct ExtractParams {
     // The maps' region lies within (min x, min y, max x, max y): a sun's maps
     // fitted to what the cameras see (`sun_fit.rs`); none when min > max.
     window: vec4<f32>,
-    // (half extents a, b of a rectangle light in the unit bounding circle,
-    // 1 rectangle / 0 disk, unused): the light's support function.
+    // The light's support function: (half extents a, b of a rectangle light
+    // in the unit bounding circle, 1, 0); a disk's (1, 1, 0, 0); a sphere
+    // light's cube face (1/stretch, window, 2, 0): `Aperture::Sphere`.
     aperture: vec4<f32>,
 }
 
@@ -249,14 +250,48 @@ fn fin_width(z: f32) -> f32 {
     return select(0.0, w, w > 0.0);
 }
 
-// The light's support function across unit map direction d
-// (`Aperture::support`): 1 for a disk or the sun, a|d_x| + b|d_y| for a
-// rectangle light in its bounding circle; it scales the fins' widths.
-fn support(d: vec2<f32>) -> f32 {
+// The light's support function across unit map direction d at map point m
+// (`Aperture::support_at`): 1 for a disk or the sun, a|d_x| + b|d_y| for a
+// rectangle light in its bounding circle, √(1 + (d·m)²)/stretch for a
+// sphere light's cube face; it scales the fins' widths.
+fn support(d: vec2<f32>, m: vec2<f32>) -> f32 {
+    if (params.aperture.z > 1.5) {
+        let dm = dot(d, m);
+        return sqrt(1.0 + dm * dm) * params.aperture.x;
+    }
     if (params.aperture.z < 0.5) {
         return 1.0;
     }
     return params.aperture.x * abs(d.x) + params.aperture.y * abs(d.y);
+}
+
+// A sphere light's cube face: its maps cover |x|, |y| ≤ window·z.
+fn cube_face() -> bool {
+    return params.aperture.z > 1.5;
+}
+
+// `LightFrame::outside_face_window`: a cube face leaves out a segment with
+// both ends beyond one plane of its window frustum, or both at or behind the
+// light's plane (no blocker of its receivers lies there; such an edge's fins
+// would be hundreds of map units wide).
+fn outside_face_window(a: vec3<f32>, b: vec3<f32>) -> bool {
+    if (!cube_face()) {
+        return false;
+    }
+    let w = params.aperture.y;
+    return (a.x > w * a.z && b.x > w * b.z) || (-a.x > w * a.z && -b.x > w * b.z)
+        || (a.y > w * a.z && b.y > w * b.z) || (-a.y > w * a.z && -b.y > w * b.z)
+        || (a.z <= 0.0 && b.z <= 0.0);
+}
+
+// The maps' projection code in `FinParams.flags.w`: 0 a disk's perspective,
+// 1 the sun's orthographic, 2 a sphere light's cube face (perspective; its
+// visibility pass shades only the receivers in the face's frustum).
+fn projection_code() -> u32 {
+    if (orthographic()) {
+        return 1u;
+    }
+    return select(0u, 2u, cube_face());
 }
 
 // Unit vector, or zero when it has no direction (the core's `normalize_or(NAN)`).
@@ -420,6 +455,9 @@ fn emit_silhouette(k: u32, inst: Instance, edge: u32, v0: u32, v1: u32, forward:
     let vb = select(v0, v1, forward);
     let a = frame_position(inst, va);
     let b = frame_position(inst, vb);
+    if (outside_face_window(a, b)) {
+        return;
+    }
     let patch_id = atomicLoad(&state[FACE_WORDS * (inst.ids.z + face)]);
     let index = atomicAdd(&control[C_SILHOUETTES], 1u);
     if (index >= params.capacity.x) {
@@ -554,10 +592,10 @@ fn emit_sector(center: vec2<f32>, radius: f32, from_dir: vec2<f32>, to_dir: vec2
     }
     // A rectangle light's fan is a circle as wide as the light across the
     // sector's middle (`FinBuilder`: its bounding circle would reach past
-    // both quads; a disk's is exactly its width).
+    // both quads; a disk's is exactly its width; a sphere's, at the vertex).
     var mid = from_dir + to_dir;
     mid = select(vec2<f32>(-from_dir.y, from_dir.x), normalize(mid), dot(mid, mid) > 0.0);
-    let r = radius * support(mid);
+    let r = radius * support(mid, center);
     let data = array<f32, 12>(center.x, center.y, from_dir.x, from_dir.y, to_dir.x, to_dir.y, r, depth, 0.0, 0.0, 0.0, 0.0);
     emit_fin(1u, outer, patch_id, data, center - r, center + r);
 }
@@ -778,14 +816,14 @@ fn silhouette_quads(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocat
     }
     let d0 = sil.dir_a;
     let d1 = sil.dir_b;
-    // Eq. 3's width, times a rectangle light's support across the fin.
-    let w0 = fin_width(sil.a.z) * support(d0);
-    let w1 = fin_width(sil.b.z) * support(d1);
+    let m0 = map_point(sil.a.xyz);
+    let m1 = map_point(sil.b.xyz);
+    // Eq. 3's width, times the light's support across the fin.
+    let w0 = fin_width(sil.a.z) * support(d0, m0);
+    let w1 = fin_width(sil.b.z) * support(d1, m1);
     if (!(w0 > 0.0 || w1 > 0.0)) {
         return;
     }
-    let m0 = map_point(sil.a.xyz);
-    let m1 = map_point(sil.b.xyz);
     // A staircase step almost along the fin direction spans no area.
     let along = direction(m1 - m0);
     if (abs(cross2(along, d0)) < 0.05 || abs(cross2(along, d1)) < 0.05) {
@@ -848,26 +886,49 @@ fn map_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
     let normal = cross(p[1] - p[0], p[2] - p[0]);
     let offset = dot(normal, p[0]);
     let near = near_depth();
-    if (p[0].z >= near && p[1].z >= near && p[2].z >= near) {
+    // Clipped to z ≥ near and, on a sphere light's cube face, to its window
+    // frustum (`MapTriangle::clipped`): planes (a, b) with a·p + b ≥ 0 inside.
+    let w = params.aperture.y;
+    let planes = array<vec4<f32>, 5>(
+        vec4<f32>(0.0, 0.0, 1.0, -near),
+        vec4<f32>(-1.0, 0.0, w, 0.0),
+        vec4<f32>(1.0, 0.0, w, 0.0),
+        vec4<f32>(0.0, -1.0, w, 0.0),
+        vec4<f32>(0.0, 1.0, w, 0.0),
+    );
+    let n_planes = select(1u, 5u, cube_face());
+    var inside = true;
+    for (var j = 0u; j < n_planes; j++) {
+        for (var k = 0u; k < 3u; k++) {
+            inside = inside && dot(planes[j].xyz, p[k]) + planes[j].w >= 0.0;
+        }
+    }
+    if (inside) {
         emit_caster(p[0], p[1], p[2], normal, offset, patch_id);
         return;
     }
-    // Sutherland–Hodgman against z = near (`MapTriangle::clipped`).
-    var poly: array<vec3<f32>, 4>;
-    var n = 0u;
-    for (var k = 0u; k < 3u; k++) {
-        let a = p[k];
-        let b = p[(k + 1u) % 3u];
-        let ina = a.z >= near;
-        let inb = b.z >= near;
-        if (ina) {
-            poly[n] = a;
-            n += 1u;
+    // Sutherland–Hodgman, one plane after another: at most 3 + 5 corners.
+    var poly = array<vec3<f32>, 8>(p[0], p[1], p[2], vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
+    var n = 3u;
+    for (var j = 0u; j < n_planes; j++) {
+        var out: array<vec3<f32>, 8>;
+        var m = 0u;
+        for (var k = 0u; k < n; k++) {
+            let a = poly[k];
+            let b = poly[(k + 1u) % n];
+            let sa = dot(planes[j].xyz, a) + planes[j].w;
+            let sb = dot(planes[j].xyz, b) + planes[j].w;
+            if (sa >= 0.0 && m < 8u) {
+                out[m] = a;
+                m += 1u;
+            }
+            if ((sa >= 0.0) != (sb >= 0.0) && m < 8u) {
+                out[m] = a + (b - a) * (sa / (sa - sb));
+                m += 1u;
+            }
         }
-        if (ina != inb) {
-            poly[n] = a + (b - a) * ((near - a.z) / (b.z - a.z));
-            n += 1u;
-        }
+        poly = out;
+        n = m;
     }
     for (var k = 1u; k + 1u < n; k++) {
         emit_caster(poly[0], poly[k], poly[k + 1u], normal, offset, patch_id);
@@ -932,10 +993,12 @@ fn plan_layers() {
     // Map region: the bounds of every caster and fin (`RasterMaps::covering_region`).
     var rlo = vec2<f32>(order_value(atomicLoad(&control[C_REGION])), order_value(atomicLoad(&control[C_REGION + 1u])));
     var rhi = vec2<f32>(order_value(atomicLoad(&control[C_REGION + 2u])), order_value(atomicLoad(&control[C_REGION + 3u])));
-    // A perspective map stops ~83° off axis; the sun's is in world units.
+    // A perspective map stops ~83° off axis (a cube face's at its window);
+    // the sun's is in world units.
     if (!orthographic()) {
-        rlo = max(rlo, vec2<f32>(-MAP_LIMIT));
-        rhi = min(rhi, vec2<f32>(MAP_LIMIT));
+        let limit = select(MAP_LIMIT, min(MAP_LIMIT, params.aperture.y), cube_face());
+        rlo = max(rlo, vec2<f32>(-limit));
+        rhi = min(rhi, vec2<f32>(limit));
     }
     if (params.window.x <= params.window.z) {
         rlo = max(rlo, params.window.xy);
@@ -955,7 +1018,7 @@ fn plan_layers() {
         bitcast<u32>(region_min.x), bitcast<u32>(region_min.y), bitcast<u32>(size / f32(resolution)), bitcast<u32>(l0),
         resolution, used, n_casters, n_fins,
         bitcast<u32>(params.light.x), bitcast<u32>(near_depth()), bitcast<u32>(params.light.y * 1e-7), bitcast<u32>(1e-5),
-        params.flags.x, params.flags.y, params.flags.z, select(0u, 1u, orthographic()),
+        params.flags.x, params.flags.y, params.flags.z, projection_code(),
         bitcast<u32>(params.origin.x), bitcast<u32>(params.origin.y), bitcast<u32>(params.origin.z), 0u,
         bitcast<u32>(params.axis_u.x), bitcast<u32>(params.axis_u.y), bitcast<u32>(params.axis_u.z), 0u,
         bitcast<u32>(params.axis_v.x), bitcast<u32>(params.axis_v.y), bitcast<u32>(params.axis_v.z), 0u,

@@ -113,6 +113,12 @@ fn dir_to_frame(d: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(dot(d, params.axis_u.xyz), dot(d, params.axis_v.xyz), dot(d, params.axis_n.xyz));
 }
 
+// The cube face's frustum |x|, |y| ≤ z, widened by a relative 1e-5.
+fn in_face(p: vec3<f32>) -> bool {
+    let z = p.z * (1.0 + 1e-5);
+    return p.z > 0.0 && abs(p.x) <= z && abs(p.y) <= z;
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
     let size = textureDimensions(visibility);
@@ -121,10 +127,10 @@ fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let pixel = vec2<i32>(id.xy);
     let depth = textureLoad(depth_prepass, pixel, 0);
-    // No layer (nothing casts) or background (reverse-Z far plane): fully lit.
-    // The light's own half-space test is the compositing pass's.
+    // Background (reverse-Z far plane): fully lit. The light's own
+    // half-space test is the compositing pass's.
     let in_viewport = all(vec2<f32>(id.xy) >= view.viewport.xy) && all(vec2<f32>(id.xy) < view.viewport.xy + view.viewport.zw);
-    if (params.counts.y == 0u || depth <= 0.0 || !in_viewport) {
+    if (depth <= 0.0 || !in_viewport) {
         textureStore(visibility, pixel, vec4<f32>(1.0));
         return;
     }
@@ -133,6 +139,17 @@ fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
     let ndc = vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
     let in_view = view.view_from_clip * ndc;
     let position = view_to_frame(in_view.xyz / in_view.w);
+    // A point light's cube face shades the receivers in its frustum only;
+    // the six faces' passes fill the light's one layer between them
+    // (`LightFrame::face_holds`, a hair wider so no pixel between two is left).
+    if (params.flags.w == 2u && !in_face(position)) {
+        return;
+    }
+    // No layer: nothing casts.
+    if (params.counts.y == 0u) {
+        textureStore(visibility, pixel, vec4<f32>(1.0));
+        return;
+    }
     let normal_world = normalize(textureLoad(normal_prepass, pixel, 0).xyz * 2.0 - 1.0);
     let normal = dir_to_frame(normal_world);
 

@@ -75,10 +75,11 @@ pub struct Setup {
     /// intensity, range, radius; cone [`SPOT_OUTER_ANGLE`]) instead of a
     /// `FinLight`.
     pub spot: bool,
-    /// More fin-shadowed lights: Bevy `SpotLight`s with `FinShadows` (and the
-    /// setup's settings), each one's visibility read back from the first
-    /// camera into [`Shot::light_visibility`].
-    pub extra_spots: Vec<shadow_fins::light::DiskLight>,
+    /// More fin-shadowed lights, as Bevy lights with `FinShadows` (and the
+    /// setup's settings): a disk is a `SpotLight`, a sphere a `PointLight`, a
+    /// rectangle a `RectLight`, the sun a `DirectionalLight`; each one's
+    /// visibility read back from the first camera into [`Shot::light_visibility`].
+    pub extra_lights: Vec<Light>,
     /// The illuminance of a `Light::Sun`'s `DirectionalLight`, lux.
     pub sun_illuminance: f32,
     /// Render without Bevy's pipelined rendering: each `update` runs the main
@@ -101,9 +102,9 @@ pub struct Setup {
     pub gltf_camera: bool,
 }
 
-/// Marks `Setup::extra_spots` (kept when the main light is replaced).
+/// Marks `Setup::extra_lights` (kept when the main light is replaced).
 #[derive(Component)]
-struct ExtraSpot;
+struct ExtraLight;
 
 /// The outer cone angle of the harness's spot lights (their inner angle is 0).
 pub const SPOT_OUTER_ANGLE: f32 = 1.2;
@@ -143,7 +144,7 @@ impl Setup {
             far: None,
             viewport: None,
             spot: false,
-            extra_spots: vec![],
+            extra_lights: vec![],
             sun_illuminance: 3000.0,
             sequential_rendering: false,
             gltf: None,
@@ -178,7 +179,7 @@ pub struct Shot {
     pub extra_views: Vec<ViewShot>,
     /// The first camera's visibility of each fin-shadowed light spawned with
     /// the app: the setup's light first (unless it is Bevy's point light),
-    /// then `Setup::extra_spots` in order.
+    /// then `Setup::extra_lights` in order.
     pub light_visibility: Vec<Vec<f32>>,
     /// Silhouettes, fins and layers the frame modelled.
     pub stats: bevy_shadow_fins::FinFrameStats,
@@ -257,11 +258,18 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
     };
 
     let extras: Vec<Entity> = setup
-        .extra_spots
+        .extra_lights
         .iter()
-        .map(|d| {
-            let transform = light_transform(d.center, d.normal);
-            world.spawn((spot_light(setup, d.radius), setup.settings, transform, ExtraSpot)).id()
+        .map(|light| {
+            let e = match light {
+                Light::Disk(d) => {
+                    let transform = light_transform(d.center, d.normal);
+                    world.spawn((spot_light(setup, d.radius), setup.settings, transform)).id()
+                }
+                other => spawn_bevy_light(world, setup, other),
+            };
+            world.entity_mut(e).insert(ExtraLight);
+            e
         })
         .collect();
     let spots: Vec<Entity> = main.into_iter().chain(extras).collect();
@@ -368,7 +376,7 @@ fn adopt_gltf(world: &mut World) {
         let s = &setup.setup;
         let adopted = bevy_shadow_fins::give_gltf_lights_fin_shadows(world, root, s.settings, s.gltf_light_radius);
         // A file without lights gets the setup's.
-        if adopted.lights.is_empty() && adopted.point_lights.is_empty() {
+        if adopted.lights.is_empty() {
             replace_light(world, s);
         }
     }
@@ -418,13 +426,10 @@ fn visibility_image(world: &mut World, width: u32, height: u32) -> Handle<Image>
 /// Returns the fin-shadowed light spawned (`None` for Bevy's point light).
 pub fn replace_light(world: &mut World, setup: &Setup) -> Option<Entity> {
     let old: Vec<Entity> = world
-        .query_filtered::<Entity, Or<(
-            With<FinLight>,
-            With<PointLight>,
-            With<DirectionalLight>,
-            With<RectLight>,
-            (With<SpotLight>, Without<ExtraSpot>),
-        )>>()
+        .query_filtered::<Entity, (
+            Or<(With<FinLight>, With<PointLight>, With<DirectionalLight>, With<RectLight>, With<SpotLight>)>,
+            Without<ExtraLight>,
+        )>()
         .iter(world)
         .collect();
     for e in old {
@@ -436,26 +441,7 @@ pub fn replace_light(world: &mut World, setup: &Setup) -> Option<Entity> {
     world.insert_resource(PointLightShadowMap { size: setup.settings.clamped().map_resolution as usize });
     let d = match setup.light {
         Light::Disk(d) => d,
-        Light::Sun(sun) => {
-            let sun_light =
-                DirectionalLight { illuminance: setup.sun_illuminance, shadow_maps_enabled: true, ..default() };
-            let disk = SunDisk { angular_size: 2.0 * sun.angular_radius, intensity: 1.0 };
-            let transform = light_transform(Vec3::ZERO, sun.direction);
-            return Some(world.spawn((sun_light, disk, FinShadows, setup.settings, transform)).id());
-        }
-        Light::Rect(r) => {
-            let rect = RectLight {
-                intensity: setup.intensity,
-                range: light_range(setup, r.center),
-                width: 2.0 * r.half_extents.x,
-                height: 2.0 * r.half_extents.y,
-                ..default()
-            };
-            // Bevy's rectangle spans local X (width) and Y and faces −Z.
-            let rotation = Quat::from_mat3(&Mat3::from_cols(r.tangent, r.tangent.cross(r.normal), -r.normal));
-            let transform = Transform::from_translation(r.center).with_rotation(rotation);
-            return Some(world.spawn((rect, FinShadows, setup.settings, transform)).id());
-        }
+        other => return Some(spawn_bevy_light(world, setup, &other)),
     };
     let transform = light_transform(d.center, d.normal);
     let fin =
@@ -482,6 +468,52 @@ pub fn replace_light(world: &mut World, setup: &Setup) -> Option<Entity> {
         Some(world.spawn((spot_light(setup, d.radius), setup.settings, transform)).id())
     } else {
         Some(world.spawn((fin, setup.settings, transform)).id())
+    }
+}
+
+/// A fin-shadowed Bevy light of the setup's intensity for a sun, a
+/// rectangle or a sphere (a disk is a `FinLight` or a `SpotLight`, see
+/// [`replace_light`]).
+fn spawn_bevy_light(world: &mut World, setup: &Setup, light: &Light) -> Entity {
+    match *light {
+        Light::Disk(d) => {
+            let transform = light_transform(d.center, d.normal);
+            world.spawn((spot_light(setup, d.radius), setup.settings, transform)).id()
+        }
+        Light::Sun(sun) => {
+            let sun_light =
+                DirectionalLight { illuminance: setup.sun_illuminance, shadow_maps_enabled: true, ..default() };
+            let disk = SunDisk { angular_size: 2.0 * sun.angular_radius, intensity: 1.0 };
+            let transform = light_transform(Vec3::ZERO, sun.direction);
+            world.spawn((sun_light, disk, FinShadows, setup.settings, transform)).id()
+        }
+        Light::Rect(r) => {
+            let rect = RectLight {
+                intensity: setup.intensity,
+                range: light_range(setup, r.center),
+                width: 2.0 * r.half_extents.x,
+                height: 2.0 * r.half_extents.y,
+                ..default()
+            };
+            // Bevy's rectangle spans local X (width) and Y and faces −Z.
+            let rotation = Quat::from_mat3(&Mat3::from_cols(r.tangent, r.tangent.cross(r.normal), -r.normal));
+            let transform = Transform::from_translation(r.center).with_rotation(rotation);
+            world.spawn((rect, FinShadows, setup.settings, transform)).id()
+        }
+        Light::Sphere(s) => {
+            // Bevy's own point light of that radius, its shadow fin-shadowed
+            // (the user's shadow_maps_enabled kept: `bevy_lights.rs` turns the
+            // cube maps off in the render world only).
+            let point = PointLight {
+                intensity: setup.intensity,
+                range: light_range(setup, s.center),
+                radius: s.radius,
+                shadow_maps_enabled: true,
+                ..default()
+            };
+            let transform = Transform::from_translation(s.center);
+            world.spawn((point, FinShadows, setup.settings, transform)).id()
+        }
     }
 }
 

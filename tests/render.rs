@@ -13,6 +13,7 @@ mod render {
     mod lab;
     mod lights;
     mod oracle_agreement;
+    mod point_light;
     mod rect_light;
     mod reliability;
     mod robustness;

@@ -295,7 +295,7 @@ fn write(path: &std::path::Path, text: &str) -> Result<(), LabError> {
 fn inputs(args: &MeasureArgs) -> Result<Vec<measure::Input>, LabError> {
     let disk = |light: Light| match light {
         Light::Disk(d) => Ok(d),
-        Light::Rect(_) | Light::Sun(_) => Err(usage("measure needs a disk light".into())),
+        Light::Rect(_) | Light::Sun(_) | Light::Sphere(_) => Err(usage("measure needs a disk light".into())),
     };
     if let Some(list) = &args.blob_triangles {
         let counts =
@@ -331,6 +331,7 @@ fn inputs(args: &MeasureArgs) -> Result<Vec<measure::Input>, LabError> {
                 light_normal: None,
                 radius: None,
                 rect: None,
+                point: false,
                 sun_direction: None,
                 sun_angle: 0.05,
             }

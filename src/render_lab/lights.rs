@@ -49,11 +49,11 @@ fn setup_for(run: &LightsRun, n: usize) -> Result<Setup, String> {
     let mut setup = Setup::new(built.scene, built.light, built.camera, settings, (run.width, run.height));
     setup.spot = true;
     let reach = setup.scene.bounds().map_or(1.0, |(lo, hi)| (hi - lo).length() * 0.15);
-    setup.extra_spots = (1..n)
+    setup.extra_lights = (1..n)
         .map(|k| {
             let a = k as f32 * std::f32::consts::TAU / (n - 1).max(1) as f32;
             let (u, v) = d.normal.any_orthonormal_pair();
-            DiskLight { center: d.center + (u * a.cos() + v * a.sin()) * reach, ..d }
+            Light::Disk(DiskLight { center: d.center + (u * a.cos() + v * a.sin()) * reach, ..d })
         })
         .collect();
     Ok(setup)

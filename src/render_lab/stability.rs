@@ -80,7 +80,7 @@ fn base() -> Setup {
 fn disk(setup: &Setup) -> DiskLight {
     match setup.light {
         Light::Disk(d) => d,
-        Light::Rect(_) | Light::Sun(_) => unreachable!("the stability scenes are lit by disks"),
+        Light::Rect(_) | Light::Sun(_) | Light::Sphere(_) => unreachable!("the stability scenes are lit by disks"),
     }
 }
 
@@ -276,7 +276,7 @@ fn truth_frame(setup: &Setup) -> LightSpaceScene {
             let extent = setup.scene.bounds().map_or(1.0, |(lo, hi)| (hi - lo).length());
             LightSpaceScene::in_frame(&setup.scene, setup.light, frame, extent)
         }
-        Light::Disk(_) | Light::Rect(_) => LightSpaceScene::new(&setup.scene, setup.light),
+        Light::Disk(_) | Light::Rect(_) | Light::Sphere(_) => LightSpaceScene::new(&setup.scene, setup.light),
     }
 }
 

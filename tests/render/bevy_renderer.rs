@@ -50,6 +50,9 @@ struct Scene {
     sun: bool,
     /// Bevy's contact shadows on the light and the fin camera.
     contact: bool,
+    /// A point light and a sun beside the spot light, all three as
+    /// `fin_light` and `bevy_shadows` say: several lights' maps kept at once.
+    several: bool,
 }
 
 impl Scene {
@@ -64,6 +67,7 @@ impl Scene {
             plain_camera: false,
             sun: false,
             contact: false,
+            several: false,
         }
     }
 }
@@ -159,6 +163,26 @@ fn build(scene: Scene) -> Rendering {
     };
     if scene.fin_light {
         light.insert(FinShadows);
+    }
+    if scene.several {
+        let point = PointLight {
+            intensity: 1.0e5,
+            range: 30.0,
+            radius: 0.5,
+            shadow_maps_enabled: scene.bevy_shadows,
+            ..default()
+        };
+        let sun = DirectionalLight { illuminance: 150.0, shadow_maps_enabled: scene.bevy_shadows, ..default() };
+        let disk = bevy::light::SunDisk { angular_size: 6f32.to_radians(), intensity: 1.0 };
+        let others = [
+            world.spawn((point, Transform::from_xyz(-1.8, 3.0, 1.2))).id(),
+            world.spawn((sun, disk, Transform::default().looking_to(Vec3::new(0.5, -1.0, -0.2), Vec3::Z))).id(),
+        ];
+        if scene.fin_light {
+            for e in others {
+                world.entity_mut(e).insert(FinShadows);
+            }
+        }
     }
     let fin = scene.fin_camera.then(|| spawn_camera(world, 0, true));
     let plain = scene.plain_camera.then(|| spawn_camera(world, 1, false));
@@ -275,6 +299,8 @@ fn a_fin_camera_shows_the_same_fin_shadow_whether_bevys_maps_are_kept_or_not() {
         ("spot", spot),
         ("sun", Scene { sun: true, ..spot }),
         ("spot, contact shadows", Scene { contact: true, ..spot }),
+        // Three kinds at once: each light's S found and replaced by its own V.
+        ("spot, point and sun", Scene { several: true, ..spot }),
     ] {
         println!("{label}:");
         same_fin_shadow_kept_or_not(scene, &label.replace([' ', ','], "_"));

@@ -36,10 +36,29 @@ pub fn oracle(setup: &Setup, method: Method) -> Vec<f32> {
 
 /// [`oracle`] seen from another camera.
 pub fn oracle_for(setup: &Setup, camera: &shadow_fins::camera::Camera, method: Method) -> Vec<f32> {
-    let ls = LightSpaceScene::new(&setup.scene, setup.light);
-    let model = FinShadowModel::new(&setup.scene, &ls, method, setup.settings.core());
-    let maps = model.raster(setup.settings.clamped().map_resolution);
-    per_pixel(setup, camera, &ls, |r| maps.visibility(r))
+    let faces = LightSpaceScene::faces(&setup.scene, setup.light);
+    let models: Vec<FinShadowModel> =
+        faces.iter().map(|ls| FinShadowModel::new(&setup.scene, ls, method, setup.settings.core())).collect();
+    let maps: Vec<_> = models.iter().map(|m| m.raster(setup.settings.clamped().map_resolution)).collect();
+    per_pixel_in_faces(setup, camera, &faces, |face, r| maps[face].visibility(r))
+}
+
+/// [`per_pixel`] for a light of one frame or several (a point light's cube
+/// faces, `LightSpaceScene::faces`): each pixel's receiver evaluated by
+/// `visibility(face, receiver in that face's frame)` in the face that shades it.
+pub fn per_pixel_in_faces(
+    setup: &Setup,
+    camera: &shadow_fins::camera::Camera,
+    faces: &[LightSpaceScene],
+    visibility: impl Fn(usize, shadow_fins::oracle::Receiver) -> f32,
+) -> Vec<f32> {
+    let first = &faces[0];
+    per_pixel(setup, camera, first, |r| {
+        let (p, n) = (first.frame.to_world(r.position), first.frame.dir_to_world(r.normal));
+        let k = LightSpaceScene::face_of(faces, p);
+        let f = &faces[k].frame;
+        visibility(k, shadow_fins::oracle::Receiver { position: f.to_frame(p), normal: f.dir_to_frame(n) })
+    })
 }
 
 /// `visibility` at every pixel's receiver seen from `camera` (1 for background).

@@ -25,11 +25,12 @@ pub(super) fn coverage_settings() -> FinShadowSettings {
 }
 
 pub(super) fn coverage_oracle(setup: &Setup) -> Vec<f32> {
-    let ls = LightSpaceScene::new(&setup.scene, setup.light);
+    let faces = LightSpaceScene::faces(&setup.scene, setup.light);
     let s = setup.settings.clamped();
     let reference = ReferenceCount::Raster { resolution: s.map_resolution, depths: DEPTH_LIST_LENGTH };
-    let model = CoverageModel::new(&setup.scene, &ls, CoverageSettings { samples: s.coverage_samples, reference });
-    per_pixel(setup, &setup.camera, &ls, |r| model.visibility(r))
+    let settings = CoverageSettings { samples: s.coverage_samples, reference };
+    let models: Vec<CoverageModel> = faces.iter().map(|ls| CoverageModel::new(&setup.scene, ls, settings)).collect();
+    per_pixel_in_faces(setup, &setup.camera, &faces, |face, r| models[face].visibility(r))
 }
 
 #[test]

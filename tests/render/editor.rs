@@ -118,25 +118,29 @@ fn the_editors_settings_change_what_the_plugin_renders() {
 }
 
 #[test]
-fn the_editors_rect_light_casts_a_soft_shadow_that_its_size_changes() {
-    // Bevy's RectLight chosen in the editor (`kind: "rect"`): of size 0 its
-    // fin shadow is the hard one, of the disk-of-radius-1 area a soft one.
+fn the_editors_rect_and_point_lights_cast_soft_shadows_that_their_size_changes() {
+    // Bevy's RectLight and PointLight chosen in the editor (`kind: "rect"`,
+    // `"point"`): of size 0 their fin shadow is the hard one, of radius 1
+    // (the rectangle: that disk's area) a soft one.
     let dir = out_dir();
-    let write = |name: &str, radius: f32| {
-        let mut s = EditorSettings::load(&PathBuf::from("tests/data/editor-settings.ron")).expect("settings fixture");
-        (s.radius, s.method, s.kind, s.rect_aspect) = (radius, "multi-layer".into(), Some("rect".into()), 3.0);
-        let path = dir.join(format!("{name}.ron"));
-        s.save(&path).unwrap();
-        path
-    };
-    let (point, wide) = (write("rect-0", 0.0), write("rect-1", 1.0));
-    let a = screenshot("rect-0", &["--settings", point.to_str().unwrap()], 16);
-    let b = screenshot("rect-1", &["--settings", wide.to_str().unwrap()], 16);
-    let (w, h) = (a.width().min(b.width()), a.height().min(b.height()));
-    assert!(distinct_colours(&b, (w / 4, w * 3 / 4, h / 4, h * 3 / 4)) > 20, "the rect-lit view is flat");
-    let changed = changed_pixels(&a, &b);
-    println!("{changed} sampled viewport pixels differ between a 0 × 0 and a sized rect light");
-    assert!(changed > 300, "the rectangle's size changed almost nothing ({changed} pixels differ)");
+    for kind in ["rect", "point"] {
+        let write = |name: &str, radius: f32| {
+            let mut s =
+                EditorSettings::load(&PathBuf::from("tests/data/editor-settings.ron")).expect("settings fixture");
+            (s.radius, s.method, s.kind, s.rect_aspect) = (radius, "multi-layer".into(), Some(kind.into()), 3.0);
+            let path = dir.join(format!("{name}.ron"));
+            s.save(&path).unwrap();
+            path
+        };
+        let (point, wide) = (write(&format!("{kind}-0"), 0.0), write(&format!("{kind}-1"), 1.0));
+        let a = screenshot(&format!("{kind}-0"), &["--settings", point.to_str().unwrap()], 16);
+        let b = screenshot(&format!("{kind}-1"), &["--settings", wide.to_str().unwrap()], 16);
+        let (w, h) = (a.width().min(b.width()), a.height().min(b.height()));
+        assert!(distinct_colours(&b, (w / 4, w * 3 / 4, h / 4, h * 3 / 4)) > 20, "the {kind}-lit view is flat");
+        let changed = changed_pixels(&a, &b);
+        println!("{changed} sampled viewport pixels differ between a size-0 and a sized {kind} light");
+        assert!(changed > 300, "the {kind} light's size changed almost nothing ({changed} pixels differ)");
+    }
 }
 
 /// Runs the editor on `scene` for a screenshot; returns it with what the

@@ -29,7 +29,7 @@ fn spot_setup() -> Setup {
 fn disk(setup: &Setup) -> DiskLight {
     match setup.light {
         Light::Disk(d) => d,
-        Light::Sun(_) | Light::Rect(_) => unreachable!("the built-in scenes have disk lights"),
+        Light::Sun(_) | Light::Rect(_) | Light::Sphere(_) => unreachable!("the built-in scenes have disk lights"),
     }
 }
 
@@ -91,7 +91,7 @@ fn two_spot_lights_each_match_their_shadow_alone() {
     let a = spot_setup();
     let b = moved(&a, Vec3::new(1.5, 0.0, 0.5));
     let mut both = a.clone();
-    both.extra_spots = vec![b];
+    both.extra_lights = vec![Light::Disk(b)];
     let mut b_alone = a.clone();
     b_alone.light = Light::Disk(b);
     let (shot, alone_a, alone_b) = (render_bevy_lights(&both), render_bevy_lights(&a), render_bevy_lights(&b_alone));
@@ -117,13 +117,13 @@ fn eight_spot_lights_each_match_the_oracle() {
         })
         .collect();
     let mut all = base.clone();
-    all.extra_spots = offsets.iter().map(|o| moved(&base, *o)).collect();
+    all.extra_lights = offsets.iter().map(|o| Light::Disk(moved(&base, *o))).collect();
     let shot = render_bevy_lights(&all);
     assert_eq!(shot.light_visibility.len(), 9, "the setup's light and eight more");
     let mut worst: f32 = 0.0;
-    for (k, light) in all.extra_spots.iter().enumerate() {
+    for (k, light) in all.extra_lights.iter().enumerate() {
         let mut alone = base.clone();
-        alone.light = Light::Disk(*light);
+        alone.light = *light;
         let expected = oracle(&alone, Method::MultiLayer);
         let (mad, far) = compare(&shot.light_visibility[k + 1], &expected);
         assert_visibility_not_trivial(&shot.light_visibility[k + 1]);
@@ -140,7 +140,7 @@ fn lights_past_the_budget_degrade_with_the_reason_in_their_stats() {
     // 2.25 MiB): every light's maps shrink, each says why, nothing fails.
     let base = spot_setup();
     let mut setup = base.clone();
-    setup.extra_spots = (1..4).map(|k| moved(&base, Vec3::new(k as f32 * 0.5, 0.0, 0.0))).collect();
+    setup.extra_lights = (1..4).map(|k| Light::Disk(moved(&base, Vec3::new(k as f32 * 0.5, 0.0, 0.0)))).collect();
     let mut session = Session::new(&setup);
     session.app.world_mut().insert_resource(bevy_shadow_fins::FinShadowBudget { map_bytes: 8 << 20, ..default() });
     let shot = session.settle(16).expect("render");
@@ -170,7 +170,7 @@ fn two_lights_composite_to_the_sum_of_their_shadowed_contributions() {
     let a = spot_setup();
     let b = moved(&a, Vec3::new(1.5, 0.0, 0.5));
     let mut both = a.clone();
-    both.extra_spots = vec![b];
+    both.extra_lights = vec![Light::Disk(b)];
     let unshadowed = |light: DiskLight| {
         let mut s = a.clone();
         s.light = Light::Disk(light);

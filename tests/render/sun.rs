@@ -131,7 +131,7 @@ fn a_sun_and_a_spot_light_each_match_their_shadow_alone_and_add_up() {
     // composite's directional slot beside a clustered one.
     let (sun, spot) = sun_and_spot();
     let mut both = sun.clone();
-    both.extra_spots = vec![spot];
+    both.extra_lights = vec![Light::Disk(spot)];
     let mut spot_alone = sun.clone();
     spot_alone.light = Light::Disk(spot);
     spot_alone.spot = true;

@@ -62,8 +62,8 @@ fn decide_bevy_shadow_maps(
     frames: Res<FinFrames>,
     receivers: Res<FinReceivers>,
     cameras: Query<&Camera, (With<Camera3d>, Without<FinShadowView>)>,
-    // A RectLight has no Bevy map, and a PointLight has no fin frame yet.
-    mut lights: Query<(Option<&mut SpotLight>, Option<&mut DirectionalLight>)>,
+    // A RectLight has no Bevy map.
+    mut lights: Query<(Option<&mut SpotLight>, Option<&mut DirectionalLight>, Option<&mut PointLight>)>,
     mut kept: ResMut<BevyShadowMapsKept>,
 ) {
     let now = BevyShadowMapsKept {
@@ -91,12 +91,15 @@ fn decide_bevy_shadow_maps(
         }
         // Marked changed, Bevy extracts the light again with the user's own
         // shadow setting; `render/bevy_lights.rs` then leaves it or turns it off.
-        if let Ok((spot, sun)) = lights.get_mut(frame.light) {
+        if let Ok((spot, sun, point)) = lights.get_mut(frame.light) {
             if let Some(mut spot) = spot {
                 spot.set_changed();
             }
             if let Some(mut sun) = sun {
                 sun.set_changed();
+            }
+            if let Some(mut point) = point {
+                point.set_changed();
             }
         }
     }

@@ -26,7 +26,7 @@ use bevy::{
 };
 use shadow_fins::{
     fins::{Fin, FinShape, FinSide},
-    light::{Aperture, DiskLight, Light, LightFrame, RectLight as RectArea, SunLight},
+    light::{Aperture, CubeFace, DiskLight, Light, LightFrame, RectLight as RectArea, SphereLight, SunLight},
     mesh::{Mesh as CoreMesh, Topology},
     oracle::{FinShadowModel, MapRegion},
     scene::{LightSpaceScene, Scene, SceneObject},
@@ -150,6 +150,9 @@ pub struct FinFrameData {
 /// in their [`FinLightStats`].
 pub const MAX_FIN_LIGHTS: usize = 16;
 
+/// The most frames (map sets) at once: a `PointLight` has one per cube face.
+pub(crate) const MAX_FIN_FRAMES: usize = 6 * MAX_FIN_LIGHTS;
+
 /// How a fin-shadowed light is shaded by the compositing pass.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum LightShading {
@@ -163,25 +166,58 @@ pub(crate) enum LightShading {
     Bevy { render_entity: Entity },
 }
 
-/// One fin-shadowed light and its frame.
+/// One frame of a fin-shadowed light: a light's maps, extraction and
+/// visibility pass. A `PointLight` has six, one per cube face, which shade
+/// the receivers in their own frusta into the light's one visibility layer.
 #[derive(Debug, Clone)]
 pub struct FinLightFrame {
     /// The light's (main-world) entity.
     pub light: Entity,
-    /// The light as the core crate models it (its disk, rectangle or sun):
-    /// what an oracle or a ground truth of this light should be given.
+    /// The cube face of a point light's frame (`None` for any other light).
+    pub face: Option<CubeFace>,
+    /// The light's visibility layer in every camera's illuminance buffer
+    /// (its index among the fin-shadowed lights, by entity order).
+    pub layer: usize,
+    /// The light as the core crate models it (its disk, rectangle, sun or
+    /// sphere): what an oracle or a ground truth of this light should be given.
     pub shape: Light,
     pub(crate) shading: LightShading,
     pub data: Arc<FinFrameData>,
 }
 
-/// Every fin-shadowed light's frame, by entity order (at most
-/// [`MAX_FIN_LIGHTS`]). Each light has its own maps, layers and visibility
-/// layer; the penumbra-map budget is shared equally.
+impl FinLightFrame {
+    pub(crate) fn key(&self) -> FrameKey {
+        (self.light, self.face)
+    }
+}
+
+/// A frame's identity: its light, and its cube face for a point light.
+pub(crate) type FrameKey = (Entity, Option<CubeFace>);
+
+/// Every fin-shadowed light's frames, by entity order (at most
+/// [`MAX_FIN_LIGHTS`] lights; a point light's six faces one after another).
+/// Each frame has its own maps and layers, each light its own visibility
+/// layer; the penumbra-map budget is shared equally between the frames.
 #[derive(Resource, Clone, Default, ExtractResource)]
 pub struct FinFrames(pub Vec<FinLightFrame>);
 
 impl FinFrames {
+    /// How many visibility layers the frames fill: one per light.
+    pub fn light_count(&self) -> usize {
+        self.0.last().map_or(0, |f| f.layer + 1)
+    }
+
+    /// The frames of visibility layer `layer`.
+    pub(crate) fn of_layer(&self, layer: usize) -> impl Iterator<Item = (usize, &FinLightFrame)> {
+        self.0.iter().enumerate().filter(move |(_, f)| f.layer == layer)
+    }
+
+    /// True when `slot` is the last frame of its light (its layer is complete
+    /// once that frame's visibility pass ran).
+    pub(crate) fn ends_layer(&self, slot: usize) -> bool {
+        self.0.get(slot).is_some_and(|f| self.0.get(slot + 1).is_none_or(|n| n.layer != f.layer))
+    }
+
     /// The lights on the coverage method (`true`) or on a fin method (`false`):
     /// each set has its own GPU resources (`render/coverage.rs`, `render/mod.rs`).
     pub(crate) fn on_coverage(&self, coverage: bool) -> impl Iterator<Item = &FinLightFrame> {
@@ -212,6 +248,8 @@ pub(crate) struct LightState {
     /// A sun's map window in its last frame (`sun_fit::sun_window` keeps it
     /// while it still fits).
     window: Option<[f32; 4]>,
+    /// What this frame models now (a light's stats combine its frames').
+    pub(crate) stats: FinFrameStats,
 }
 
 /// How many times the frame builder has walked every mesh to sign the
@@ -293,7 +331,7 @@ pub(crate) struct MeshCache {
     /// Bumped for every frame built, for every light: a read-back's
     /// generation names one light's one frame.
     generation: u64,
-    pub(crate) lights: HashMap<Entity, LightState>,
+    pub(crate) lights: HashMap<FrameKey, LightState>,
 }
 
 pub(crate) fn build(app: &mut App) {
@@ -321,8 +359,8 @@ pub(crate) struct FinFramesUpdate;
 /// A light asking for fin shadows, as the frame builder sees it.
 struct LightSource {
     entity: Entity,
-    /// A disk (`FinLight`, `SpotLight`), a rectangle (`RectLight`) or the
-    /// sun (`DirectionalLight`).
+    /// A disk (`FinLight`, `SpotLight`), a rectangle (`RectLight`), the
+    /// sun (`DirectionalLight`) or a sphere (`PointLight`).
     light: Light,
     reach: Reach,
     settings: FinShadowSettings,
@@ -335,14 +373,16 @@ struct LightSource {
 }
 
 /// The lights with fin shadows: `FinLight`s, and Bevy `SpotLight`s,
-/// `DirectionalLight`s and `RectLight`s with [`FinShadows`], by entity order; and the entities
-/// of those whose position or direction is not finite (they shadow nothing).
+/// `DirectionalLight`s, `RectLight`s and `PointLight`s with [`FinShadows`],
+/// by entity order; and the entities of those whose position or direction
+/// is not finite (they shadow nothing).
 fn light_sources(
     fin_lights: &Query<(Entity, &FinLight, &FinShadowSettings, &GlobalTransform)>,
     spot_lights: &SpotLights,
     directional_lights: &DirectionalLights,
-    rect_lights: &RectLights,
+    others: &OtherLights,
 ) -> (Vec<LightSource>, Vec<Entity>) {
+    let rect_lights = &others.rects;
     // Not `GlobalTransform::forward`: it panics (debug) on a zero scale; the
     // core's lights reject a direction of no length instead.
     let forward = |t: &GlobalTransform| Vec3::from(t.affine().matrix3 * bevy::math::Vec3A::NEG_Z);
@@ -428,8 +468,25 @@ fn light_sources(
             )
         },
     );
+    // A point light is a sphere of its radius at its position (Bevy shades
+    // it so: `PointLight::radius`, its representative-point specular).
+    let points = others.points.iter().filter(|l| l.5 && !fin_lights.contains(l.0)).filter_map(
+        |(entity, point, settings, transform, render, _)| {
+            let settings = settings?.clamped();
+            let sphere = SphereLight::new(transform.translation(), finite(point.radius)).map_err(|_| entity);
+            Some(sphere.map(|sphere| LightSource {
+                entity,
+                light: Light::Sphere(sphere),
+                reach: Reach { range: finite(point.range), cone: None },
+                settings,
+                shading: LightShading::Bevy { render_entity: render.id() },
+                window: None,
+                layers: RenderLayers::default(),
+            }))
+        },
+    );
     let (mut sources, mut invalid) = (Vec::new(), Vec::new());
-    for light in own.chain(spots).chain(suns).chain(rects) {
+    for light in own.chain(spots).chain(suns).chain(rects).chain(points) {
         match light {
             Ok(source) => sources.push(source),
             Err(entity) => invalid.push(entity),
@@ -532,14 +589,25 @@ type RectLights<'w, 's> = Query<
     ),
 >;
 
-/// The Bevy lights with no shadow map of their own to give back (one
-/// parameter: a system takes at most sixteen).
+/// Every `PointLight`, as [`SpotLights`].
+type PointLights<'w, 's> = Query<
+    'w,
+    's,
+    (
+        Entity,
+        &'static mut PointLight,
+        Option<&'static FinShadowSettings>,
+        &'static GlobalTransform,
+        &'static RenderEntity,
+        Has<FinShadows>,
+    ),
+>;
+
+/// Rectangle and point lights (one parameter: a system takes at most sixteen).
 #[derive(bevy::ecs::system::SystemParam)]
 struct OtherLights<'w, 's> {
     rects: RectLights<'w, 's>,
-    /// Point lights asking for fin shadows, which are not modelled yet.
-    #[allow(clippy::type_complexity)]
-    points: Query<'w, 's, (), (With<FinShadows>, With<PointLight>, Without<FinLight>)>,
+    points: PointLights<'w, 's>,
 }
 
 /// Rebuilds each light's frame when it, a setting or a caster changed.
@@ -548,7 +616,7 @@ fn update_fin_frames(
     fin_lights: Query<(Entity, &FinLight, &FinShadowSettings, &GlobalTransform)>,
     mut spot_lights: SpotLights,
     mut directional_lights: DirectionalLights,
-    lights: OtherLights,
+    mut lights: OtherLights,
     casters: Casters,
     mut changes: CasterChanges,
     light_layers: Query<&RenderLayers>,
@@ -573,13 +641,7 @@ fn update_fin_frames(
         }
     }
     let casters_changed = changes.any() || mesh_event;
-    if !lights.points.is_empty() {
-        warn_once!(
-            "fin shadows: FinShadows on a PointLight is not modelled yet; it keeps Bevy's shadows \
-             (DirectionalLight, SpotLight, RectLight and FinLight have fin shadows)"
-        );
-    }
-    let (mut sources, invalid) = light_sources(&fin_lights, &spot_lights, &directional_lights, &lights.rects);
+    let (mut sources, invalid) = light_sources(&fin_lights, &spot_lights, &directional_lights, &lights);
     for source in &mut sources {
         if let Ok(layers) = light_layers.get(source.entity) {
             source.layers = layers.clone();
@@ -673,20 +735,27 @@ fn update_fin_frames(
         for source in &mut sources {
             if let (Light::Sun(sun), Some(volumes), true) = (&source.light, &volumes, source.settings.fit_sun_to_views)
             {
-                let previous = cache.lights.get(&source.entity).and_then(|s| s.window);
+                let previous = cache.lights.get(&(source.entity, None)).and_then(|s| s.window);
                 source.window = sun_fit::sun_window(volumes, scene_box, sun, previous);
             }
         }
     }
-    cache.lights.retain(|e, _| sources.iter().any(|s| s.entity == *e));
+    // One frame per light, six per point light (its cube faces).
+    let sources: Vec<(usize, &LightSource, Option<CubeFace>)> = sources
+        .iter()
+        .enumerate()
+        .flat_map(|(layer, source)| faces_of(&source.light).into_iter().map(move |face| (layer, source, face)))
+        .collect();
+    cache.lights.retain(|key, _| sources.iter().any(|(_, s, face)| (s.entity, *face) == *key));
 
     let mut scene: Option<CasterScene> = None;
     let mut next = Vec::with_capacity(sources.len());
     let mut changed = frames.0.len() != sources.len();
-    for source in &sources {
+    for &(layer, source, face) in &sources {
+        let key = (source.entity, face);
         let mut hasher = std::collections::hash_map::DefaultHasher::new();
         scene_signature.hash(&mut hasher);
-        let state = cache.lights.entry(source.entity).or_default();
+        let state = cache.lights.entry(key).or_default();
         state.window = source.window;
         state.capacity_epoch.hash(&mut hasher);
         source.settings.hash(&mut hasher);
@@ -695,13 +764,13 @@ fn update_fin_frames(
         hash_floats(&mut hasher, &[source.reach.range, source.reach.cone.unwrap_or(-1.0)]);
         hash_layers(&source.layers, &mut hasher);
         let signature = hasher.finish();
-        let previous = frames.0.iter().find(|f| f.light == source.entity);
+        let previous = frames.0.iter().find(|f| f.key() == key);
         if let Some(previous) = previous
             && state.signature == signature
         {
             // Only the shading may have moved (colour, intensity): keep the maps.
-            next.push(FinLightFrame { shading: source.shading, ..previous.clone() });
-            changed |= previous.shading != source.shading;
+            next.push(FinLightFrame { shading: source.shading, layer, ..previous.clone() });
+            changed |= previous.shading != source.shading || previous.layer != layer;
             continue;
         }
         state.signature = signature;
@@ -709,20 +778,28 @@ fn update_fin_frames(
         let light = source.light;
         let scene = scene.get_or_insert_with(|| CasterScene::collect(&casters, &meshes, &mut cache.meshes));
         let max_buffer = device.max_buffer(&budget);
-        // The maps' budget is shared equally between the lights.
+        // The maps' budget is shared equally between the frames.
         let map_bytes = (budget.map_bytes / sources.len().max(1) as u64).min(max_buffer);
         let limits = FrameLimits { max_buffer, map_bytes };
         cache.generation += 1;
         let generation = cache.generation;
-        let state = cache.lights.get_mut(&source.entity).expect("inserted above");
+        let state = cache.lights.get_mut(&key).expect("inserted above");
         let sees = LightSees { reach: source.reach, layers: &source.layers };
-        let data = light_frame(scene, light, source.window, sees, source.settings, generation, limits, state);
-        set_stats(&mut light_stats, source.entity, data.stats);
-        next.push(FinLightFrame { light: source.entity, shape: light, shading: source.shading, data: Arc::new(data) });
+        let data = light_frame(scene, light, face, source.window, sees, source.settings, generation, limits, state);
+        state.stats = data.stats;
+        next.push(FinLightFrame {
+            light: source.entity,
+            face,
+            layer,
+            shape: light,
+            shading: source.shading,
+            data: Arc::new(data),
+        });
     }
     if !changed {
         return;
     }
+    publish_light_stats(&next, &cache, &mut light_stats);
     // A Bevy light no longer fin-shadowed gets its own shadow map back: marked
     // changed, Bevy extracts it again with the user's `shadow_maps_enabled`
     // (`render/bevy_lights.rs` turned it off in the render world).
@@ -735,10 +812,61 @@ fn update_fin_frames(
             if let Ok((_, mut sun, ..)) = directional_lights.get_mut(gone.light) {
                 sun.set_changed();
             }
+            if let Ok((_, mut point, ..)) = lights.points.get_mut(gone.light) {
+                point.set_changed();
+            }
         }
         set_stats(&mut light_stats, gone.light, FinFrameStats::default());
     }
     frames.0 = next;
+}
+
+/// The cube faces a light's frames are made for: one frame (`None`) for a
+/// disk, rectangle or sun, six for a sphere.
+fn faces_of(light: &Light) -> Vec<Option<CubeFace>> {
+    match light {
+        Light::Sphere(_) => CubeFace::ALL.map(Some).to_vec(),
+        _ => vec![None],
+    }
+}
+
+/// Every light's [`FinLightStats`] from its frames' latest stats.
+pub(crate) fn publish_light_stats(
+    frames: &[FinLightFrame],
+    cache: &MeshCache,
+    light_stats: &mut Query<&mut FinLightStats>,
+) {
+    let mut start = 0;
+    while start < frames.len() {
+        let light = frames[start].light;
+        let end = start + frames[start..].iter().take_while(|f| f.light == light).count();
+        let stats = frames[start..end].iter().filter_map(|f| cache.lights.get(&f.key()).map(|s| s.stats));
+        if let Some(combined) = FinFrameStats::combined(stats) {
+            set_stats(light_stats, light, combined);
+        }
+        start = end;
+    }
+}
+
+impl FinFrameStats {
+    /// One light's stats from its frames' (a point light's six faces): the
+    /// counts of what its faces model summed (a caster seen by two faces
+    /// counts twice), the most layers, the least resolution, up to date when
+    /// every face is, the first reason any face was cut.
+    fn combined(frames: impl Iterator<Item = FinFrameStats>) -> Option<Self> {
+        frames.reduce(|a, b| FinFrameStats {
+            casters: a.casters + b.casters,
+            triangles: a.triangles + b.triangles,
+            silhouettes: a.silhouettes + b.silhouettes,
+            fins: a.fins + b.fins,
+            layers: a.layers.max(b.layers),
+            extract_ms: a.extract_ms + b.extract_ms,
+            up_to_date: a.up_to_date && b.up_to_date,
+            degraded: a.degraded.or(b.degraded),
+            map_resolution: a.map_resolution.min(b.map_resolution),
+            extraction: a.extraction,
+        })
+    }
 }
 
 /// [`FinShadowStats`] is the first light's [`FinLightStats`]: the first
@@ -824,10 +952,30 @@ impl CasterScene {
         scene
     }
 
+    /// The distance from `point` to the nearest casting triangle, as the
+    /// core's `nearest_caster_distance` finds it; objects whose box lies
+    /// farther than the nearest triangle found yet are not scanned.
+    fn nearest_caster(&self, point: Vec3) -> f32 {
+        let mut order: Vec<(f32, usize)> = (self.objects.iter().zip(&self.bounds).enumerate())
+            .filter(|(_, (o, _))| o.casts_shadows)
+            .map(|(i, (_, b))| (b.map_or(0.0, |b| nearest_distance(&b, point)), i))
+            .collect();
+        order.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut nearest = f32::INFINITY;
+        for (lower_bound, i) in order {
+            if lower_bound >= nearest {
+                break;
+            }
+            nearest = nearest.min(shadow_fins::scene::nearest_triangle_distance(&self.objects[i], point));
+        }
+        nearest
+    }
+
     /// The objects as one light sees them: casters on no layer of the
-    /// light's, or out of its reach (beyond its range, outside its cone, or
-    /// wholly behind its disk) cast nothing for it, but still receive.
-    fn seen_by(&self, light: &Light, sees: LightSees) -> Vec<SceneObject> {
+    /// light's, or out of its reach (beyond its range, outside its cone,
+    /// wholly behind its disk, or — for a point light's cube face — wholly
+    /// outside the face's window frustum) cast nothing for it, but still receive.
+    fn seen_by(&self, light: &Light, frame: &LightFrame, sees: LightSees) -> Vec<SceneObject> {
         self.objects
             .iter()
             .zip(&self.bounds)
@@ -840,6 +988,11 @@ impl CasterScene {
                     // A rectangle reaches what its bounding disk reaches.
                     Light::Rect(r) => bounds.is_some_and(|b| out_of_reach(&b, &r.bounding_disk(), sees.reach)),
                     Light::Sun(_) => false,
+                    Light::Sphere(s) => bounds.is_some_and(|b| {
+                        let beyond =
+                            sees.reach.range > 0.0 && nearest_distance(&b, s.center) > sees.reach.range + s.radius;
+                        beyond || outside_face(&b, frame)
+                    }),
                 };
                 if o.casts_shadows && (out || !layers.intersects(sees.layers)) {
                     o.casts_shadows = false;
@@ -851,8 +1004,11 @@ impl CasterScene {
 
     /// The light's frame. A disk's is its own; the sun's origin is put in
     /// front of everything drawn (every mesh's world box, readable or not),
-    /// so that every depth is positive (`LightFrame::sun`).
-    fn frame_for(&self, light: &Light) -> (LightFrame, (Vec3, Vec3)) {
+    /// so that every depth is positive (`LightFrame::sun`); a point light's
+    /// cube face covers a margin for the caster nearest to the light
+    /// (`SphereLight::face_window`, the core's `nearest_caster_distance`,
+    /// triangles scanned only in boxes nearer than the nearest found yet).
+    fn frame_for(&self, light: &Light, face: Option<CubeFace>) -> (LightFrame, (Vec3, Vec3)) {
         let boxes = self
             .objects
             .iter()
@@ -864,6 +1020,10 @@ impl CasterScene {
             .filter(|p| p.is_finite())
             .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));
         let (lo, hi) = if lo.x <= hi.x { (lo, hi) } else { (Vec3::ZERO, Vec3::ONE) };
+        if let (Light::Sphere(sphere), Some(face)) = (light, face) {
+            let nearest = self.nearest_caster(sphere.center);
+            return (sphere.face_frame(face, sphere.face_window(nearest)), (lo, hi));
+        }
         (LightFrame::new(light, lo, hi), (lo, hi))
     }
 }
@@ -907,10 +1067,27 @@ fn out_of_reach(corners: &[Vec3; 8], disk: &DiskLight, reach: Reach) -> bool {
     behind || beyond || outside_cone
 }
 
-/// One light's frame from the scene's objects.
+/// The distance from `point` to a box given by its corners (0 inside it).
+fn nearest_distance(corners: &[Vec3; 8], point: Vec3) -> f32 {
+    let (lo, hi) = corners.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    point.clamp(lo, hi).distance(point)
+}
+
+/// True when a box (its world corners) lies wholly outside a point light's
+/// cube-face window frustum (`LightFrame::outside_face_window` for each
+/// pair of corners: all beyond one plane); false for any other frame.
+fn outside_face(corners: &[Vec3; 8], frame: &LightFrame) -> bool {
+    let p = corners.map(|c| frame.to_frame(c));
+    frame.face_window_planes().iter().any(|plane| p.iter().all(|q| plane.dot(*q) < 0.0))
+        || (frame.sphere_radius().is_some() && p.iter().all(|q| q.z <= 0.0))
+}
+
+/// One light's frame (one cube face's, for a point light) from the scene's objects.
+#[allow(clippy::too_many_arguments)]
 fn light_frame(
     scene: &CasterScene,
     light: Light,
+    face: Option<CubeFace>,
     window: Option<[f32; 4]>,
     sees: LightSees,
     settings: FinShadowSettings,
@@ -923,9 +1100,9 @@ fn light_frame(
     // shadow (the min over layers of slabs is the nearest slab), and the
     // memory of the other layers goes to resolution instead.
     let settings = if light.is_zero_size() { FinShadowSettings { layers: 1, ..settings } } else { settings };
-    let objects = scene.seen_by(&light, sees);
+    let (frame, scene_box) = scene.frame_for(&light, face);
+    let objects = scene.seen_by(&light, &frame, sees);
     let unread_bounds = scene.unread_bounds.clone();
-    let (frame, scene_box) = scene.frame_for(&light);
     // A sun fitted to the views works in a frame placed at its window.
     let fitted = match (light, window) {
         (Light::Sun(sun), Some(w)) => sun_fit::window_frame(w, scene_box, &sun).map(|(f, l0)| (f, l0, w)),
@@ -1298,6 +1475,10 @@ fn light_key(light: &Light) -> [f32; 12] {
         Light::Sun(s) => {
             let d = s.direction;
             [2.0, 0.0, 0.0, 0.0, d.x, d.y, d.z, s.angular_radius, 0.0, 0.0, 0.0, 0.0]
+        }
+        Light::Sphere(s) => {
+            let c = s.center;
+            [3.0, c.x, c.y, c.z, 0.0, 0.0, 0.0, s.radius, 0.0, 0.0, 0.0, 0.0]
         }
     }
 }

@@ -110,17 +110,16 @@ pub fn gltf_light_radius_or(world: &World, light: Entity, fallback: f32) -> f32 
 /// What [`give_gltf_lights_fin_shadows`] did.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct GltfLightsAdopted {
-    /// Spot and directional lights that now have [`FinShadows`].
+    /// Spot, point and directional lights that now have [`FinShadows`].
     pub lights: Vec<Entity>,
-    /// Point lights left with Bevy's own shadows (not modelled by fins yet).
-    pub point_lights: Vec<Entity>,
 }
 
-/// Gives every `SpotLight` and `DirectionalLight` under `root` (the entity
-/// a glTF scene was spawned on) [`FinShadows`] with `settings` — at most
-/// `MAX_FIN_LIGHTS − 1`, so the app's own light keeps its slot; the rest
-/// keep Bevy's shadows, said once — and sets each spot or point light's
-/// radius to its `extras` radius, else to `fallback_radius` (clamped ≥ 0).
+/// Gives every `SpotLight`, `PointLight` and `DirectionalLight` under
+/// `root` (the entity a glTF scene was spawned on) [`FinShadows`] with
+/// `settings` — at most `MAX_FIN_LIGHTS − 1`, so the app's own light keeps
+/// its slot; the rest keep Bevy's shadows, said once — and sets each spot or
+/// point light's radius to its `extras` radius, else to `fallback_radius`
+/// (clamped ≥ 0).
 /// A directional light keeps its `SunDisk` if it has one (else fins use the
 /// Earth's sun, as Bevy draws it).
 pub fn give_gltf_lights_fin_shadows(
@@ -136,7 +135,8 @@ pub fn give_gltf_lights_fin_shadows(
         let full = adopted.lights.len() + 1 >= MAX_FIN_LIGHTS;
         let mut e = world.entity_mut(entity);
         let spot = e.get_mut::<SpotLight>().map(|mut spot| spot.radius = radius).is_some();
-        if spot || e.contains::<DirectionalLight>() {
+        let point = e.get_mut::<PointLight>().map(|mut point| point.radius = radius).is_some();
+        if spot || point || e.contains::<DirectionalLight>() {
             if full {
                 warn_once!(
                     "fin shadows: a glTF with more than {} lights; the rest keep Bevy's shadows",
@@ -146,9 +146,6 @@ pub fn give_gltf_lights_fin_shadows(
             }
             e.insert((FinShadows, settings));
             adopted.lights.push(entity);
-        } else if let Some(mut point) = e.get_mut::<PointLight>() {
-            point.radius = radius;
-            adopted.point_lights.push(entity);
         }
     }
     adopted
@@ -212,10 +209,9 @@ mod tests {
         assert_eq!(world.get::<SpotLight>(rangeless).unwrap().radius, 0.25);
         assert_eq!(world.get::<SpotLight>(named).unwrap().radius, 0.4);
         assert_eq!(world.get::<PointLight>(point).unwrap().radius, 0.25);
-        for e in [spot, rangeless, named, sun] {
+        for e in [spot, rangeless, named, sun, point] {
             assert!(world.get::<FinShadows>(e).is_some() && adopted.lights.contains(&e));
         }
-        assert_eq!(adopted.point_lights, vec![point]);
         assert!(world.get::<FinShadows>(outside).is_none());
         assert_eq!(world.get::<SpotLight>(outside).unwrap().radius, 20.0);
     }

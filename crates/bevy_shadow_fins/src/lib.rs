@@ -31,8 +31,9 @@
 //!
 //! [`FinShadows`] on a Bevy `SpotLight` (a disk of the spot's `radius` facing
 //! along its axis), `DirectionalLight` (the sun, as wide as its `SunDisk`'s
-//! angular size, through orthographic maps) or `RectLight` (its rectangle:
-//! Bevy itself gives it no shadow at all), or the plugin's own
+//! angular size, through orthographic maps), `RectLight` (its rectangle:
+//! Bevy itself gives it no shadow at all) or `PointLight` (a sphere of its
+//! `radius`, by six cube-face frames that fill one visibility layer), or the plugin's own
 //! [`FinLight`] (a disk lighting the half-space it faces). Up to [`MAX_FIN_LIGHTS`] at once, any mix, each with
 //! its own [`FinShadowSettings`] (method, layers, maps), its own frame
 //! rebuilt only when it, a caster, the budget or the set of lights changed
@@ -41,10 +42,10 @@
 //! its own visibility layer per camera and its own [`FinLightStats`]. A light
 //! only sees the casters in its range and in front of its disk: a light that
 //! sees none runs no extraction or map pass (its visibility pass writes 1). The
-//! penumbra-map budget ([`FinShadowBudget::map_bytes`]) is shared equally;
-//! past it a light's maps lose resolution, then layers, with the reason in its
-//! stats. `PointLight` is not modelled yet (it keeps Bevy's shadows; said
-//! once). Meshes fin shadows cannot reach
+//! penumbra-map budget ([`FinShadowBudget::map_bytes`]) is shared equally
+//! between the frames (a point light's six faces take six shares); past it a
+//! light's maps lose resolution, then layers, with the reason in its
+//! stats. Meshes fin shadows cannot reach
 //! (forward-rendered, alpha-blended or transmissive `StandardMaterial`s) are
 //! counted in [`FinReceivers`], said once, and get Bevy's hard shadow (below).
 //!

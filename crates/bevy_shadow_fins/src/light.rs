@@ -69,8 +69,17 @@ impl FinLight {
 ///   sample the rectangle itself; `0 × 0` gives exactly the hard shadow.
 ///   Bevy has no shadow for a `RectLight` (and needs the `area_light_luts`
 ///   feature to light one at all): this is its only shadow.
-/// - `PointLight`: not modelled yet; said once at run time, and it keeps
-///   Bevy's own shadows.
+/// - `PointLight { radius, .. }`: a sphere of that radius, shadowed all
+///   around. Seen from a receiver its outline is a disk facing it, which the
+///   ground truth and the coverage method sample; fins are made in six
+///   cube-face frames (each its own extraction and maps over its frustum and
+///   a margin for casters near the light; the sphere is `√(1 + |m|²)` times
+///   wider along the map position `m` than across it, which sizes the fins
+///   off a face's axis), whose visibility passes each shade the receivers in
+///   their face and fill the light's one visibility layer between them
+///   (`shadow_fins::sphere_light`). A face that sees no caster costs no
+///   pass. `radius: 0` gives exactly the hard shadow. The penumbra-map
+///   budget is shared per face: a point light takes six shares.
 ///
 /// Bevy's own shadow map and contact shadows for the light are off while
 /// `FinShadows` is on (in the render world: the light's `shadow_maps_enabled`

@@ -287,10 +287,10 @@ impl FinBuilder {
                     return;
                 }
                 // A rectangle light's fan is a circle as wide as the light
-                // across the sector's middle (its bounding circle would
+                // across the sector's middle (a sphere's, at the vertex) (its bounding circle would
                 // reach past both quads; the disk's is exactly its width).
                 let mid = (from + to).normalize_or(from.perp());
-                let radius = full * frame.aperture.support(mid);
+                let radius = full * frame.aperture.support_at(mid, center);
                 out.push(Fin { shape: FinShape::Sector { center, radius, from, to, depth: pos.z }, side, patch });
             };
             match (n_in, n_out, first_in, first_out) {
@@ -331,7 +331,8 @@ impl FinBuilder {
             if e.a.z <= near || e.b.z <= near || dir.is_nan() {
                 continue;
             }
-            let (w0, w1) = (width(e.a.z) * frame.aperture.support(d0), width(e.b.z) * frame.aperture.support(d1));
+            let (w0, w1) =
+                (width(e.a.z) * frame.aperture.support_at(d0, m0), width(e.b.z) * frame.aperture.support_at(d1, m1));
             if !(w0 > 0.0 || w1 > 0.0) {
                 continue;
             }

@@ -1,5 +1,5 @@
-//! Ground truth: the fraction of the light (disk, rectangle or sun) visible
-//! from a point, from `M` deterministic equal-weight samples of its aperture (default 1024, as in all five papers), each
+//! Ground truth: the fraction of the light (disk, rectangle, sun, or the
+//! outline of a sphere seen from the point) visible from a point, from `M` deterministic equal-weight samples of its aperture (default 1024, as in all five papers), each
 //! an exact ray–triangle test through a BVH.
 
 use glam::Vec2;
@@ -52,7 +52,9 @@ impl<'a> GroundTruth<'a> {
     ///
     /// The receiver is lifted off its surface along its normal by the same
     /// lift the oracle uses ([`crate::scene::surface_epsilon`]). Points at or
-    /// behind the light plane see nothing of the one-sided disk.
+    /// behind the light plane see nothing of the one-sided disk. A sphere
+    /// light's outline is the disk of it a receiver sees (the tangent
+    /// circle), in any of its face frames: the casters are all there.
     pub fn visibility(&self, receiver: Receiver) -> f32 {
         let eps = crate::scene::surface_epsilon(receiver.position, self.scene.extent);
         let p = receiver.position + receiver.normal * eps;
@@ -61,6 +63,24 @@ impl<'a> GroundTruth<'a> {
         }
         let n = receiver.normal;
         let (mut visible, mut above) = (0u32, 0u32);
+        if let Some(radius) = self.scene.frame.sphere_radius() {
+            // A sphere: its outline seen from p, in any face's frame (the
+            // frame's origin is the sphere's centre). Inside it, nothing
+            // comes between.
+            let Some((center, r, e1, e2)) = crate::sphere_light::outline_seen_from(radius, p) else { return 1.0 };
+            for s in &self.samples {
+                let dir = center + e1 * (s.x * r) + e2 * (s.y * r) - p;
+                if n.dot(dir) < 0.0 {
+                    continue;
+                }
+                above += 1;
+                let t_min = eps / dir.length().max(eps);
+                if !self.bvh.any_hit(p, dir, t_min, 1.0) {
+                    visible += 1;
+                }
+            }
+            return if above == 0 { 0.0 } else { visible as f32 / above as f32 };
+        }
         match self.scene.frame.projection {
             Projection::Perspective { radius } => {
                 if !(p.z > self.scene.reference_depth * 1e-5) {

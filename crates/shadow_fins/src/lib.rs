@@ -5,7 +5,8 @@
 //! Multi-layered Shadow Fins*, CGF 25(1), 2006), on the CPU, with no Bevy:
 //!
 //! - [`mesh`]: validated triangle meshes, welding, edge → face adjacency;
-//! - [`light`]: disk and sun lights and the light frame everything runs in;
+//! - [`light`]: disk, rectangle and sun lights and the light frame everything runs in;
+//! - [`sphere_light`]: sphere (point) lights, as six cube-face frames;
 //! - [`silhouette`], [`fins`], [`layers`], [`refine`]: the method's stages;
 //! - [`coverage`]: exact coverage with occluder fusion (beyond the paper):
 //!   per light sample, the depth complexity counted from potential
@@ -59,6 +60,7 @@ pub mod scene;
 pub mod scenes;
 pub mod shapes;
 pub mod silhouette;
+pub mod sphere_light;
 
 pub use error::{GltfError, LightError, MeshError, SettingsError};
 pub use glam;

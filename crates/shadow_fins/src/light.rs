@@ -14,6 +14,9 @@
 //!   light's extent across the edge, `2h(d)`, scaled by eq. 3).
 //! - [`SunLight`]: a disk at infinity of angular radius `θ`; maps are
 //!   orthographic and penumbra widths are `tan θ · ΔL`.
+//! - [`SphereLight`]: a sphere (Bevy's `PointLight`); six perspective frames,
+//!   one per cube face, each with the sphere's outline as seen through it
+//!   as its aperture ([`crate::sphere_light`]).
 //!
 //! [`LightFrame`] maps world points into a light-aligned frame `(x, y, L)`:
 //! `x, y` along the light plane, `L` the light-space depth. The subtraction of
@@ -24,6 +27,7 @@
 use glam::{DVec3, Vec2, Vec3};
 
 use crate::error::LightError;
+pub use crate::sphere_light::{CubeFace, SphereLight};
 
 /// A planar disk light: the paper's light model (Cai et al. §3).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -128,6 +132,13 @@ pub enum Aperture {
     /// A rectangle of these half extents along the frame's `x`, `y` axes,
     /// with `|half_extents| = 1` (its corners on the circle).
     Rect { half_extents: Vec2 },
+    /// A sphere seen through one cube face's frame: at map position `m`, an
+    /// ellipse `√(1 + |m|²)` times the sphere's radius along `m`, the radius
+    /// across it ([`crate::sphere_light`]). The frame's circle is the
+    /// widest it gets within the face's maps, `stretch` times the radius
+    /// (`√(1 + 2·window²)`); `window` is the half-width, in map units, the
+    /// face's maps cover.
+    Sphere { stretch: f32, window: f32 },
 }
 
 impl Aperture {
@@ -145,13 +156,16 @@ impl Aperture {
     }
 
     /// Support function `h(d) = max over the aperture of d·q` for a unit
-    /// direction `d`, in units of the bounding circle: 1 for the disk,
-    /// `a|d_x| + b|d_y|` for the rectangle (≤ 1).
+    /// direction `d` at map position `m` (only a sphere's depends on it), in
+    /// units of the bounding circle: 1 for the disk, `a|d_x| + b|d_y|` for
+    /// the rectangle, `√(1 + (d·m)²)/stretch` for a sphere (all ≤ 1 within
+    /// the maps).
     #[inline]
-    pub fn support(&self, d: Vec2) -> f32 {
+    pub fn support_at(&self, d: Vec2, m: Vec2) -> f32 {
         match *self {
             Aperture::Disk => 1.0,
             Aperture::Rect { half_extents } => half_extents.x * d.x.abs() + half_extents.y * d.y.abs(),
+            Aperture::Sphere { stretch, .. } => crate::sphere_light::sphere_support(d, m) / stretch,
         }
     }
 
@@ -160,9 +174,13 @@ impl Aperture {
     /// (Roberts' generalised golden ratio: low discrepancy in every direction,
     /// so an edge of any slope sweeps the samples evenly, where a grid would
     /// step by `1/√N` on an edge parallel to it).
+    ///
+    /// A sphere's are the disk's, in units of the sphere's radius: the
+    /// outline a receiver sees is a disk facing it, which the ground truth
+    /// and the coverage method place per receiver.
     pub fn samples(&self, count: u32) -> Vec<Vec2> {
         match *self {
-            Aperture::Disk => crate::ground_truth::disk_samples(count),
+            Aperture::Disk | Aperture::Sphere { .. } => crate::ground_truth::disk_samples(count),
             Aperture::Rect { half_extents } => {
                 // The plastic number's reciprocals (Roberts 2018).
                 const A1: f64 = 0.754_877_666_246_692_8;
@@ -203,6 +221,8 @@ pub enum Light {
     Disk(DiskLight),
     Rect(RectLight),
     Sun(SunLight),
+    /// A sphere: six cube-face frames ([`crate::sphere_light`]).
+    Sphere(SphereLight),
 }
 
 impl Light {
@@ -212,6 +232,7 @@ impl Light {
             Light::Disk(d) => Light::Disk(DiskLight { radius: 0.0, ..d }),
             Light::Rect(r) => Light::Rect(RectLight { half_extents: Vec2::ZERO, ..r }),
             Light::Sun(s) => Light::Sun(SunLight { angular_radius: 0.0, ..s }),
+            Light::Sphere(s) => Light::Sphere(SphereLight { radius: 0.0, ..s }),
         }
     }
 
@@ -224,6 +245,7 @@ impl Light {
                 let t = (s.angular_radius.tan() * factor).atan().min(1.4);
                 Light::Sun(SunLight { angular_radius: t, ..s })
             }
+            Light::Sphere(s) => Light::Sphere(SphereLight { radius: s.radius * factor, ..s }),
         }
     }
 
@@ -233,15 +255,26 @@ impl Light {
             Light::Disk(d) => d.radius == 0.0,
             Light::Rect(r) => r.half_extents == Vec2::ZERO,
             Light::Sun(s) => s.angular_radius == 0.0,
+            Light::Sphere(s) => s.radius == 0.0,
         }
     }
 
     /// The centre and unit normal of a planar light (disk or rectangle);
-    /// `None` for the sun.
+    /// `None` for the sun and a sphere.
     pub fn planar(&self) -> Option<(Vec3, Vec3)> {
         match self {
             Light::Disk(d) => Some((d.center, d.normal)),
             Light::Rect(r) => Some((r.center, r.normal)),
+            Light::Sun(_) | Light::Sphere(_) => None,
+        }
+    }
+
+    /// The light's centre: a planar light's or a sphere's; `None` for the sun.
+    pub fn center(&self) -> Option<Vec3> {
+        match self {
+            Light::Disk(d) => Some(d.center),
+            Light::Rect(r) => Some(r.center),
+            Light::Sphere(s) => Some(s.center),
             Light::Sun(_) => None,
         }
     }
@@ -318,12 +351,77 @@ impl LightFrame {
         }
     }
 
+    /// Frame of one cube face of a sphere light (`SphereLight::face_frame`):
+    /// origin at the centre, axes the face's, `radius` the bounding circle of
+    /// the sphere's outline within the face's maps.
+    pub(crate) fn sphere_face(origin: DVec3, axes: [DVec3; 3], radius: f32, aperture: Aperture) -> Self {
+        Self { origin, axes, projection: Projection::Perspective { radius }, aperture }
+    }
+
+    /// The frame of a light whose maps are one frame. A sphere light has six
+    /// ([`SphereLight::face_frames`], [`crate::scene::LightSpaceScene::faces`]);
+    /// here it gets the one of the face looking at the scene's centre, with
+    /// a whole face's margin.
     pub fn new(light: &Light, scene_min: Vec3, scene_max: Vec3) -> Self {
         match light {
             Light::Disk(d) => Self::disk(d),
             Light::Rect(r) => Self::rect(r),
             Light::Sun(s) => Self::sun(s, scene_min, scene_max),
+            Light::Sphere(s) => s.face_frame(CubeFace::of((scene_min + scene_max) * 0.5 - s.center), 2.0),
         }
+    }
+
+    /// The sphere's radius when this is a sphere light's face frame.
+    pub fn sphere_radius(&self) -> Option<f32> {
+        match (self.aperture, self.projection) {
+            (Aperture::Sphere { stretch, .. }, Projection::Perspective { radius }) => Some(radius / stretch),
+            _ => None,
+        }
+    }
+
+    /// A sphere light's face frame as the disk of the sphere's radius in the
+    /// face's plane (what the peers, which model planar lights, are given);
+    /// `None` for any other frame.
+    pub fn face_plane_disk(&self) -> Option<Self> {
+        let radius = self.sphere_radius()?;
+        Some(Self { projection: Projection::Perspective { radius }, aperture: Aperture::Disk, ..*self })
+    }
+
+    /// The planes of a sphere light's face window frustum, `n·p >= 0`
+    /// inside (`|x|, |y| <= window·z`); none for any other frame.
+    pub fn face_window_planes(&self) -> Vec<Vec3> {
+        let Aperture::Sphere { window, .. } = self.aperture else { return Vec::new() };
+        vec![
+            Vec3::new(-1.0, 0.0, window),
+            Vec3::new(1.0, 0.0, window),
+            Vec3::new(0.0, -1.0, window),
+            Vec3::new(0.0, 1.0, window),
+        ]
+    }
+
+    /// True when a sphere light's face frame can leave out the segment
+    /// `a b` (frame space): both ends beyond the same plane of the face's
+    /// window frustum (`|x|, |y| ≤ window·L`), or both at or behind the
+    /// light's plane. No blocker of a receiver the face shadows lies there
+    /// ([`SphereLight::face_window`]), and such an edge's fins — nearly
+    /// level with the light, far off the face's axis — would be hundreds of
+    /// map units wide and cover the whole face. Always false for any other
+    /// frame.
+    pub fn outside_face_window(&self, a: Vec3, b: Vec3) -> bool {
+        let Aperture::Sphere { window, .. } = self.aperture else { return false };
+        let beyond = |f: fn(Vec3, f32) -> bool| f(a, window) && f(b, window);
+        beyond(|p, w| p.x > w * p.z)
+            || beyond(|p, w| -p.x > w * p.z)
+            || beyond(|p, w| p.y > w * p.z)
+            || beyond(|p, w| -p.y > w * p.z)
+            || (a.z <= 0.0 && b.z <= 0.0)
+    }
+
+    /// True when the frame-space point lies in this frame's cube face's
+    /// frustum (`|x|, |y| ≤ L`): the receivers a face shadows. Always true
+    /// for a frame that is not a cube face's.
+    pub fn face_holds(&self, p: Vec3) -> bool {
+        !matches!(self.aperture, Aperture::Sphere { .. }) || (p.z > 0.0 && p.x.abs() <= p.z && p.y.abs() <= p.z)
     }
 
     /// World point → frame point `(x, y, L)`.
@@ -341,6 +439,12 @@ impl LightFrame {
     pub fn dir_to_frame(&self, d: Vec3) -> Vec3 {
         let d = d.as_dvec3();
         Vec3::new(d.dot(self.axes[0]) as f32, d.dot(self.axes[1]) as f32, d.dot(self.axes[2]) as f32)
+    }
+
+    /// Frame direction → world direction.
+    pub fn dir_to_world(&self, d: Vec3) -> Vec3 {
+        let d = d.as_dvec3();
+        (self.axes[0] * d.x + self.axes[1] * d.y + self.axes[2] * d.z).as_vec3()
     }
 
     /// Frame point → world point.
@@ -431,8 +535,14 @@ impl LightFrame {
     /// coordinates are tangents of the angle off the light's axis, clamped
     /// to `perspective_limit` (geometry beyond is seen edge-on); the sun's are
     /// world units, never clamped (a 200-wide scene is 200 map units wide).
+    ///
+    /// A sphere's face frame keeps its face's window.
     pub fn map_limit(&self, perspective_limit: f32) -> f32 {
-        if self.is_perspective() { perspective_limit } else { f32::INFINITY }
+        match (self.is_perspective(), self.aperture) {
+            (true, Aperture::Sphere { window, .. }) => perspective_limit.min(window),
+            (true, _) => perspective_limit,
+            (false, _) => f32::INFINITY,
+        }
     }
 }
 

@@ -241,6 +241,28 @@ impl LightSpaceScene {
         Self { light, frame, casters, object_frames, reference_depth, extent }
     }
 
+    /// The scene in every frame the light's maps are made in: one for a
+    /// disk, a rectangle or the sun (as [`Self::new`]); six for a sphere,
+    /// in [`crate::sphere_light::CubeFace::ALL`] order, their maps' margin
+    /// from the caster nearest to its centre
+    /// ([`crate::sphere_light::SphereLight::face_window`]). Which one shades
+    /// a receiver: [`Self::face_of`].
+    pub fn faces(scene: &Scene, light: Light) -> Vec<Self> {
+        let Light::Sphere(sphere) = light else { return vec![Self::new(scene, light)] };
+        let (lo, hi) = scene.bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
+        let window = sphere.face_window(nearest_caster_distance(scene, sphere.center));
+        sphere.face_frames(window).map(|frame| Self::in_frame(scene, light, frame, (hi - lo).length())).to_vec()
+    }
+
+    /// Which of [`Self::faces`] shadows a receiver at world point `p`: the
+    /// cube face whose frustum holds it (0 when there is one frame).
+    pub fn face_of(faces: &[Self], p: Vec3) -> usize {
+        match faces.first().map(|f| f.light) {
+            Some(Light::Sphere(s)) if faces.len() == 6 => crate::sphere_light::CubeFace::of(p - s.center).index(),
+            _ => 0,
+        }
+    }
+
     /// Moves the reference plane `L0` down to the deepest of `receivers` (light
     /// frame) when one lies beyond it, so that every receiver is in front of
     /// the plane the fins are built for (DESIGN §3).
@@ -256,5 +278,98 @@ impl LightSpaceScene {
                 self.reference_depth = p.z;
             }
         }
+    }
+}
+
+/// The distance from `point` to the nearest shadow-casting triangle (world
+/// space, f64 offsets); `INFINITY` when nothing casts.
+pub fn nearest_caster_distance(scene: &Scene, point: Vec3) -> f32 {
+    scene
+        .objects
+        .iter()
+        .filter(|o| o.casts_shadows)
+        .map(|o| nearest_triangle_distance(o, point))
+        .fold(f32::INFINITY, f32::min)
+}
+
+/// The distance from `point` to the nearest triangle of `object` (world
+/// space, f64 offsets), whether it casts or not.
+pub fn nearest_triangle_distance(object: &SceneObject, point: Vec3) -> f32 {
+    let point = point.as_dvec3();
+    let m = object.transform_f64();
+    let pts: Vec<DVec3> = object.topology.positions.iter().map(|p| m.transform_point3(p.as_dvec3()) - point).collect();
+    let mut nearest = f64::INFINITY;
+    for f in &object.topology.faces {
+        let [a, b, c] = f.map(|i| pts[i as usize]);
+        nearest = nearest.min(closest_on_triangle(a, b, c).length());
+    }
+    nearest as f32
+}
+
+/// The point of triangle `abc` closest to the origin (Ericson, *Real-Time
+/// Collision Detection* §5.1.5, with the query point at the origin).
+fn closest_on_triangle(a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    let (ab, ac, ap) = (b - a, c - a, -a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = -b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = -c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = va + vb + vc;
+    if !(denom.abs() > 0.0) {
+        return a;
+    }
+    a + ab * (vb / denom) + ac * (vc / denom)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_closest_point_of_a_triangle_is_no_farther_than_any_point_of_it() {
+        let mut seed = 0x9e37_79b9_u32;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f64 / u32::MAX as f64 * 4.0 - 2.0
+        };
+        for _ in 0..500 {
+            let mut v = || DVec3::new(next(), next(), next());
+            let (a, b, c) = (v(), v(), v());
+            let best = closest_on_triangle(a, b, c).length();
+            for i in 0..=10 {
+                for j in 0..=10 - i {
+                    let (s, t) = (i as f64 / 10.0, j as f64 / 10.0);
+                    let q = a + (b - a) * s + (c - a) * t;
+                    assert!(best <= q.length() + 1e-9, "{best} > {}", q.length());
+                }
+            }
+        }
+        // Over the interior of a face: the plane's distance.
+        let (a, b, c) = (DVec3::new(-1.0, -1.0, 2.0), DVec3::new(3.0, -1.0, 2.0), DVec3::new(-1.0, 3.0, 2.0));
+        assert!((closest_on_triangle(a, b, c) - DVec3::new(0.0, 0.0, 2.0)).length() < 1e-12);
     }
 }

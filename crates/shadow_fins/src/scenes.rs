@@ -4,7 +4,7 @@ use glam::{Affine3A, Quat, Vec3};
 
 use crate::{
     camera::Camera,
-    light::{DiskLight, Light},
+    light::{DiskLight, Light, SphereLight},
     mesh::Mesh,
     scene::{Scene, SceneObject},
     shapes,
@@ -63,10 +63,14 @@ pub enum SceneId {
     /// A dense object over the ground under a large light: a tower of 160
     /// small overlapping boxes and balls on a block. `assets/greeble-tower.gltf`.
     GreebleTower,
+    /// A room lit by a sphere light (a lamp: Bevy's point light with a
+    /// radius) above a table, seen from inside: shadows on the floor and on
+    /// two walls, across the cube faces the sphere light is modelled by.
+    LampRoom,
 }
 
 impl SceneId {
-    pub const ALL: [SceneId; 12] = [
+    pub const ALL: [SceneId; 13] = [
         SceneId::BoxOverPlane,
         SceneId::NearContact,
         SceneId::RingPlate,
@@ -79,7 +83,15 @@ impl SceneId {
         SceneId::Kitbash,
         SceneId::Figure,
         SceneId::GreebleTower,
+        SceneId::LampRoom,
     ];
+
+    /// The scenes lit by a light whose maps are one frame (every light but a
+    /// sphere, whose six faces shade receivers in their own frusta): what a
+    /// test that evaluates a whole view in one frame can take.
+    pub fn single_frame() -> impl Iterator<Item = SceneId> {
+        Self::ALL.into_iter().filter(|id| *id != SceneId::LampRoom)
+    }
 
     /// The scenes made to look like real assets (many overlapping parts).
     pub const REAL_ASSET_LIKE: [SceneId; 3] = [SceneId::Kitbash, SceneId::Figure, SceneId::GreebleTower];
@@ -98,6 +110,7 @@ impl SceneId {
             SceneId::Kitbash => "kitbash",
             SceneId::Figure => "figure",
             SceneId::GreebleTower => "greeble-tower",
+            SceneId::LampRoom => "lamp-room",
         }
     }
 
@@ -201,6 +214,7 @@ fn build(id: SceneId) -> BuiltinScene {
         SceneId::Kitbash => kitbash(),
         SceneId::Figure => figure(),
         SceneId::GreebleTower => greeble_tower(),
+        SceneId::LampRoom => lamp_room(),
     };
     BuiltinScene { id, scene: Scene::new(objects), light, camera }
 }
@@ -226,6 +240,33 @@ fn demo() -> (Vec<SceneObject>, Light, Camera) {
     }
     let camera = Camera::looking_at(Vec3::new(0.5, 6.5, 7.5), Vec3::new(0.0, 0.2, 0.0));
     (objects, disk(Vec3::new(0.2, 5.0, 0.3), 0.8), camera)
+}
+
+/// A lamp (a sphere light of radius 0.2) 1.2 above a table, in the corner
+/// of two walls: the table, its legs, two stools, a shelf with a ball and a
+/// cabinet cast on the floor (−Y face), on the walls (−X, −Z faces) and
+/// across the faces' borders.
+fn lamp_room() -> (Vec<SceneObject>, Light, Camera) {
+    let wall = |name: &str, rotation: Quat, p: Vec3| {
+        object(name, shapes::plane(8.0, 4), Affine3A::from_rotation_translation(rotation, p))
+    };
+    let cuboid = |name: &str, half: Vec3, p: Vec3| object(name, shapes::cuboid(half), at(p));
+    let mut objects = vec![
+        ground(8.0),
+        wall("wall-back", Quat::from_rotation_x(std::f32::consts::FRAC_PI_2), Vec3::new(0.0, 4.0, -4.0)),
+        wall("wall-left", Quat::from_rotation_z(-std::f32::consts::FRAC_PI_2), Vec3::new(-4.0, 4.0, 0.0)),
+        cuboid("table-top", Vec3::new(0.8, 0.05, 0.5), Vec3::new(0.0, 0.75, 0.0)),
+        cuboid("stool-a", Vec3::splat(0.25), Vec3::new(1.6, 0.25, 0.2)),
+        cuboid("stool-b", Vec3::splat(0.25), Vec3::new(-2.4, 0.25, 0.9)),
+        cuboid("shelf", Vec3::new(0.15, 0.04, 0.8), Vec3::new(-3.8, 1.8, -0.5)),
+        object("ball", shapes::uv_sphere(0.2, 12, 24), at(Vec3::new(-3.75, 2.04, -0.3))),
+        cuboid("cabinet", Vec3::new(0.5, 1.0, 0.3), Vec3::new(-1.2, 1.0, -2.6)),
+    ];
+    for (i, (x, z)) in [(-0.7, -0.4), (0.7, -0.4), (-0.7, 0.4), (0.7, 0.4)].into_iter().enumerate() {
+        objects.push(cuboid(&format!("leg-{i}"), Vec3::new(0.05, 0.35, 0.05), Vec3::new(x, 0.35, z)));
+    }
+    let light = Light::Sphere(SphereLight::new(Vec3::new(0.0, 2.0, 0.0), 0.2).expect("a valid lamp"));
+    (objects, light, Camera::looking_at(Vec3::new(5.0, 3.6, 5.5), Vec3::new(-1.4, 1.0, -1.6)))
 }
 
 fn placed(p: Vec3, rotation: Quat, scale: Vec3) -> Affine3A {

@@ -13,6 +13,7 @@ mod core {
     mod peers;
     mod rect_light;
     mod silhouette_properties;
+    mod sphere_light;
     mod stability;
     mod straight_edge;
 }

@@ -198,7 +198,7 @@ fn adopt_lights(world: &mut World, root: Entity, keep_light: bool, view: &Defaul
                     params.color = sun.color.to_linear().to_f32_array_no_alpha();
                     params.sun_angle = e.get::<SunDisk>().map_or(SunDisk::EARTH.angular_size, |d| d.angular_size);
                 } else if let Some(point) = e.get::<PointLight>() {
-                    (params.kind, params.intensity) = (LightKind::FinLight, point.intensity);
+                    (params.kind, params.intensity) = (LightKind::Point, point.intensity);
                     params.color = point.color.to_linear().to_f32_array_no_alpha();
                     params.direction = Vec3::NEG_Y;
                 }

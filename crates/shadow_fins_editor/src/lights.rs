@@ -1,5 +1,5 @@
-//! More lights: Bevy `SpotLight`s, `RectLight`s and suns (`DirectionalLight`
-//! with a `SunDisk`) with `FinShadows`, added beside the editor's main light,
+//! More lights: Bevy `SpotLight`s, `RectLight`s, `PointLight`s and suns
+//! (`DirectionalLight` with a `SunDisk`) with `FinShadows`, added beside the editor's main light,
 //! each with its size, power, cone and layers edited live, removed with one
 //! click; their counts come from each light's `FinLightStats`. (The main
 //! light, the ground truth and the error views stay with the main light.)
@@ -23,6 +23,7 @@ pub(crate) fn build(app: &mut App) {
 enum ExtraKind {
     Spot,
     Rect,
+    Point,
     Sun,
 }
 
@@ -66,6 +67,18 @@ fn new_rect(params: &LightParams, index: usize) -> (RectLight, Transform) {
     (rect, new_light_transform(params, index))
 }
 
+/// A new point light beside the main one: a sphere of its radius, same power.
+fn new_point(params: &LightParams, index: usize) -> (PointLight, Transform) {
+    let point = PointLight {
+        intensity: params.intensity.max(0.0),
+        radius: params.radius.max(0.0),
+        range: 1000.0,
+        shadow_maps_enabled: true,
+        ..default()
+    };
+    (point, new_light_transform(params, index))
+}
+
 /// A new sun, tilted away from the main light's direction so its shadow differs,
 /// at the main light's illuminance.
 fn new_sun(params: &LightParams, index: usize) -> (DirectionalLight, SunDisk, Transform) {
@@ -83,6 +96,7 @@ type ExtraLightItem<'a> = (
     Entity,
     Option<Mut<'a, SpotLight>>,
     Option<Mut<'a, RectLight>>,
+    Option<Mut<'a, PointLight>>,
     Option<Mut<'a, DirectionalLight>>,
     Option<Mut<'a, SunDisk>>,
     Mut<'a, FinShadowSettings>,
@@ -100,6 +114,7 @@ fn lights_window(
             Entity,
             Option<&mut SpotLight>,
             Option<&mut RectLight>,
+            Option<&mut PointLight>,
             Option<&mut DirectionalLight>,
             Option<&mut SunDisk>,
             &mut FinShadowSettings,
@@ -118,9 +133,12 @@ fn lights_window(
         let room = count + 1 < MAX_FIN_LIGHTS;
         let settings = main.single().copied().unwrap_or_default();
         ui.horizontal(|ui| {
-            for (kind, label) in
-                [(ExtraKind::Spot, "add a spot"), (ExtraKind::Rect, "add a rect"), (ExtraKind::Sun, "add a sun")]
-            {
+            for (kind, label) in [
+                (ExtraKind::Spot, "add a spot"),
+                (ExtraKind::Rect, "add a rect"),
+                (ExtraKind::Point, "add a point"),
+                (ExtraKind::Sun, "add a sun"),
+            ] {
                 if !ui.add_enabled(room, egui::Button::new(label)).clicked() {
                     continue;
                 }
@@ -128,18 +146,21 @@ fn lights_window(
                 match kind {
                     ExtraKind::Spot => e.insert((new_light(&params, count), Name::new("extra spot light"))),
                     ExtraKind::Rect => e.insert((new_rect(&params, count), Name::new("extra rect light"))),
+                    ExtraKind::Point => e.insert((new_point(&params, count), Name::new("extra point light"))),
                     ExtraKind::Sun => e.insert((new_sun(&params, count), Name::new("extra sun"))),
                 };
             }
         });
         let mut lights: Vec<ExtraLightItem> = extras.iter_mut().collect();
         lights.sort_by_key(|l| l.0);
-        for (k, (entity, spot, rect, sun, disk, mut settings, stats)) in lights.into_iter().enumerate() {
+        for (k, (entity, spot, rect, point, sun, disk, mut settings, stats)) in lights.into_iter().enumerate() {
             ui.separator();
             let kind = if spot.is_some() {
                 "spot"
             } else if rect.is_some() {
                 "rect"
+            } else if point.is_some() {
+                "point"
             } else {
                 "sun"
             };
@@ -154,6 +175,9 @@ fn lights_window(
             }
             if let Some(rect) = rect {
                 rect_controls(ui, rect);
+            }
+            if let Some(point) = point {
+                point_controls(ui, point);
             }
             if let (Some(sun), Some(disk)) = (sun, disk) {
                 sun_controls(ui, sun, disk);
@@ -188,6 +212,16 @@ fn spot_controls(ui: &mut egui::Ui, mut spot: Mut<SpotLight>) {
         != (spot.radius, spot.intensity, spot.outer_angle, spot.inner_angle)
     {
         *spot = s;
+    }
+}
+
+/// Radius and power.
+fn point_controls(ui: &mut egui::Ui, mut point: Mut<PointLight>) {
+    let mut p = *point;
+    ui.add(egui::Slider::new(&mut p.radius, 0.0..=5.0).text("radius").logarithmic(true).smallest_positive(1e-3));
+    ui.add(egui::Slider::new(&mut p.intensity, 0.0..=1e8).text("intensity (lm)").logarithmic(true));
+    if (p.radius, p.intensity) != (point.radius, point.intensity) {
+        *point = p;
     }
 }
 
@@ -248,6 +282,17 @@ mod tests {
         // A degenerate main light (zero direction, NaN-free but zero) still gives a finite light.
         let (_, t) = new_light(&LightParams { direction: Vec3::ZERO, radius: -1.0, ..params }, 3);
         assert!(t.translation.is_finite() && t.rotation.is_finite());
+    }
+
+    #[test]
+    fn new_point_lights_are_spheres_of_the_main_lights_radius_and_power_apart_from_it() {
+        let params = main_light();
+        let (p, t) = new_point(&params, 0);
+        assert_eq!((p.radius, p.intensity), (0.5, 1e6));
+        assert!(p.shadow_maps_enabled, "the user's own setting: fin shadows turn the cube map off, not the light");
+        assert!(t.translation.distance(params.position) >= 0.5 && t.translation.is_finite());
+        let (bad, t) = new_point(&LightParams { radius: -1.0, intensity: f32::NEG_INFINITY, ..params }, 2);
+        assert!(bad.radius == 0.0 && bad.intensity == 0.0 && t.translation.is_finite());
     }
 
     #[test]

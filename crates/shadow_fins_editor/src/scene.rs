@@ -13,7 +13,7 @@ use bevy::{
 use bevy_egui::input::EguiWantsInput;
 use bevy_shadow_fins::{FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster};
 use shadow_fins::{
-    light::{DiskLight, Light, RectLight as RectArea, SunLight},
+    light::{DiskLight, Light, RectLight as RectArea, SphereLight, SunLight},
     scene::Scene,
     scenes::SceneId,
 };
@@ -98,7 +98,7 @@ pub struct LightParams {
     pub color: [f32; 3],
     pub method: EditorMethod,
     /// Which light it is: the plugin's `FinLight`, or Bevy's own `SpotLight`,
-    /// `DirectionalLight` or `RectLight` with `FinShadows`.
+    /// `DirectionalLight`, `RectLight` or `PointLight` with `FinShadows`.
     pub kind: LightKind,
     /// A `RectLight`'s width ÷ height; it has the area of the disk of
     /// `radius` (`shadow_fins::light::RectLight::with_area_of`).
@@ -124,10 +124,14 @@ pub enum LightKind {
     /// own): a rectangle of the disk's area, [`LightParams::rect_aspect`]
     /// times as wide as high.
     Rect,
+    /// Bevy's `PointLight` (Bevy shades it): a sphere of its `radius`,
+    /// shadowed all around by six cube-face frames.
+    Point,
 }
 
 impl LightKind {
-    pub const ALL: [LightKind; 4] = [LightKind::FinLight, LightKind::Spot, LightKind::Sun, LightKind::Rect];
+    pub const ALL: [LightKind; 5] =
+        [LightKind::FinLight, LightKind::Spot, LightKind::Sun, LightKind::Rect, LightKind::Point];
 
     /// The name in settings files.
     pub fn name(self) -> &'static str {
@@ -136,6 +140,7 @@ impl LightKind {
             LightKind::Spot => "spot",
             LightKind::Sun => "sun",
             LightKind::Rect => "rect",
+            LightKind::Point => "point",
         }
     }
 
@@ -149,6 +154,7 @@ impl LightKind {
             LightKind::Spot => "Bevy SpotLight",
             LightKind::Sun => "Bevy sun",
             LightKind::Rect => "Bevy RectLight",
+            LightKind::Point => "Bevy PointLight",
         }
     }
 }
@@ -177,6 +183,9 @@ impl LightParams {
             let (width, height) = self.rect_size();
             let tangent = self.transform().right().as_vec3();
             return RectArea::new(self.position, direction, tangent, width, height).ok().map(Light::Rect);
+        }
+        if self.kind == LightKind::Point {
+            return SphereLight::new(self.position, self.radius.max(0.0)).ok().map(Light::Sphere);
         }
         DiskLight::new(self.position, direction, self.radius.max(0.0)).ok().map(Light::Disk)
     }
@@ -458,6 +467,7 @@ fn sync_light(
             Option<&mut SpotLight>,
             Option<&mut DirectionalLight>,
             Option<&mut RectLight>,
+            (Option<&mut PointLight>, Has<FinShadows>),
         ),
         With<EditorLight>,
     >,
@@ -465,7 +475,11 @@ fn sync_light(
     if !params.is_changed() {
         return;
     }
-    let Ok((entity, mut transform, mut settings, fin, spot, directional, rect)) = lights.single_mut() else { return };
+    let Ok((entity, mut transform, mut settings, fin, spot, directional, rect, (point, fin_shadowed))) =
+        lights.single_mut()
+    else {
+        return;
+    };
     let finite = |x: f32| if x.is_finite() { x.max(0.0) } else { 0.0 };
     *transform = params.transform();
     let color = Color::srgb(params.color[0], params.color[1], params.color[2]);
@@ -539,6 +553,20 @@ fn sync_light(
                 }
                 return;
             }
+            if params.kind == LightKind::Point {
+                let light = PointLight { color, intensity, range, radius, shadow_maps_enabled: true, ..default() };
+                match point {
+                    // After Bevy PCSS the PointLight stays but has no FinShadows.
+                    Some(mut p) if fin_shadowed => *p = light,
+                    _ => {
+                        commands
+                            .entity(entity)
+                            .remove::<(PointLight, FinLight, SpotLight, DirectionalLight, SunDisk, RectLight)>()
+                            .insert((light, FinShadows));
+                    }
+                }
+                return;
+            }
             let light = FinLight { color, intensity, range, radius };
             match fin {
                 Some(mut f) => *f = light,
@@ -594,6 +622,8 @@ fn sync_marker(
                     let (w, h) = params.rect_size();
                     Vec3::new((w * 0.5).max(least), (h * 0.5).max(least), 0.05 * params.radius.max(least))
                 }
+                // A sphere: as deep as it is wide.
+                LightKind::Point => Vec3::splat(params.radius.max(least)),
                 _ => Vec3::new(1.0, 1.0, 0.05) * params.radius.max(least),
             };
             *t = params.transform().with_scale(scale);

@@ -134,6 +134,10 @@ fn panels(
                             "Bevy's RectLight with FinShadows: Bevy shades it (area-light LTC), fins shadow it; \
                              the rectangle has the disk's area (radius) and the aspect below"
                         }
+                        LightKind::Point => {
+                            "Bevy's PointLight with FinShadows: a sphere of this radius, shadowed all around \
+                             (six cube-face frames); the layer view shows the face towards the scene's centre"
+                        }
                     });
                 }
             });

@@ -7,7 +7,9 @@ use shadow_fins::{
     bvh::Bvh,
     camera::{Camera, pixel_receiver},
     coverage::{CoverageModel, CoverageWork, ReferenceCount},
+    glam::Vec3,
     ground_truth::GroundTruth,
+    light::Light,
     oracle::{FinSettings, FinShadowModel, Receiver},
     peers::PeerModel,
     scene::{LightSpaceScene, Scene},
@@ -74,7 +76,63 @@ pub use shadow_fins::coverage::DEPTH_LIST_LENGTH;
 /// Evaluates `measured` at every receiver (light frame). With
 /// `map_resolution`, fins are looked up in raster maps and the coverage
 /// method counts `D(r)` from depth lists at that resolution.
+///
+/// A sphere light's receivers go to the cube face that shadows each
+/// ([`LightSpaceScene::faces`]), evaluated in that face's frame and put back
+/// in order; the counts and times are the six faces' sums.
 pub fn evaluate(
+    scene: &Scene,
+    light_space: &LightSpaceScene,
+    measured: Measured,
+    settings: FinSettings,
+    map_resolution: Option<u32>,
+    samples: u32,
+    receivers: &[Receiver],
+) -> Evaluation {
+    if !matches!(light_space.light, Light::Sphere(_)) {
+        return evaluate_in_frame(scene, light_space, measured, settings, map_resolution, samples, receivers);
+    }
+    let start = Instant::now();
+    let faces = LightSpaceScene::faces(scene, light_space.light);
+    let frame = &light_space.frame;
+    let world: Vec<(Vec3, Vec3)> =
+        receivers.iter().map(|r| (frame.to_world(r.position), frame.dir_to_world(r.normal))).collect();
+    let face_of: Vec<usize> = world.iter().map(|(p, _)| LightSpaceScene::face_of(&faces, *p)).collect();
+    let faces_ms = ms(start);
+    let mut total = Evaluation {
+        values: vec![0.0; receivers.len()],
+        prepare_ms: faces_ms,
+        evaluate_ms: 0.0,
+        silhouettes: 0,
+        fins: 0,
+        layers: 0,
+        work: None,
+    };
+    for (k, mut face) in faces.into_iter().enumerate() {
+        let mine: Vec<usize> = (0..receivers.len()).filter(|&i| face_of[i] == k).collect();
+        let in_face: Vec<Receiver> = mine
+            .iter()
+            .map(|&i| Receiver {
+                position: face.frame.to_frame(world[i].0),
+                normal: face.frame.dir_to_frame(world[i].1),
+            })
+            .collect();
+        face.cover_receivers(in_face.iter().map(|r| r.position));
+        let ev = evaluate_in_frame(scene, &face, measured, settings, map_resolution, samples, &in_face);
+        for (&i, v) in mine.iter().zip(ev.values) {
+            total.values[i] = v;
+        }
+        total.prepare_ms += ev.prepare_ms;
+        total.evaluate_ms += ev.evaluate_ms;
+        total.silhouettes += ev.silhouettes;
+        total.fins += ev.fins;
+        total.layers = total.layers.max(ev.layers);
+    }
+    total
+}
+
+/// [`evaluate`] in one frame.
+fn evaluate_in_frame(
     scene: &Scene,
     light_space: &LightSpaceScene,
     measured: Measured,

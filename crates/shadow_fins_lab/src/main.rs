@@ -98,8 +98,12 @@ enum Command {
         images: Option<PathBuf>,
         /// Light each scene by a rectangle of its disk's area and this
         /// width ÷ height (width along world x) instead of the disk.
-        #[arg(long)]
+        #[arg(long, conflicts_with = "point")]
         rect_aspect: Option<f32>,
+        /// Light each scene by a sphere (a point light with a size) of its
+        /// disk's radius at the disk's centre instead of the disk.
+        #[arg(long)]
+        point: bool,
     },
     /// Write a built-in scene as a self-contained glTF file.
     ExportGltf {
@@ -174,7 +178,7 @@ fn run(command: Command) -> Result<(), LabError> {
             strip(&c).save_png(&out)?;
             eprintln!("wrote {}", out.display());
         }
-        Command::Report { fins, scenes, width, height, images, rect_aspect } => {
+        Command::Report { fins, scenes, width, height, images, rect_aspect, point } => {
             let settings = fins.settings()?;
             let ids: Vec<SceneId> = if scenes.is_empty() {
                 SceneId::ALL.into_iter().filter(|s| *s != SceneId::DenseBlob).collect()
@@ -223,6 +227,7 @@ fn run(command: Command) -> Result<(), LabError> {
                     light_normal: None,
                     radius: None,
                     rect: None,
+                    point,
                     sun_direction: None,
                     sun_angle: 0.05,
                 };
@@ -397,6 +402,7 @@ fn title(name: &str, light: &shadow_fins::light::Light, fins: &FinArgs) -> Strin
             format!("rect light {} x {}", r.half_extents.x * 2.0, r.half_extents.y * 2.0)
         }
         shadow_fins::light::Light::Sun(s) => format!("sun θ = {} rad", s.angular_radius),
+        shadow_fins::light::Light::Sphere(s) => format!("sphere light R = {} (six cube faces)", s.radius),
     };
     let oracle = match fins.map_resolution {
         Some(r) => format!("raster oracle {r}²"),

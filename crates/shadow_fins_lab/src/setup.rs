@@ -5,7 +5,7 @@ use shadow_fins::{
     camera::Camera,
     glam::{Vec2, Vec3},
     gltf_import::load_gltf,
-    light::{DiskLight, Light, RectLight, SunLight},
+    light::{DiskLight, Light, RectLight, SphereLight, SunLight},
     oracle::{FinSettings, Method, Overlap},
     peers::PeerMethod,
     refine::Falloff,
@@ -41,6 +41,12 @@ pub struct SceneArgs {
     /// normal is along x). 0,0 gives hard shadows.
     #[arg(long, value_parser = parse_vec2, allow_hyphen_values = true, conflicts_with = "radius")]
     pub rect: Option<Vec2>,
+    /// A sphere light (Bevy's point light with a radius) of --radius at the
+    /// light centre instead of the disk: shadows all around it, by six
+    /// cube-face frames. 0 gives hard shadows. (A scene lit by a sphere,
+    /// lamp-room, keeps it unless --light-normal asks for a disk.)
+    #[arg(long, conflicts_with_all = ["rect", "light_normal"])]
+    pub point: bool,
     /// Sun light travel direction x,y,z (instead of a disk light).
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, conflicts_with = "light_center")]
     pub sun_direction: Option<Vec3>,
@@ -184,6 +190,7 @@ impl SceneArgs {
             Light::Disk(d) => (d.center, d.normal, d.radius),
             Light::Rect(l) => (l.center, l.normal, l.bounding_radius()),
             Light::Sun(_) => (Vec3::Y * 5.0, Vec3::NEG_Y, 0.5),
+            Light::Sphere(s) => (s.center, Vec3::NEG_Y, s.radius),
         };
         let center = self.light_center.unwrap_or(c);
         let normal = self.light_normal.unwrap_or(n);
@@ -192,6 +199,11 @@ impl SceneArgs {
             return Ok(Light::Rect(RectLight::new(center, normal, tangent, size.x, size.y)?));
         }
         let radius = self.radius.unwrap_or(r);
+        // A scene lit by a sphere stays so unless a disk's normal is given.
+        let sphere_default = matches!(default, Light::Sphere(_)) && self.light_normal.is_none();
+        if self.point || sphere_default {
+            return Ok(Light::Sphere(SphereLight::new(center, radius)?));
+        }
         Ok(Light::Disk(DiskLight::new(center, normal, radius)?))
     }
 }

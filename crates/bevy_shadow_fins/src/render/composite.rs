@@ -309,9 +309,11 @@ fn composite_lights(
     bevy_maps_kept: bool,
 ) -> CompositeLights {
     let mut out = CompositeLights::zeroed();
-    out.count[0] = frames.0.len().min(MAX_FIN_LIGHTS) as u32;
+    out.count[0] = frames.light_count().min(MAX_FIN_LIGHTS) as u32;
     out.count[1] = bevy_maps_kept as u32;
-    for (slot, frame) in frames.0.iter().take(MAX_FIN_LIGHTS).enumerate() {
+    // One slot per light (its visibility layer), shaded as its first frame says.
+    let first_frames = (0..frames.light_count()).filter_map(|layer| frames.of_layer(layer).next().map(|(_, f)| f));
+    for (slot, frame) in first_frames.take(MAX_FIN_LIGHTS).enumerate() {
         let none = (KIND_NONE, FinLightUniform::zeroed(), 0);
         let (kind, own, id) = match frame.shading {
             LightShading::Own { light, transform } => {
@@ -377,6 +379,7 @@ fn fin_composite(
         &FinCompositeBindGroup,
     )>,
     written: Res<super::ViewsWithVisibility>,
+    frames: Res<FinFrames>,
     pipeline_cache: Res<PipelineCache>,
     pass_ids: Res<ComponentUniforms<PbrDeferredLightingDepthId>>,
     queue: Res<RenderQueue>,
@@ -388,8 +391,10 @@ fn fin_composite(
     // as Bevy lit it (a FinLight: not at all). With none written, Bevy's own
     // lighting pass shows.
     let mut lights = *bind_group.lights;
-    for slot in 0..lights.count[0] as usize {
-        lights.lights[slot].info[2] = written.0.contains(&(entity, slot)) as u32;
+    for layer in 0..lights.count[0] as usize {
+        // A point light's layer is whole once all six faces wrote theirs.
+        let complete = frames.of_layer(layer).all(|(slot, _)| written.0.contains(&(entity, slot)));
+        lights.lights[layer].info[2] = (complete && frames.of_layer(layer).next().is_some()) as u32;
     }
     if !lights.lights.iter().any(|l| l.info[2] == 1) {
         return;

@@ -72,6 +72,24 @@ struct CoverageParams {
     axis_n: [f32; 4],
 }
 
+/// `CoverageParams.info.w`.
+fn projection(f: &FinFrameData) -> u32 {
+    match (f.orthographic, f.aperture) {
+        (true, _) => 0,
+        (false, shadow_fins::light::Aperture::Sphere { .. }) => 2,
+        (false, _) => 1,
+    }
+}
+
+/// A point light's sphere radius (its frame's `R` is the bounding circle of
+/// its outline over the face), else 0.
+fn sphere_radius(f: &FinFrameData) -> f32 {
+    match f.aperture {
+        shadow_fins::light::Aperture::Sphere { stretch, .. } => f.size / stretch,
+        _ => 0.0,
+    }
+}
+
 fn params_of(f: &FinFrameData) -> Option<CoverageParams> {
     let c = f.coverage.as_ref()?;
     let v4 = |v: bevy::math::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
@@ -81,11 +99,17 @@ fn params_of(f: &FinFrameData) -> Option<CoverageParams> {
         counts: [c.region.resolution, NEAR_DEPTHS, FAR_DEPTHS, c.raster_work.len() as u32],
         light: [f.size, c.near.max(-3.0e38), c.extent * 1e-7, shadow_fins::scene::SURFACE_EPSILON],
         grid: c.grid,
-        // w: 1 perspective (disk), 0 orthographic (sun).
-        info: [c.dims[0], c.dims[1], c.samples.len() as u32, !f.orthographic as u32],
+        // w: 1 perspective (disk), 0 orthographic (sun), 2 a point light's
+        // cube face (perspective; the light is the sphere's outline seen from
+        // each receiver, of radius axis_n.w, and only the face's frustum is shaded).
+        info: [c.dims[0], c.dims[1], c.samples.len() as u32, projection(f)],
         axis_u: v4(f.axes[0]),
         axis_v: v4(f.axes[1]),
-        axis_n: v4(f.axes[2]),
+        axis_n: {
+            let mut n = v4(f.axes[2]);
+            n[3] = sphere_radius(f);
+            n
+        },
     })
 }
 
@@ -149,9 +173,9 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
     });
 }
 
-/// Every coverage-method light's GPU lists, by main-world light entity.
+/// Every coverage-method frame's GPU lists, by main-world light entity and cube face.
 #[derive(Resource, Default)]
-struct CoverageLightsGpu(std::collections::HashMap<Entity, CoverageGpu>);
+struct CoverageLightsGpu(std::collections::HashMap<crate::extract::FrameKey, CoverageGpu>);
 
 /// GPU copies of one light's coverage frame.
 #[derive(Default)]
@@ -186,13 +210,13 @@ fn prepare_coverage(
     pipelines: Option<Res<CoveragePipelines>>,
     pipeline_cache: Res<PipelineCache>,
 ) {
-    lights.0.retain(|light, _| frames.on_coverage(true).any(|f| f.light == *light));
+    lights.0.retain(|key, _| frames.on_coverage(true).any(|f| f.key() == *key));
     let Some(pipelines) = pipelines else {
         lights.0.clear();
         return;
     };
     for frame in frames.on_coverage(true) {
-        let gpu = lights.0.entry(frame.light).or_default();
+        let gpu = lights.0.entry(frame.key()).or_default();
         prepare_light(&frame.data, gpu, &device, &queue, &pipelines, &pipeline_cache);
     }
 }
@@ -358,8 +382,8 @@ fn prepare_view_bind_groups(
             .iter()
             .enumerate()
             .map(|(slot, frame)| {
-                let gpu = lights.0.get(&frame.light).filter(|g| g.ready())?;
-                let layer = texture.layers.get(slot)?;
+                let gpu = lights.0.get(&frame.key()).filter(|g| g.ready())?;
+                let layer = texture.layers.get(frame.layer)?;
                 let f = &frame.data;
                 let buffer = view_transform(&device, &queue, f, &view.world_from_view, &mut per_pixel.transforms, slot);
                 let bind_group = device.create_bind_group(

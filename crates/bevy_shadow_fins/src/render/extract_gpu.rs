@@ -22,7 +22,7 @@ use bevy::{
 
 use crate::{
     budget::FinDegradation,
-    extract::{FinFrameData, FinFrameStats, FinFrames, FinLightStats, MAX_FIN_LIGHTS, MeshCache},
+    extract::{FinFrameData, FinFrameStats, FinFrames, FinLightStats, MAX_FIN_FRAMES, MeshCache},
     gpu_scene::{GpuCapacity, GpuScene},
     light::FinMethod,
 };
@@ -68,18 +68,18 @@ pub(super) fn build(app: &mut App) {
 }
 
 /// The small buffer the extraction's counts are copied into, one slot of
-/// `STATS_WORDS` per light (in [`FinFrames`] order), read back every frame
-/// into each light's [`FinLightStats`].
+/// `STATS_WORDS` per frame (in [`FinFrames`] order), read back every frame
+/// into each light's [`FinLightStats`] (a point light's faces combined).
 #[derive(Resource, Clone, ExtractResource)]
 pub(crate) struct FinStatsBuffer(Handle<ShaderBuffer>);
 
-/// Byte offset of light slot `slot` in the stats buffer.
+/// Byte offset of frame slot `slot` in the stats buffer.
 pub(super) fn stats_offset(slot: usize) -> u64 {
     slot as u64 * STATS_WORDS * 4
 }
 
 fn spawn_stats_readback(mut commands: Commands, mut buffers: ResMut<Assets<ShaderBuffer>>) {
-    let bytes = vec![0u8; stats_offset(MAX_FIN_LIGHTS) as usize];
+    let bytes = vec![0u8; stats_offset(MAX_FIN_FRAMES) as usize];
     let handle = buffers.add(ShaderBuffer::new(&bytes, bevy::asset::RenderAssetUsages::RENDER_WORLD));
     commands.insert_resource(FinStatsBuffer(handle.clone()));
     commands.spawn((Name::new("fin shadow stats read-back"), Readback::buffer(handle))).observe(on_stats_readback);
@@ -95,17 +95,22 @@ fn on_stats_readback(
     mut light_stats: Query<&mut FinLightStats>,
 ) {
     let words: Vec<u32> = readback.data.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    let mut any = false;
     for (slot, frame) in frames.0.iter().enumerate() {
         let at = slot * STATS_WORDS as usize;
         let Some(w) = words.get(at..at + STATS_WORDS as usize) else { continue };
-        let Some(state) = cache.lights.get_mut(&frame.light) else { continue };
+        let Some(state) = cache.lights.get_mut(&frame.key()) else { continue };
         if let Some(now) = stats_of_readback(&frame.data, w, state) {
-            crate::extract::set_stats(&mut light_stats, frame.light, now);
+            any |= state.stats != now;
+            state.stats = now;
         }
+    }
+    if any {
+        crate::extract::publish_light_stats(&frames.0, &cache, &mut light_stats);
     }
 }
 
-/// One light's counts from its read-back slot `w`, or `None` when the slot
+/// One frame's counts from its read-back slot `w`, or `None` when the slot
 /// belongs to another frame (an older one, another light's, or none yet).
 fn stats_of_readback(f: &FinFrameData, w: &[u32], state: &mut crate::extract::LightState) -> Option<FinFrameStats> {
     let gpu = f.gpu.as_ref()?;
@@ -164,8 +169,9 @@ struct ExtractParams {
     axis_n: [f32; 4],
     /// The maps' region lies within (min x, min y, max x, max y); none when min > max.
     window: [f32; 4],
-    /// (rectangle half extents a, b in the unit bounding circle, 1 for a
-    /// rectangle / 0 for the disk, 0): the light's support function.
+    /// The light's support function: (rectangle half extents a, b in the
+    /// unit bounding circle, 1, 0), a disk's (1, 1, 0, 0), a point light's
+    /// cube face (1/stretch, window, 2, 0).
     aperture: [f32; 4],
 }
 
@@ -306,6 +312,7 @@ pub(super) fn prepare(
         aperture: match frame.aperture {
             Aperture::Disk => [1.0, 1.0, 0.0, 0.0],
             Aperture::Rect { half_extents } => [half_extents.x, half_extents.y, 1.0, 0.0],
+            Aperture::Sphere { stretch, window } => [1.0 / stretch, window, 2.0, 0.0],
         },
     };
     let cap = frame.limit_bytes;

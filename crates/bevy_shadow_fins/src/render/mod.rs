@@ -209,10 +209,10 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
     });
 }
 
-/// Every fin-shadowed light's GPU maps (fin methods; the coverage method's
-/// are in `coverage.rs`), by main-world light entity.
+/// Every fin-shadowed frame's GPU maps (fin methods; the coverage method's
+/// are in `coverage.rs`), by main-world light entity and cube face.
 #[derive(Resource, Default)]
-struct FinLightsGpu(std::collections::HashMap<Entity, FinMapsGpu>);
+struct FinLightsGpu(std::collections::HashMap<crate::extract::FrameKey, FinMapsGpu>);
 
 /// GPU copies of one light's fin frame and its maps.
 #[derive(Default)]
@@ -242,6 +242,15 @@ enum MapsSource {
     Nothing,
 }
 
+/// `FinParams.flags.w`: how the frame's maps project.
+fn projection_code(f: &FinFrameData) -> u32 {
+    match (f.orthographic, f.aperture) {
+        (true, _) => 1,
+        (false, shadow_fins::light::Aperture::Sphere { .. }) => 2,
+        (false, _) => 0,
+    }
+}
+
 fn params_of(f: &FinFrameData) -> FinParams {
     let s = f.settings;
     let falloff = match s.falloff {
@@ -260,7 +269,9 @@ fn params_of(f: &FinFrameData) -> FinParams {
         // The sun's near depth is −∞ (no near plane); the shaders' stand-in is
         // the most negative finite float.
         light: [f.size, f.near.max(-3.0e38), f.scene_extent * 1e-7, shadow_fins::scene::SURFACE_EPSILON],
-        flags: [s.refinement as u32, falloff, overlap, f.orthographic as u32],
+        // Projection: 0 a disk's perspective, 1 the sun's orthographic, 2 a
+        // point light's cube face (its visibility pass shades its frustum only).
+        flags: [s.refinement as u32, falloff, overlap, projection_code(f)],
         origin: v4(f.origin),
         axis_u: v4(f.axes[0]),
         axis_v: v4(f.axes[1]),
@@ -278,13 +289,13 @@ fn prepare_maps(
     pipelines: Option<Res<FinPipelines>>,
     pipeline_cache: Res<PipelineCache>,
 ) {
-    lights.0.retain(|light, _| frames.on_coverage(false).any(|f| f.light == *light));
+    lights.0.retain(|key, _| frames.on_coverage(false).any(|f| f.key() == *key));
     let Some(pipelines) = pipelines else {
         lights.0.clear();
         return;
     };
     for frame in frames.on_coverage(false) {
-        let gpu = lights.0.entry(frame.light).or_default();
+        let gpu = lights.0.entry(frame.key()).or_default();
         prepare_light_maps(&frame.data, gpu, &device, &queue, &pipelines, &pipeline_cache);
     }
 }
@@ -396,7 +407,7 @@ fn render_maps(
 ) {
     let Some(pipelines) = pipelines else { return };
     for (slot, frame) in frames.0.iter().enumerate() {
-        let Some(gpu) = lights.0.get_mut(&frame.light) else { continue };
+        let Some(gpu) = lights.0.get_mut(&frame.key()) else { continue };
         let stats = extract_gpu::stats_buffer(stats_handle.as_deref(), &shader_buffers)
             .map(|b| (b, extract_gpu::stats_offset(slot)));
         render_light_maps(gpu, &pipelines, &pipeline_cache, stats, &mut ctx);
@@ -500,7 +511,7 @@ fn render_light_maps(
 }
 
 /// Per camera: its visibility (illuminance) buffers, one layer per fin-shadowed
-/// light (in [`FinFrames`] order; at least one), and a view of each layer.
+/// light (`FinLightFrame::layer`; at least one), and a view of each layer.
 #[derive(Component)]
 pub struct FinViewTexture {
     pub(super) texture: CachedTexture,
@@ -510,17 +521,17 @@ pub struct FinViewTexture {
     pub(super) array: TextureView,
 }
 
-/// Per camera and light slot: the fin visibility pass's bind group (`None`
+/// Per camera and frame slot: the fin visibility pass's bind group (`None`
 /// for lights on the coverage method, or that cannot run this frame).
 #[derive(Component)]
 pub struct FinViewBindGroup(Vec<Option<BindGroup>>);
 
-/// Per camera and light slot: its view → light-frame transform (`FinView`
+/// Per camera and frame slot: its view → light-frame transform (`FinView`
 /// in `visibility.wgsl`).
 #[derive(Component, Default)]
 pub struct FinViewBuffer(pub(super) Vec<Buffer>);
 
-/// The view's view → light-frame uniform of light slot `slot`, written for
+/// The view's view → light-frame uniform of frame slot `slot`, written for
 /// this frame (created the first time).
 pub(super) fn view_transform(
     device: &RenderDevice,
@@ -595,8 +606,8 @@ mod tests {
     }
 }
 
-/// (view, light slot) pairs whose visibility layer was written this frame
-/// (the compositing pass uses a layer only then).
+/// (view, frame slot) pairs whose visibility pass ran this frame (the
+/// compositing pass uses a light's layer only when all its frames' did).
 #[derive(Resource, Default)]
 pub(super) struct ViewsWithVisibility(pub(super) std::collections::HashSet<(Entity, usize)>);
 
@@ -611,7 +622,7 @@ fn prepare_view_textures(
     frames: Res<FinFrames>,
     views: Query<(Entity, &ExtractedCamera), With<FinShadowView>>,
 ) {
-    let layers = frames.0.len().max(1) as u32;
+    let layers = frames.light_count().max(1) as u32;
     for (entity, camera) in &views {
         // Target-sized like the prepass textures, so that a camera with a
         // `Camera::viewport` reads and writes at the same (target) pixels.
@@ -689,10 +700,14 @@ fn prepare_view_bind_groups(
             .iter()
             .enumerate()
             .map(|(slot, frame)| {
-                let gpu = lights.0.get(&frame.light)?;
-                let (Some(params), Some(maps), Some(_), Some((depth, normal)), Some(layer)) =
-                    (gpu.params.as_ref(), gpu.maps.as_ref(), gpu.bind_group.as_ref(), inputs, texture.layers.get(slot))
-                else {
+                let gpu = lights.0.get(&frame.key())?;
+                let (Some(params), Some(maps), Some(_), Some((depth, normal)), Some(layer)) = (
+                    gpu.params.as_ref(),
+                    gpu.maps.as_ref(),
+                    gpu.bind_group.as_ref(),
+                    inputs,
+                    texture.layers.get(frame.layer),
+                ) else {
                     return None;
                 };
                 let buffer = view_transform(&device, &queue, &frame.data, &view.world_from_view, &mut buffers, slot);
@@ -746,9 +761,10 @@ fn fin_visibility(
     }
 }
 
-/// Copies light slot `slot` of a camera's visibility buffers into the
-/// camera's targets for that light: `visibility_target` for the first light,
-/// `light_visibility_targets` for the light's entity.
+/// Copies the visibility layer of frame slot `slot`'s light into the
+/// camera's targets for that light, once the light's last frame ran:
+/// `visibility_target` for the first light, `light_visibility_targets` for
+/// the light's entity.
 pub(super) fn copy_to_targets(
     ctx: &mut RenderContext,
     settings: &FinShadowView,
@@ -757,8 +773,11 @@ pub(super) fn copy_to_targets(
     frames: &FinFrames,
     slot: usize,
 ) {
-    let Some(light) = frames.0.get(slot).map(|f| f.light) else { return };
-    let first = settings.visibility_target.as_ref().filter(|_| slot == 0);
+    let Some((light, layer)) = frames.0.get(slot).map(|f| (f.light, f.layer)) else { return };
+    if !frames.ends_layer(slot) {
+        return;
+    }
+    let first = settings.visibility_target.as_ref().filter(|_| layer == 0);
     let own = settings.light_visibility_targets.iter().filter(|(e, _)| *e == light).map(|(_, h)| h);
     let size = texture.texture.texture.size();
     let size = Extent3d { depth_or_array_layers: 1, ..size };
@@ -767,7 +786,7 @@ pub(super) fn copy_to_targets(
             let source = TexelCopyTextureInfo {
                 texture: &texture.texture.texture,
                 mip_level: 0,
-                origin: Origin3d { x: 0, y: 0, z: slot as u32 },
+                origin: Origin3d { x: 0, y: 0, z: layer as u32 },
                 aspect: TextureAspect::All,
             };
             ctx.command_encoder().copy_texture_to_texture(source, target.texture.as_image_copy(), size);

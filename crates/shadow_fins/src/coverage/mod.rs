@@ -137,6 +137,10 @@ impl Line {
             LightShape::Disk { radius } => Line { n: Vec2::new(w.x, w.y) * radius, c: -w.dot(p) },
             // u(q) = (tanθ q, −1)
             LightShape::Sun { tan_angle } => Line { n: Vec2::new(w.x, w.y) * tan_angle, c: -w.z },
+            // u(q) = o + r (q_x e1 + q_y e2) − p
+            LightShape::Outline { center, radius, e1, e2 } => {
+                Line { n: Vec2::new(w.dot(e1), w.dot(e2)) * radius, c: w.dot(center - p) }
+            }
         }
     }
 
@@ -148,8 +152,20 @@ impl Line {
 
 #[derive(Debug, Clone, Copy)]
 enum LightShape {
-    Disk { radius: f32 },
-    Sun { tan_angle: f32 },
+    Disk {
+        radius: f32,
+    },
+    Sun {
+        tan_angle: f32,
+    },
+    /// A sphere's outline seen from one receiver (`sphere_light::outline_seen_from`):
+    /// the disk of centre `center`, radius `radius`, spanned by `e1`, `e2`.
+    Outline {
+        center: Vec3,
+        radius: f32,
+        e1: Vec3,
+        e2: Vec3,
+    },
 }
 
 impl<'a> CoverageModel<'a> {
@@ -177,11 +193,17 @@ impl<'a> CoverageModel<'a> {
         }
     }
 
-    fn shape(&self) -> LightShape {
-        match self.light_space.frame.projection {
+    /// The light as receiver `p` sees it; `None` when `p` is inside a
+    /// sphere light (nothing can come between).
+    fn shape_at(&self, p: Vec3) -> Option<LightShape> {
+        if let Some(radius) = self.light_space.frame.sphere_radius() {
+            let (center, radius, e1, e2) = crate::sphere_light::outline_seen_from(radius, p)?;
+            return Some(LightShape::Outline { center, radius, e1, e2 });
+        }
+        Some(match self.light_space.frame.projection {
             Projection::Perspective { radius } => LightShape::Disk { radius },
             Projection::Orthographic { tan_angle } => LightShape::Sun { tan_angle },
-        }
+        })
     }
 
     /// The vector from the receiver `p` towards light sample `q` (unit-disk
@@ -192,6 +214,7 @@ impl<'a> CoverageModel<'a> {
         match shape {
             LightShape::Disk { radius } => (q * radius).extend(0.0) - p,
             LightShape::Sun { tan_angle } => (q * tan_angle).extend(-1.0),
+            LightShape::Outline { center, radius, e1, e2 } => center + (e1 * q.x + e2 * q.y) * radius - p,
         }
     }
 
@@ -209,7 +232,7 @@ impl<'a> CoverageModel<'a> {
         if !p.is_finite() || (ls.frame.is_perspective() && !(p.z > self.near)) {
             return (0.0, work);
         }
-        let shape = self.shape();
+        let Some(shape) = self.shape_at(p) else { return (1.0, work) };
         // The light's part above the receiver's horizon.
         let n = receiver.normal;
         let above: Vec<bool> = self.samples.iter().map(|&q| n.dot(Self::sample_vector(shape, p, q)) >= 0.0).collect();
@@ -220,10 +243,7 @@ impl<'a> CoverageModel<'a> {
         let (reference, reference_count) = match &self.depth_lists {
             None => {
                 let u_r = Self::sample_vector(shape, p, REFERENCE);
-                let count = match shape {
-                    LightShape::Disk { .. } => self.bvh.count_hits(p, u_r, eps / u_r.length().max(eps), 1.0),
-                    LightShape::Sun { .. } => self.bvh.count_hits(p, u_r, eps, ls.extent * 4.0 + p.z.abs()),
-                };
+                let count = self.count_to_light(shape, p, u_r, eps);
                 (REFERENCE, count as i32)
             }
             Some(lists) => (Vec2::ZERO, self.raster_reference_count(lists, p, receiver.normal)),
@@ -271,12 +291,22 @@ impl<'a> CoverageModel<'a> {
         let ls = self.light_space;
         let eps = surface_epsilon(receiver.position, ls.extent);
         let p = receiver.position + receiver.normal * eps;
-        let u = Self::sample_vector(self.shape(), p, Vec2::ZERO);
-        let exact = match self.shape() {
-            LightShape::Disk { .. } => self.bvh.count_hits(p, u, eps / u.length().max(eps), 1.0),
-            LightShape::Sun { .. } => self.bvh.count_hits(p, u, eps, ls.extent * 4.0 + p.z.abs()),
-        } as i32;
+        let shape = self.shape_at(p)?;
+        let u = Self::sample_vector(shape, p, Vec2::ZERO);
+        let exact = self.count_to_light(shape, p, u, eps) as i32;
         Some((exact, self.raster_reference_count(lists, p, receiver.normal)))
+    }
+
+    /// Faces crossed from the receiver `p` along `u` to the light: up to
+    /// the light point (a disk or a sphere's outline), or out of the scene
+    /// (the sun).
+    fn count_to_light(&self, shape: LightShape, p: Vec3, u: Vec3, eps: f32) -> u32 {
+        match shape {
+            LightShape::Disk { .. } | LightShape::Outline { .. } => {
+                self.bvh.count_hits(p, u, eps / u.length().max(eps), 1.0)
+            }
+            LightShape::Sun { .. } => self.bvh.count_hits(p, u, eps, self.light_space.extent * 4.0 + p.z.abs()),
+        }
     }
 
     /// `D(c)` from the depth lists: the count along a texel centre's ray up to

@@ -21,7 +21,12 @@ pub struct MapTriangle {
 impl MapTriangle {
     /// Projects a light-frame triangle, clipped to `z >= near` under perspective
     /// (a caster through the light plane keeps only its part in front of the
-    /// light). Returns 0, 1 or 2 triangles; edge-on ones are dropped.
+    /// light) and, in a sphere light's face frame, to the face's window
+    /// frustum `|x|, |y| <= window·z` (`LightFrame::face_window_planes`: what lies beyond
+    /// shades no receiver of the face, and a triangle through the light's
+    /// plane would otherwise reach map coordinates of `1/near`, where its
+    /// inside test loses every digit). Returns the fan of the clipped
+    /// polygon; edge-on triangles are dropped.
     pub fn clipped(tri: &[Vec3; 3], frame: &LightFrame, near: f32, perspective: bool) -> Vec<MapTriangle> {
         let normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
         let offset = normal.dot(tri[0]);
@@ -38,21 +43,16 @@ impl MapTriangle {
                 perspective,
             })
         };
-        if !perspective || tri.iter().all(|v| v.z >= near) {
+        let window = frame.face_window_planes();
+        let inside = |p: Vec3| p.z >= near && window.iter().all(|w| w.dot(p) >= 0.0);
+        if !perspective || tri.iter().all(|v| inside(*v)) {
             return make(*tri).into_iter().collect();
         }
-        // Sutherland–Hodgman against z = near.
-        let mut poly: Vec<Vec3> = Vec::with_capacity(4);
-        for i in 0..3 {
-            let (a, b) = (tri[i], tri[(i + 1) % 3]);
-            let (ina, inb) = (a.z >= near, b.z >= near);
-            if ina {
-                poly.push(a);
-            }
-            if ina != inb {
-                let t = (near - a.z) / (b.z - a.z);
-                poly.push(a + (b - a) * t);
-            }
+        // Sutherland–Hodgman against z = near, then each window plane.
+        let mut poly: Vec<Vec3> = tri.to_vec();
+        poly = clip_polygon(&poly, |p| p.z - near);
+        for w in window {
+            poly = clip_polygon(&poly, |p| w.dot(p));
         }
         (1..poly.len().saturating_sub(1)).filter_map(|i| make([poly[0], poly[i], poly[i + 1]])).collect()
     }
@@ -83,4 +83,20 @@ impl MapTriangle {
         let [a, b, c] = self.corners;
         (a.min(b).min(c), a.max(b).max(c))
     }
+}
+
+/// The part of a polygon where `side(p) >= 0` (Sutherland–Hodgman, one plane).
+fn clip_polygon(poly: &[Vec3], side: impl Fn(Vec3) -> f32) -> Vec<Vec3> {
+    let mut out = Vec::with_capacity(poly.len() + 1);
+    for i in 0..poly.len() {
+        let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+        let (sa, sb) = (side(a), side(b));
+        if sa >= 0.0 {
+            out.push(a);
+        }
+        if (sa >= 0.0) != (sb >= 0.0) {
+            out.push(a + (b - a) * (sa / (sa - sb)));
+        }
+    }
+    out
 }

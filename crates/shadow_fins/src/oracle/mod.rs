@@ -350,6 +350,8 @@ impl FinExtractor {
             vertex_base += object.topology.positions.len() as u32;
         }
         self.patch_count = patches;
+        // A sphere light's face keeps the silhouettes that can shade it.
+        self.silhouettes.retain(|e| !frame.outside_face_window(e.a, e.b));
     }
 
     /// Stage 2: fins and fans of the silhouettes of stage 1 (eq. 3 widths).

@@ -147,7 +147,9 @@ pub fn depth_span(order: u32) -> f32 {
 /// the square around the disk, or the rectangle itself (units of the circle).
 fn kernel_shape(aperture: Aperture) -> Vec2 {
     match aperture {
-        Aperture::Disk => Vec2::ONE,
+        // A sphere's face reaches the peers as the disk in the face's plane
+        // (`PeerModel::new`).
+        Aperture::Disk | Aperture::Sphere { .. } => Vec2::ONE,
         Aperture::Rect { half_extents } => half_extents,
     }
 }
@@ -433,7 +435,7 @@ impl ConvolutionModel {
         // light's short side is blurred ×2 and its long side ×0.5; the
         // summed-area variant filters the exact a × b box.
         let side = match self.frame.aperture {
-            Aperture::Disk => None,
+            Aperture::Disk | Aperture::Sphere { .. } => None,
             Aperture::Rect { .. } => Some(2.0 * (h.x * h.y).sqrt()),
         };
         self.maps.average(lo, hi, side, &self.empty, scratch);

@@ -13,7 +13,10 @@
 //!   with Forest, Barthe, Paulin's blending of overlapping penumbrae (2006).
 //!
 //! Each model answers [`PeerModel::visibility`] for a receiver in the light
-//! frame, like the fin oracle's indices and the ground truth.
+//! frame, like the fin oracle's indices and the ground truth. The papers
+//! model planar lights and the sun: a sphere light's face frame reaches them
+//! as the disk of the sphere's radius in the face's plane
+//! ([`crate::light::LightFrame::face_plane_disk`]).
 
 pub mod convolution;
 pub mod plateaus;
@@ -146,6 +149,14 @@ impl PeerModel {
         light_space: &LightSpaceScene,
         receivers: Option<&[Receiver]>,
     ) -> Self {
+        let planar;
+        let light_space = match light_space.frame.face_plane_disk() {
+            Some(frame) => {
+                planar = LightSpaceScene { frame, ..light_space.clone() };
+                &planar
+            }
+            None => light_space,
+        };
         match method {
             PeerMethod::SingleSample => PeerModel::SingleSample(SingleSampleModel::new(light_space)),
             PeerMethod::Plateaus => PeerModel::Plateaus(PlateauModel::new(scene, light_space)),

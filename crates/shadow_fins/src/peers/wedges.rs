@@ -399,7 +399,7 @@ impl WedgeModel {
         // A rectangle's half sides in units of its bounding circle; a zero
         // side (a line light) kept a sliver, so its quadrants have an area.
         let rect = match self.frame.aperture {
-            Aperture::Disk => None,
+            Aperture::Disk | Aperture::Sphere { .. } => None,
             Aperture::Rect { half_extents } => Some(half_extents.max(Vec2::splat(1e-6))),
         };
         let quadrant_area = match rect {

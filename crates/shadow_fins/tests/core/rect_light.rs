@@ -228,11 +228,15 @@ fn aperture_samples_are_inside_and_evenly_spread() {
     // The support function is the rectangle's: h(d) = a|dx| + b|dy|.
     let d = Vec2::new(0.6, -0.8);
     let support = samples.iter().map(|q| q.dot(d)).fold(f32::MIN, f32::max);
-    assert!(support <= ap.support(d) + 1e-6 && support > ap.support(d) * 0.97, "{support} vs {}", ap.support(d));
+    assert!(
+        support <= ap.support_at(d, Vec2::ZERO) + 1e-6 && support > ap.support_at(d, Vec2::ZERO) * 0.97,
+        "{support} vs {}",
+        ap.support_at(d, Vec2::ZERO)
+    );
     // Degenerate sizes stay finite.
     for h in [Vec2::ZERO, Vec2::new(1.0, 0.0), Vec2::new(f32::NAN, 1.0)] {
         let a = Aperture::rect(h);
-        assert!(a.support(Vec2::X).is_finite() && a.samples(16).iter().all(|q| q.is_finite()), "{h}");
+        assert!(a.support_at(Vec2::X, Vec2::ZERO).is_finite() && a.samples(16).iter().all(|q| q.is_finite()), "{h}");
     }
 }
 
