@@ -7,10 +7,9 @@ use bevy_shadow_fins::{FinShadowView, FinShadows, ShadowFinsPlugin};
 
 fn main() {
     App::new()
+        // No renderer setting: Bevy's forward materials (its default) and
+        // deferred ones alike get fin shadows.
         .add_plugins((DefaultPlugins, ShadowFinsPlugin))
-        // Fin shadows reach deferred materials; without this line forward
-        // materials get Bevy's own hard shadow instead (see `BevyShadowMapsKept`).
-        .insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred())
         .add_systems(Startup, setup)
         .run();
 }

@@ -100,6 +100,11 @@ pub struct Setup {
     pub gltf_light_radius: f32,
     /// With `gltf`: the first camera takes the glTF's first camera's view.
     pub gltf_camera: bool,
+    /// Leave Bevy's default opaque method (forward) as it is: every mesh is
+    /// drawn by Bevy's forward pass, and fin shadows reach it through the
+    /// forward hook. (By default the harness makes deferred the default, as a
+    /// game that wants the G-buffer path would.)
+    pub forward: bool,
 }
 
 /// Marks `Setup::extra_lights` (kept when the main light is replaced).
@@ -151,6 +156,7 @@ impl Setup {
             gltf_lights: false,
             gltf_light_radius: 0.0,
             gltf_camera: false,
+            forward: false,
         }
     }
 }
@@ -220,12 +226,12 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
     if setup.sequential_rendering {
         plugins = plugins.disable::<bevy::render::pipelined_rendering::PipelinedRenderingPlugin>();
     }
-    app.add_plugins(plugins)
-        .add_plugins((ShadowFinsPlugin, RenderDiagnosticsPlugin))
-        // Fin shadows reach deferred materials: the harness, like a game that
-        // wants them on every material, makes deferred its default (the plugin
-        // leaves that choice to the app).
-        .insert_resource(DefaultOpaqueRendererMethod::deferred());
+    app.add_plugins(plugins).add_plugins((ShadowFinsPlugin, RenderDiagnosticsPlugin));
+    if !setup.forward {
+        // The G-buffer path for every opaque material, as a game that wants
+        // it makes deferred its default (the plugin leaves that choice to the app).
+        app.insert_resource(DefaultOpaqueRendererMethod::deferred());
+    }
     let world = app.world_mut();
     let (w, h) = (setup.width, setup.height);
     let material = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial::default());

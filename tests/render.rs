@@ -8,6 +8,7 @@ mod render {
     mod compositing;
     mod coverage;
     mod editor;
+    mod forward;
     mod gltf_scenes;
     mod gpu_extraction;
     mod lab;

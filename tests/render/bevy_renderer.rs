@@ -353,19 +353,36 @@ fn same_fin_shadow_kept_or_not(scene: Scene, name: &str) {
 }
 
 #[test]
-fn a_forward_receiver_gets_bevys_hard_shadow_and_is_counted() {
-    // The ground forced forward: fin shadows cannot reach it (they are applied
-    // to the G-buffer), so Bevy's map stays on and it gets Bevy's hard shadow
-    // rather than none.
+fn a_forward_receiver_gets_the_fin_shadow_with_bevys_maps_off() {
+    // The ground forced forward: the forward hook shades it with the fin
+    // shadow inside Bevy's forward pass (`render/forward.rs`), so nothing
+    // keeps Bevy's map on, and its shadow is the one the deferred ground
+    // gets from the compositing pass — not Bevy's hard one, not none.
     let forward = Scene { ground: OpaqueRendererMethod::Forward, ..Scene::new() };
     let mut app = build(forward);
     let (shadowed, _) = app.settle();
     let shadowed = shadowed.expect("read back");
     assert_eq!(*app.app.world().resource::<FinReceivers>(), FinReceivers { forward: 1, blended: 0 });
-    assert_eq!(app.app.world().resource::<BevyShadowMapsKept>().unreached_receivers, 1);
-    let (unshadowed, _) = build(Scene { bevy_shadows: false, ..forward }).settle();
-    let shadow_pixels = darkened(&shadowed, &unshadowed.expect("read back"));
+    assert_eq!(app.app.world().resource::<BevyShadowMapsKept>().unreached_receivers, 0);
+    assert!(!app.render_world_shadow_map_on(), "Bevy's map is on for a receiver fin shadows reach");
+    let (unshadowed, _) = build(Scene { fin_light: false, bevy_shadows: false, ..forward }).settle();
+    let (hard, _) = build(Scene { fin_light: false, ..forward }).settle();
+    let (deferred, _) = build(Scene::new()).settle();
+    let (unshadowed, hard, deferred) =
+        (unshadowed.expect("read back"), hard.expect("read back"), deferred.expect("read back"));
+    let shadow_pixels = darkened(&shadowed, &unshadowed);
+    let soft_pixels = shadowed.iter().zip(&hard).filter(|(a, h)| a[1].abs_diff(h[1]) > 3).count();
+    let from_deferred = shadowed.iter().zip(&deferred).filter(|(a, d)| a[1].abs_diff(d[1]) > 3).count();
     save(&shadowed, "forward_ground");
-    println!("forward ground: {shadow_pixels} pixels in Bevy's shadow");
+    save(&deferred, "deferred_ground");
+    println!(
+        "forward ground: {shadow_pixels} pixels darkened, {soft_pixels} differ from Bevy's hard shadow, \
+         {from_deferred} from the deferred ground's (max {})",
+        max_difference(&shadowed, &deferred)
+    );
     assert!(shadow_pixels > 200, "the forward receiver is unshadowed ({shadow_pixels} pixels)");
+    assert!(soft_pixels > 40, "the forward receiver's shadow is Bevy's hard one ({soft_pixels} pixels differ)");
+    // Forward shading against the G-buffer's (8-bit material channels,
+    // packed normals): a few steps apart at most, the shadow the same.
+    assert!(from_deferred <= 20, "{from_deferred} pixels differ from the deferred ground by more than 3 steps");
 }

@@ -265,4 +265,8 @@ fn receivers_fin_shadows_cannot_reach_are_counted() {
     session.settle(16).expect("render");
     let counted = *session.app.world().resource::<bevy_shadow_fins::FinReceivers>();
     assert_eq!(counted, bevy_shadow_fins::FinReceivers { forward: 1, blended: 1 });
+    // The forward hook reaches the forward cube; the blended one (drawn over
+    // the surface the visibility pass shaded) keeps Bevy's maps on for it.
+    assert!(session.app.world().resource::<bevy_shadow_fins::FinForwardShading>().0, "lavapipe binds 8 groups");
+    assert_eq!(session.app.world().resource::<bevy_shadow_fins::BevyShadowMapsKept>().unreached_receivers, 1);
 }

@@ -6,9 +6,10 @@
 //! - a 3D camera without [`FinShadowView`] (a minimap, a render-to-texture
 //!   preview) shows Bevy's own shading, and must render exactly as it would
 //!   without the plugin: the light shadowed by its Bevy shadow map;
-//! - a mesh fin shadows cannot reach ([`FinReceivers`]: forward-rendered,
-//!   alpha-blended or transmissive) should get Bevy's hard shadow rather than
-//!   none.
+//! - a mesh fin shadows cannot reach ([`FinReceivers`]: alpha-blended or
+//!   transmissive, and forward-rendered opaque ones on a device that cannot
+//!   bind the forward hook's fifth group) should get Bevy's hard shadow
+//!   rather than none.
 //!
 //! While either holds, the map stays on (the cost is Bevy's shadow pass again,
 //! and fin cameras sample Bevy's map a second time per pixel for `S`)
@@ -61,6 +62,7 @@ pub(crate) fn build(app: &mut App) {
 fn decide_bevy_shadow_maps(
     frames: Res<FinFrames>,
     receivers: Res<FinReceivers>,
+    forward: Option<Res<crate::FinForwardShading>>,
     cameras: Query<&Camera, (With<Camera3d>, Without<FinShadowView>)>,
     // A RectLight has no Bevy map.
     mut lights: Query<(Option<&mut SpotLight>, Option<&mut DirectionalLight>, Option<&mut PointLight>)>,
@@ -68,7 +70,7 @@ fn decide_bevy_shadow_maps(
 ) {
     let now = BevyShadowMapsKept {
         cameras_without_fin_view: cameras.iter().filter(|c| c.is_active).count(),
-        unreached_receivers: receivers.forward + receivers.blended,
+        unreached_receivers: receivers.unreached(forward.is_some_and(|f| f.0)),
     };
     if *kept == now {
         return;

@@ -9,9 +9,8 @@
 //!
 //! fn main() {
 //!     App::new()
+//!         // Forward (Bevy's default) and deferred materials alike get fin shadows.
 //!         .add_plugins((DefaultPlugins, ShadowFinsPlugin))
-//!         // Fin shadows reach deferred materials (forward ones get Bevy's hard shadow).
-//!         .insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred())
 //!         .add_systems(Startup, setup)
 //!         .run();
 //! }
@@ -45,9 +44,9 @@
 //! penumbra-map budget ([`FinShadowBudget::map_bytes`]) is shared equally
 //! between the frames (a point light's six faces take six shares); past it a
 //! light's maps lose resolution, then layers, with the reason in its
-//! stats. Meshes fin shadows cannot reach
-//! (forward-rendered, alpha-blended or transmissive `StandardMaterial`s) are
-//! counted in [`FinReceivers`], said once, and get Bevy's hard shadow (below).
+//! stats. Meshes fin shadows cannot reach (alpha-blended or transmissive
+//! `StandardMaterial`s) are counted in [`FinReceivers`], said once, and get
+//! Bevy's hard shadow (below).
 //!
 //! ## Where fin shadows enter Bevy's lighting, and why there
 //!
@@ -55,35 +54,48 @@
 //! with its own colour, intensity, range, cone and BRDF — with its shadow
 //! map turned off in the render world only (`render/bevy_lights.rs`; the
 //! user's `shadow_maps_enabled` is untouched and comes back with the map
-//! when `FinShadows` goes). The compositing pass then takes `(1 − V)` of the
-//! light's contribution away per pixel, evaluated by *Bevy's own* per-light
-//! function (`bevy_pbr::lighting::spot_light`, found by the light's index in
-//! Bevy's clustered list, `lighting::directional_light` or
-//! `lighting::rect_light`, found in the view's directional or rectangle
-//! lights by what Bevy uploaded for it), and only where
-//! Bevy added it (the pixel's cluster list holds the spot; the view's list
-//! holds the sun, which it does not on render layers the view does not
-//! see): the shading is Bevy's by construction and follows Bevy upgrades. The alternatives were weighed: overriding Bevy's shadow
-//! lookup (`fetch_spot_shadow`) would reach forward materials too, but Bevy
-//! 0.19 gives a plugin no binding in the mesh view group to feed a per-light
-//! screen-space term to it (its layout is Bevy's; a fourth bind group is
-//! taken by materials), and naga_oil overrides need `override_any` plus a
-//! patched Bevy shader asset — a fork by another name; shading the light
-//! ourselves (as [`FinLight`] still is) drifts from Bevy's BRDF with every
-//! upgrade. The price of the G-buffer route: only deferred materials get fin
-//! shadows. The plugin does not make deferred the app's default behind its
-//! back (Bevy 0.19 draws deferred materials only on cameras with a deferred
-//! prepass: a minimap camera would lose them): an app that wants fin shadows
-//! on every material inserts `DefaultOpaqueRendererMethod::deferred()`
-//! itself. Meshes fin shadows cannot reach ([`FinReceivers`]) get Bevy's own
-//! hard shadow of the light instead of none (a `RectLight` has none in Bevy), and a camera without
-//! [`FinShadowView`] renders exactly as without the plugin: while either
-//! exists, Bevy's shadow map of a fin-shadowed light stays on
-//! ([`BevyShadowMapsKept`]) and the compositing pass gives the light
-//! `(V − S)` of Bevy's contribution, `S` being Bevy's own shadow of it
-//! (`shadows::fetch_*_shadow`, contact shadows too), so a fin camera shows
-//! the same fin shadow either way.
+//! when `FinShadows` goes). Its visibility V then enters Bevy's shading of
+//! it in two places, one per material path, both evaluated by *Bevy's own*
+//! per-light functions, so the shading is Bevy's by construction:
+//! - **deferred materials** (the G-buffer): the compositing pass, which
+//!   replaces Bevy's deferred lighting pass on a [`FinShadowView`] camera,
+//!   runs Bevy's `apply_pbr_lighting` and takes `(1 − V)` of the light's
+//!   contribution away per pixel (`bevy_pbr::lighting::spot_light` /
+//!   `point_light`, found by the light's index in Bevy's clustered list,
+//!   `lighting::directional_light` or `lighting::rect_light`, found in the
+//!   view's directional or rectangle lights by what Bevy uploaded for it),
+//!   only where Bevy added it (the pixel's cluster list holds the light; the
+//!   view's list holds the sun, which it does not on render layers the view
+//!   does not see);
+//! - **forward materials** (Bevy's default; opaque and alpha-masked
+//!   `StandardMaterial`s, `render/forward.rs`): inside Bevy's forward
+//!   fragment shader, naga_oil overrides of those same per-light functions
+//!   multiply the light's contribution by V at the fragment's pixel, and of
+//!   `shadows::fetch_*_shadow` make Bevy's own shadow of it 1. The override
+//!   module is one import added to Bevy's `pbr_fragment` shader asset at run
+//!   time, empty unless a pipeline asks for it; `StandardMaterial`'s
+//!   main-pass pipelines get it, with bind group 4 (the visibility layers),
+//!   through their specialisation and draw functions — a camera without
+//!   fin shadows binds a group of no light and shades exactly as Bevy does.
 //!
+//! Why these hooks: shading the light ourselves (as [`FinLight`] still is)
+//! drifts from Bevy's BRDF with every upgrade; a screen-space pass after
+//! Bevy's lighting has no BRDF inputs for a forward material; Bevy 0.19 gives
+//! a plugin no binding in its mesh view group. What a Bevy upgrade can break
+//! is named in `render/forward.rs` and pinned by `tests/render/forward.rs`
+//! and `bevy_renderer.rs`. The plugin does not make deferred (or anything)
+//! the app's default. Meshes fin shadows cannot reach ([`FinReceivers`]:
+//! alpha-blended and transmissive ones, drawn over pixels the visibility
+//! pass shaded for the surface behind) get Bevy's own hard shadow of the
+//! light instead of none (a `RectLight` has none in Bevy), and a camera
+//! without [`FinShadowView`] renders exactly as without the plugin: while
+//! either exists, Bevy's shadow map of a fin-shadowed light stays on
+//! ([`BevyShadowMapsKept`]) and both hooks replace Bevy's shadow `S` of the
+//! light by `V` on the pixels they reach — the compositing pass gives the
+//! light `(V − S)` of Bevy's contribution (`S` being Bevy's own
+//! `shadows::fetch_*_shadow`, contact shadows too), the forward hook makes
+//! `S` 1 — so a fin camera shows the same fin shadow either way.
+
 //! Every drawn mesh with a `Mesh3d` casts and receives (opt out with
 //! [`NotFinShadowCaster`] or Bevy's `NotShadowCaster`, and
 //! [`NotFinShadowReceiver`]; a mesh hidden by `Visibility` casts nothing;
@@ -95,9 +107,9 @@
 //! a spawned glTF's spot and directional lights fin shadows with a physical
 //! radius from their `extras` (Bevy 0.19's loader sets a spot's to its range).
 //! [`spawn_gltf_scene`] spawns one with Bevy's loader, its cameras off. 3D cameras that show fin-shadowed scenes carry
-//! [`FinShadowView`], which adds the deferred prepass the compositing reads.
-//! Forward materials are not lit by a [`FinLight`] (it has no Bevy
-//! counterpart to fall back on).
+//! [`FinShadowView`], which adds the depth, normal and deferred prepasses the
+//! visibility and compositing passes read. Forward materials are not lit by
+//! a [`FinLight`] (it has no Bevy counterpart whose shading to hook).
 //!
 //! Stages, per light, per frame and only when something moved or a setting changed:
 //! 1. **fin extraction and layer assignment** in compute passes
@@ -124,7 +136,8 @@
 //!    (tests, the editor);
 //! 4. **compositing** per camera: Bevy's deferred lighting of the G-buffer,
 //!    then per light `V` applied to its direct light (see above), in one pass
-//!    that replaces Bevy's deferred lighting pass.
+//!    that replaces Bevy's deferred lighting pass; forward materials apply
+//!    `V` in Bevy's forward pass itself (the forward hook, above).
 //!
 //! [`FinMethod::Coverage`] replaces stages 1–3 by exact coverage with occluder
 //! fusion (`shadow_fins::coverage`): on the CPU, when something moved, the
@@ -179,6 +192,7 @@ pub use light::{
     NotFinShadowReceiver,
 };
 pub use receivers::FinReceivers;
+pub use render::FinForwardShading;
 pub use shadow_fins;
 pub use snapshot::{FinSceneSnapshot, FinSnapshotApproximation, FinSnapshotSkip, scene_snapshot};
 

@@ -86,15 +86,18 @@ impl FinLight {
 /// is left as the user set it, and comes back when `FinShadows` is removed),
 /// unless [`BevyShadowMapsKept`](crate::BevyShadowMapsKept) keeps them for
 /// a camera without [`FinShadowView`] or a receiver fin shadows cannot reach.
-/// Fin shadows reach the pixels of cameras with [`FinShadowView`] whose
-/// materials are deferred; elsewhere — other cameras, forward, blended and
-/// transmissive materials (counted in [`FinReceivers`](crate::FinReceivers)),
-/// the diffuse-transmission lobe, and while the light's visibility cannot be
-/// computed (its first frames while pipelines compile, an MSAA camera, maps
-/// over the device's storage limit) — the light gets Bevy's own shadow while
-/// the maps are kept (a `RectLight` has none: it shines unshadowed there) and
-/// shines unshadowed otherwise. A `VolumetricLight` loses its shafts while
-/// the maps are off (Bevy draws them from its shadow map).
+/// Fin shadows reach the pixels of cameras with [`FinShadowView`]: deferred
+/// materials through the compositing pass, forward opaque and alpha-masked
+/// `StandardMaterial`s through the forward hook (on devices that bind five
+/// groups); elsewhere — other cameras, alpha-blended and transmissive
+/// materials (counted in [`FinReceivers`](crate::FinReceivers)), custom
+/// forward materials, the diffuse-transmission lobe of deferred ones, and
+/// while the light's visibility cannot be computed (its first frames while
+/// pipelines compile, an MSAA camera, maps over the device's storage limit)
+/// — the light gets Bevy's own shadow while the maps are kept (a `RectLight`
+/// has none: it shines unshadowed there) and shines unshadowed otherwise. A
+/// `VolumetricLight` loses its shafts while the maps are off (Bevy draws
+/// them from its shadow map).
 #[derive(Component, Debug, Clone, Copy, Default, Reflect)]
 #[reflect(Component, Default, Debug, Clone)]
 #[require(FinShadowSettings)]

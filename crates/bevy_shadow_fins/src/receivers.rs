@@ -1,14 +1,16 @@
-//! Receivers fin shadows do not reach, counted and said once.
+//! Receivers of Bevy's forward passes, counted, and those fin shadows do not
+//! reach said once.
 //!
-//! Fin shadows are applied to the G-buffer (see the crate docs for why), so
-//! they reach deferred opaque materials only. A `StandardMaterial` rendered
-//! forward (`OpaqueRendererMethod::Forward`, or `Auto` while the app's
-//! default is forward), alpha-blended or transmissive is drawn by Bevy's
-//! forward passes: there a fin-shadowed Bevy light keeps Bevy's own hard
-//! shadow (`bevy_shadow_maps.rs` keeps its map on while such meshes exist)
-//! and a `FinLight` does not shine at all. [`FinReceivers`] counts such meshes
-//! (custom materials are not inspected), recounted only when a material or
-//! a mesh's material changed.
+//! Fin shadows reach deferred opaque materials through the G-buffer (the
+//! compositing pass) and forward opaque or alpha-masked `StandardMaterial`s
+//! through the forward hook (`render/forward.rs`, on devices that bind five
+//! groups). An alpha-blended or transmissive `StandardMaterial` is drawn
+//! over pixels the visibility pass shaded for the surface behind it: there a
+//! fin-shadowed Bevy light keeps Bevy's own hard shadow
+//! (`bevy_shadow_maps.rs` keeps its map on while such meshes exist), and a
+//! `FinLight` does not shine on any forward material. [`FinReceivers`] counts
+//! such meshes (custom materials are not inspected), recounted only when a
+//! material or a mesh's material changed.
 
 use bevy::{
     light::NotShadowReceiver, material::OpaqueRendererMethod, pbr::DefaultOpaqueRendererMethod, prelude::*,
@@ -17,12 +19,13 @@ use bevy::{
 
 use crate::{extract::FinFrames, light::NotFinShadowReceiver};
 
-/// Meshes whose `StandardMaterial` fin shadows cannot reach (see the module
-/// docs): a documented limitation, warned once when any exist while a light
-/// has fin shadows.
+/// Meshes of Bevy's forward passes (see the module docs): the alpha-blended
+/// and transmissive ones fin shadows do not reach — a documented limitation,
+/// warned once when any exist while a light has fin shadows.
 #[derive(Resource, Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct FinReceivers {
-    /// Opaque meshes rendered forward.
+    /// Opaque (or alpha-masked) meshes rendered forward: fin-shadowed by the
+    /// forward hook where the device has it.
     pub forward: usize,
     /// Alpha-blended or transmissive meshes.
     pub blended: usize,
@@ -33,6 +36,12 @@ pub(crate) fn build(app: &mut App) {
 }
 
 impl FinReceivers {
+    /// The meshes fin shadows do not reach: the blended ones, and the
+    /// forward ones unless the forward hook is on (`FinForwardShading`).
+    pub fn unreached(&self, forward_hook: bool) -> usize {
+        self.blended + if forward_hook { 0 } else { self.forward }
+    }
+
     /// Counts one mesh of `material` if the compositing pass cannot reach it
     /// (an unlit material receives no light, hence no shadow, either way).
     fn count(&mut self, material: &StandardMaterial, default_forward: bool) {
@@ -82,6 +91,7 @@ pub(crate) fn count_unreached_receivers(
         (Without<NotFinShadowReceiver>, Without<NotShadowReceiver>),
     >,
     mut counted: ResMut<FinReceivers>,
+    forward: Option<Res<crate::FinForwardShading>>,
 ) {
     let material_changed = events.read().count() > 0;
     let (mut gone_material, mut gone_fin_marker, mut gone_marker) = removed;
@@ -102,13 +112,18 @@ pub(crate) fn count_unreached_receivers(
     if *counted != now {
         *counted = now;
     }
-    if !frames.0.is_empty() && (now.forward > 0 || now.blended > 0) {
+    let hook = forward.is_some_and(|f| f.0);
+    if !frames.0.is_empty() && now.unreached(hook) > 0 {
         warn_once!(
-            "fin shadows: {} forward-rendered and {} alpha-blended/transmissive meshes get Bevy's hard shadow, \
-             not fin shadows (fin shadows reach deferred opaque materials: insert \
-             DefaultOpaqueRendererMethod::deferred() for every opaque material; see FinReceivers)",
-            now.forward,
-            now.blended
+            "fin shadows: {} meshes get Bevy's hard shadow, not fin shadows: {} alpha-blended/transmissive{} \
+             (see FinReceivers)",
+            now.unreached(hook),
+            now.blended,
+            if hook {
+                String::new()
+            } else {
+                format!(", {} forward opaque (this device has no forward hook)", now.forward)
+            }
         );
     }
 }

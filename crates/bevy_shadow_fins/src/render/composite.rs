@@ -143,7 +143,10 @@ struct CompositeLight {
     info: [u32; 4],
 }
 
-/// Every light slot of one view (`CompositeLights` in `composite.wgsl`).
+/// Bytes of [`CompositeLights`] (the forward hook's fallback of no light).
+pub(super) const COMPOSITE_LIGHTS_BYTES: usize = size_of::<CompositeLights>();
+
+/// Every light slot of one view (`CompositeLights` in `composite_types.wgsl`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 struct CompositeLights {
@@ -220,12 +223,15 @@ pub struct FinCompositePipeline {
 /// goes into it (the written flags are set when the pass runs).
 #[derive(Component)]
 pub struct FinCompositeBindGroup {
-    bind_group: BindGroup,
+    /// Also the forward hook's group 4 (`forward.rs`).
+    pub(super) bind_group: BindGroup,
     uniform: Buffer,
     lights: Box<CompositeLights>,
 }
 
-fn light_layout() -> BindGroupLayoutDescriptor {
+/// The compositing pass's group 3, the forward hook's group 4: the view's
+/// visibility layers and its [`CompositeLights`].
+pub(super) fn light_layout() -> BindGroupLayoutDescriptor {
     BindGroupLayoutDescriptor::new(
         "fin_composite_layout",
         &BindGroupLayoutEntries::sequential(
@@ -396,11 +402,12 @@ fn fin_composite(
         let complete = frames.of_layer(layer).all(|(slot, _)| written.0.contains(&(entity, slot)));
         lights.lights[layer].info[2] = (complete && frames.of_layer(layer).next().is_some()) as u32;
     }
+    // Staged now, applied before this frame's command buffers run; the
+    // forward hook reads the same flags in the main pass (`forward.rs`).
+    queue.write_buffer(&bind_group.uniform, 0, bytemuck::bytes_of(&lights));
     if !lights.lights.iter().any(|l| l.info[2] == 1) {
         return;
     }
-    // Staged now, applied before this frame's command buffers run.
-    queue.write_buffer(&bind_group.uniform, 0, bytemuck::bytes_of(&lights));
     let Some(render_pipeline) = pipeline_cache.get_render_pipeline(pipeline.id) else { return };
     let Some(pass_id_binding) = pass_ids.uniforms().binding() else { return };
     let pass_id_bind_group = ctx.render_device().create_bind_group(

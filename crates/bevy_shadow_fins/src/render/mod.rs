@@ -40,6 +40,9 @@ mod bevy_lights;
 mod composite;
 mod coverage;
 mod extract_gpu;
+mod forward;
+
+pub use forward::FinForwardShading;
 
 pub(crate) fn build(app: &mut App) {
     load_shader_library!(app, "shaders/fin_types.wgsl");
@@ -51,6 +54,7 @@ pub(crate) fn build(app: &mut App) {
         ExtractComponentPlugin::<FinShadowView>::default(),
     ));
     composite::build(app);
+    forward::build(app);
     coverage::build(app);
     extract_gpu::build(app);
 }
@@ -93,6 +97,7 @@ pub(crate) fn finish(app: &mut App) {
         .add_systems(Core3d, fin_visibility.after(Core3dSystems::Prepass).before(Core3dSystems::MainPass));
     coverage::finish(app);
     composite::finish(app);
+    forward::finish(app);
     bevy_lights::finish(app);
 }
 
@@ -807,7 +812,7 @@ mod shader_layout_tests {
         let linked = manifest.join("src/render/shaders").canonicalize().expect("src/render/shaders resolves");
         let top = manifest.join("../../shaders").canonicalize().expect("the top-level shaders/ folder");
         assert_eq!(linked, top);
-        let sources: String = ["mod.rs", "composite.rs", "coverage.rs", "extract_gpu.rs"]
+        let sources: String = ["mod.rs", "composite.rs", "coverage.rs", "extract_gpu.rs", "forward.rs"]
             .iter()
             .map(|f| std::fs::read_to_string(manifest.join("src/render").join(f)).expect("render source"))
             .collect();
