@@ -21,6 +21,7 @@
 // The per-sample and per-face tests are unrolled for the same reason.
 #import bevy_render::view::View
 #import bevy_shadow_fins::coverage_types::{CoverageParams, Edge, FinView, CHUNK, MAX_CHUNKS, list_stride, texel_center}
+#import bevy_shadow_fins::fin_types::in_face
 
 @group(0) @binding(0) var<uniform> params: CoverageParams;
 @group(0) @binding(1) var<storage, read> lists: array<u32>;
@@ -48,8 +49,10 @@ const DARK: u32 = 0xfffffffeu;
 // A point light's cube face leaves a receiver in another face's frustum alone.
 const OTHER_FACE: u32 = 0xfffffffdu;
 
+// `FinParams.flags.w`'s code (`render::projection_code`): 0 a disk's or a
+// rectangle's perspective, 1 the sun's orthographic, 2 a point light's cube face.
 fn perspective() -> bool {
-    return params.info.w != 0u;
+    return params.info.w != 1u;
 }
 
 // A point light's cube face: the light is the sphere's outline seen from
@@ -84,12 +87,7 @@ fn light_at(p: vec3<f32>) -> LightAt {
     return LightAt(p * (r * r / d2), sqrt(max(r * r * (1.0 - r * r / d2), 0.0)), e1, e2);
 }
 
-// The cube face's frustum |x|, |y| ≤ z, widened by a relative 1e-5 (as the
-// fins' visibility pass), so no receiver between two faces is left out.
-fn in_face(p: vec3<f32>) -> bool {
-    let z = p.z * (1.0 + 1e-5);
-    return p.z > 0.0 && abs(p.x) <= z && abs(p.y) <= z;
-}
+
 
 fn map_point(p: vec3<f32>) -> vec2<f32> {
     return select(p.xy, p.xy / p.z, perspective());
@@ -490,12 +488,13 @@ fn receiver_at(id: vec2<u32>) -> Receiver {
     // buffer can lie below the surface the depth lists hold exactly, and
     // would count itself as a caster.
     let raster_error = fin_view.translation.w + 2.0 * 1.1920929e-7 * length(in_view.xyz / in_view.w);
-    let eps = max(max(params.light.w * length(position), params.light.z), raster_error);
-    r.p = position + r.normal * eps;
-    if (sphere() && !in_face(r.p)) {
+    // The unlifted receiver picks the face, as the fins' pass and the CPU do.
+    if (sphere() && !in_face(position)) {
         r.kind = 3u;
         return r;
     }
+    let eps = max(max(params.light.w * length(position), params.light.z), raster_error);
+    r.p = position + r.normal * eps;
     // No caster at all (no depth-list work and no edge): lit, as the fins'
     // pass; so is a receiver inside a sphere light (nothing comes between).
     if ((params.counts.w == 0u && params.lists.w == 0.0) || (sphere() && dot(r.p, r.p) <= params.axis_n.w * params.axis_n.w)) {

@@ -64,7 +64,7 @@ fn raster_lists(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
             continue;
         }
         // w: 1 perspective (disk), 0 orthographic (sun).
-        let z = caster_depth_at(c, q, params.info.w == 0u);
+        let z = caster_depth_at(c, q, params.info.w == 1u);
         if (!(z > params.light.y)) {
             continue;
         }

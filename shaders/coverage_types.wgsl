@@ -10,7 +10,7 @@ struct CoverageParams {
     light: vec4<f32>,
     // (edge grid min x, min y, cells per map unit x, y)
     grid: vec4<f32>,
-    // (grid cells x, y, light samples N, 1 disk / 0 sun / 2 a point light's cube face)
+    // (grid cells x, y, light samples N, projection: 0 disk or rectangle, 1 sun, 2 a point light's cube face)
     info: vec4<u32>,
     axis_u: vec4<f32>,
     axis_v: vec4<f32>,

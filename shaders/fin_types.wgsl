@@ -55,6 +55,14 @@ const NO_MIN: u32 = 0xffffffffu;
 const NO_MAX: u32 = 0u;
 const INF_BITS: u32 = 0x7f800000u;
 
+// A point light's cube face shades the receivers in its frustum |x|, |y| ≤ z
+// (`CubeFace::of`): widened by a relative 1e-5 so that no receiver between
+// two faces is left out (one on the border is shaded by both, alike).
+fn in_face(p: vec3<f32>) -> bool {
+    let z = p.z * (1.0 + 1e-5);
+    return p.z > 0.0 && abs(p.x) <= z && abs(p.y) <= z;
+}
+
 // The sun's maps: map point (x, y), penumbrae tan θ ΔL; else a disk's
 // perspective maps: (x/L, y/L), penumbrae R ΔL/(L_b L_r).
 fn orthographic(params: FinParams) -> bool {

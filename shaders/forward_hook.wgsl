@@ -14,11 +14,16 @@
 // receivers fin shadows do not reach — is 1 (`shadows::fetch_*_shadow`): V
 // replaces S, as the compositing pass does for deferred pixels. A light
 // without a layer this frame (not fin-shadowed, no fin view, its passes not
-// ready) keeps Bevy's shading and shadow bit for bit.
+// ready) keeps Bevy's shading and shadow bit for bit. Two differences from
+// the deferred path, both only while Bevy's maps are kept for other cameras
+// or unreached receivers: Bevy's contact shadow of the light (applied after
+// `fetch_*_shadow`, which these overrides cannot reach) still darkens
+// contacts, and a fin-shadowed sun's fog in-scattering is unshadowed.
 #define_import_path bevy_shadow_fins::forward_hook
 
 #ifdef FIN_FORWARD
-#import bevy_pbr::{lighting, shadows, mesh_view_bindings, mesh_view_types}
+#import bevy_pbr::{lighting, shadows, mesh_view_bindings, mesh_view_types, pbr_functions, pbr_types}
+#import bevy_pbr::mesh_types::MESH_FLAGS_SHADOW_RECEIVER_BIT
 #import bevy_shadow_fins::composite_types::{
     CompositeLights, KIND_BEVY, KIND_BEVY_DIRECTIONAL, KIND_BEVY_RECT, MAX_FIN_LIGHTS, bevy_directional_index,
     bevy_rect_index,
@@ -29,6 +34,25 @@
 
 // No slot.
 const NONE: u32 = 0xffffffffu;
+
+// What `apply_pbr_lighting` is shading: whether the mesh receives shadows
+// (`NotShadowReceiver`, `NotFinShadowReceiver`: no fin shadow, as the
+// compositing pass gives it none) and the surface point the visibility pass
+// shaded. A light evaluated elsewhere — the diffuse-transmission lobe, inside
+// the mesh — gets no V (and, with its Bevy shadow made 1, no shadow there).
+var<private> fin_receiver: bool = false;
+var<private> fin_surface: vec3<f32>;
+
+override fn pbr_functions::apply_pbr_lighting(in: pbr_types::PbrInput) -> vec4<f32> {
+    fin_receiver = (in.flags & MESH_FLAGS_SHADOW_RECEIVER_BIT) != 0u;
+    fin_surface = in.world_position.xyz;
+    return pbr_functions::apply_pbr_lighting(in);
+}
+
+// Whether V applies to a light evaluated at `p`: a receiving mesh's own surface.
+fn fin_applies(p: vec3<f32>) -> bool {
+    return fin_receiver && all(p == fin_surface);
+}
 
 // The slot (= visibility layer) of a fin-shadowed light, written this frame,
 // of `kind` whose Bevy index is `id` — a clustered light's index in Bevy's
@@ -87,7 +111,7 @@ override fn lighting::point_light(
     let spot = (mesh_view_bindings::clustered_lights.data[light_id].flags
         & mesh_view_types::POINT_LIGHT_FLAGS_SPOT_LIGHT_BIT) != 0u;
     let slot = fin_slot(KIND_BEVY, light_id);
-    if (spot || slot == NONE) {
+    if (spot || slot == NONE || !fin_applies((*input).P)) {
         return light;
     }
     return light * fin_visibility_at(slot, (*input).P);
@@ -100,7 +124,7 @@ override fn lighting::spot_light(
 ) -> vec3<f32> {
     let light = lighting::spot_light(light_id, input, enable_diffuse);
     let slot = fin_slot(KIND_BEVY, light_id);
-    if (slot == NONE) {
+    if (slot == NONE || !fin_applies((*input).P)) {
         return light;
     }
     return light * fin_visibility_at(slot, (*input).P);
@@ -138,7 +162,7 @@ override fn lighting::directional_light(
 ) -> vec3<f32> {
     let light = lighting::directional_light(light_id, input, enable_diffuse);
     let slot = fin_slot(KIND_BEVY_DIRECTIONAL, light_id);
-    if (slot == NONE) {
+    if (slot == NONE || !fin_applies((*input).P)) {
         return light;
     }
     return light * fin_visibility_at(slot, (*input).P);
@@ -166,7 +190,7 @@ override fn lighting::rect_light(
 ) -> vec3<f32> {
     let light = lighting::rect_light(light_id, input, enable_diffuse);
     let slot = fin_slot(KIND_BEVY_RECT, light_id);
-    if (slot == NONE) {
+    if (slot == NONE || !fin_applies((*input).P)) {
         return light;
     }
     return light * fin_visibility_at(slot, (*input).P);

@@ -5,7 +5,7 @@
 #import bevy_render::view::View
 #import bevy_shadow_fins::fin_types::{
     FinParams, FinSample, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, texel_index, decode_min_key, decode_max_key,
-    orthographic,
+    orthographic, in_face,
 }
 
 // The camera's view space → the light frame, composed on the CPU in f64
@@ -113,12 +113,6 @@ fn dir_to_frame(d: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(dot(d, params.axis_u.xyz), dot(d, params.axis_v.xyz), dot(d, params.axis_n.xyz));
 }
 
-// The cube face's frustum |x|, |y| ≤ z, widened by a relative 1e-5.
-fn in_face(p: vec3<f32>) -> bool {
-    let z = p.z * (1.0 + 1e-5);
-    return p.z > 0.0 && abs(p.x) <= z && abs(p.y) <= z;
-}
-
 @compute @workgroup_size(8, 8, 1)
 fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
     let size = textureDimensions(visibility);
@@ -141,7 +135,7 @@ fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
     let position = view_to_frame(in_view.xyz / in_view.w);
     // A point light's cube face shades the receivers in its frustum only;
     // the six faces' passes fill the light's one layer between them
-    // (`LightFrame::face_holds`, a hair wider so no pixel between two is left).
+    // (`CubeFace::of`, a hair wider so no pixel between two is left: `in_face`).
     if (params.flags.w == 2u && !in_face(position)) {
         return;
     }

@@ -15,6 +15,7 @@ mod render {
     mod lights;
     mod oracle_agreement;
     mod point_light;
+    mod posed;
     mod rect_light;
     mod reliability;
     mod robustness;

@@ -52,12 +52,10 @@ pub fn per_pixel_in_faces(
     faces: &[LightSpaceScene],
     visibility: impl Fn(usize, shadow_fins::oracle::Receiver) -> f32,
 ) -> Vec<f32> {
-    let first = &faces[0];
-    per_pixel(setup, camera, first, |r| {
-        let (p, n) = (first.frame.to_world(r.position), first.frame.dir_to_world(r.normal));
-        let k = LightSpaceScene::face_of(faces, p);
-        let f = &faces[k].frame;
-        visibility(k, shadow_fins::oracle::Receiver { position: f.to_frame(p), normal: f.dir_to_frame(n) })
+    let first = &faces[0].frame;
+    per_pixel(setup, camera, &faces[0], |r| {
+        let (k, r) = LightSpaceScene::receiver_in_face(faces, first.to_world(r.position), first.dir_to_world(r.normal));
+        visibility(k, r)
     })
 }
 

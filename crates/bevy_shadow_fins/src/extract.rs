@@ -145,6 +145,18 @@ pub struct FinFrameData {
     pub(crate) coverage: Option<CoverageFrame>,
 }
 
+impl FinFrameData {
+    /// A point light's sphere radius (the frame's `size` is the circle
+    /// around its outline over the face, `stretch` times it); `None` for
+    /// any other light.
+    pub(crate) fn sphere_radius(&self) -> Option<f32> {
+        match self.aperture {
+            Aperture::Sphere { stretch, .. } => Some(self.size / stretch),
+            _ => None,
+        }
+    }
+}
+
 /// The most lights with fin shadows at once. Lights past it (by entity
 /// order) keep Bevy's own shadow map, with [`FinDegradation::TooManyLights`]
 /// in their [`FinLightStats`].
@@ -290,8 +302,8 @@ struct CasterChanges<'w, 's> {
                 Changed<Mesh3d>,
                 Changed<InheritedVisibility>,
                 Changed<RenderLayers>,
-                // Bevy rewrites a skinned mesh's box every frame; fin casters
-                // are its bind pose for now, so that box is not a change.
+                // Bevy rewrites a skinned mesh's box every frame; its pose
+                // (`poses`) says whether the caster changed.
                 (Changed<Aabb>, Without<bevy::camera::visibility::DynamicSkinnedMeshBounds>),
                 Added<bevy::light::NotShadowCaster>,
                 Added<NotFinShadowCaster>,
@@ -307,6 +319,8 @@ struct CasterChanges<'w, 's> {
     removed_visibility: RemovedComponents<'w, 's, InheritedVisibility>,
     scans: ResMut<'w, FinCasterScans>,
     kept: Local<'s, CasterSignature>,
+    /// Skinned and morphed casters, posed as Bevy draws them.
+    poses: crate::pose::Poses<'w, 's>,
 }
 
 impl CasterChanges<'_, '_> {
@@ -321,7 +335,7 @@ impl CasterChanges<'_, '_> {
         removed |= self.removed_boxes.read().count() > 0;
         removed |= self.removed_transforms.read().count() > 0;
         removed |= self.removed_visibility.read().count() > 0;
-        removed || !self.changed.is_empty()
+        removed || !self.changed.is_empty() || self.poses.any_changed()
     }
 }
 
@@ -331,6 +345,9 @@ pub(crate) struct MeshCache {
     /// Bumped for every frame built, for every light: a read-back's
     /// generation names one light's one frame.
     generation: u64,
+    /// Posed casters (skinned, morphed), per entity with its pose's hash:
+    /// rebuilt when the pose changed.
+    posed: HashMap<Entity, (u64, CachedMesh, bool)>,
     pub(crate) lights: HashMap<FrameKey, LightState>,
 }
 
@@ -637,6 +654,8 @@ fn update_fin_frames(
         mesh_event = true;
         if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
             cache.meshes.remove(id);
+            // A posed mesh of that asset is posed again (rare: clear them all).
+            cache.posed.clear();
             meshes_changed = true;
         }
     }
@@ -712,6 +731,7 @@ fn update_fin_frames(
             // A mesh that finishes loading changes the frame too.
             meshes.contains(mesh.id()).hash(&mut hasher);
             hash_floats(&mut hasher, &transform.to_matrix().to_cols_array());
+            changes.poses.hash_pose(entity, &mut hasher);
         }
         *kept = CasterSignature {
             signature: Some(hasher.finish()),
@@ -776,7 +796,10 @@ fn update_fin_frames(
         state.signature = signature;
         changed = true;
         let light = source.light;
-        let scene = scene.get_or_insert_with(|| CasterScene::collect(&casters, &meshes, &mut cache.meshes));
+        let scene = scene.get_or_insert_with(|| {
+            let MeshCache { meshes: cached, posed, .. } = &mut *cache;
+            CasterScene::collect(&casters, &meshes, cached, posed, &changes.poses)
+        });
         let max_buffer = device.max_buffer(&budget);
         // The maps' budget is shared equally between the frames.
         let map_bytes = (budget.map_bytes / sources.len().max(1) as u64).min(max_buffer);
@@ -850,13 +873,14 @@ pub(crate) fn publish_light_stats(
 
 impl FinFrameStats {
     /// One light's stats from its frames' (a point light's six faces): the
-    /// counts of what its faces model summed (a caster seen by two faces
-    /// counts twice), the most layers, the least resolution, up to date when
-    /// every face is, the first reason any face was cut.
+    /// work summed (silhouettes, fins, extraction time), the casters and
+    /// triangles of the face that sees the most (faces share them), the most
+    /// layers, the least resolution, up to date when every face is, the
+    /// first reason any face was cut.
     fn combined(frames: impl Iterator<Item = FinFrameStats>) -> Option<Self> {
         frames.reduce(|a, b| FinFrameStats {
-            casters: a.casters + b.casters,
-            triangles: a.triangles + b.triangles,
+            casters: a.casters.max(b.casters),
+            triangles: a.triangles.max(b.triangles),
             silhouettes: a.silhouettes + b.silhouettes,
             fins: a.fins + b.fins,
             layers: a.layers.max(b.layers),
@@ -911,32 +935,62 @@ struct CasterScene {
     /// World bounds of meshes drawn but unreadable here (render-world only,
     /// invalid): receivers all the same, so the reference plane must cover them.
     unread_bounds: Vec<[Vec3; 8]>,
+    /// The nearest caster's distance from each point light's centre, found
+    /// once for its six faces.
+    nearest: std::cell::RefCell<HashMap<[u32; 3], f32>>,
 }
 
 impl CasterScene {
-    fn collect(casters: &Casters, meshes: &Assets<Mesh>, cache: &mut HashMap<AssetId<Mesh>, CachedMesh>) -> Self {
-        let mut scene =
-            Self { objects: vec![], gpu_meshes: vec![], bounds: vec![], layers: vec![], unread_bounds: vec![] };
+    fn collect(
+        casters: &Casters,
+        meshes: &Assets<Mesh>,
+        cache: &mut HashMap<AssetId<Mesh>, CachedMesh>,
+        posed: &mut HashMap<Entity, (u64, CachedMesh, bool)>,
+        poses: &crate::pose::Poses,
+    ) -> Self {
+        let mut scene = Self {
+            objects: vec![],
+            gpu_meshes: vec![],
+            bounds: vec![],
+            layers: vec![],
+            unread_bounds: vec![],
+            nearest: Default::default(),
+        };
+        posed.retain(|e, _| casters.contains(*e));
         // A hidden mesh is not drawn: it neither casts nor receives.
-        for (_, mesh3d, transform, caster) in casters.iter().filter(|c| c.3.drawn()) {
+        for (entity, mesh3d, transform, caster) in casters.iter().filter(|c| c.3.drawn()) {
             let not_caster = !caster.casts();
-            let corners = caster.aabb.map(|b| world_corners(b, transform));
+            let mut corners = caster.aabb.map(|b| world_corners(b, transform));
             let Some(mesh) = meshes.get(mesh3d.id()) else {
                 scene.unread_bounds.extend(corners);
                 continue;
             };
-            let entry = cache.entry(mesh3d.id()).or_insert_with(|| {
-                let converted = core_mesh(mesh);
-                if let Err(e) = &converted {
-                    warn!("fin shadows: mesh {:?} casts no fin shadow: {e:?}", mesh3d.id());
+            // A skinned or morphed mesh in its current pose (`pose.rs`); any
+            // other mesh as stored, converted once per asset.
+            let (entry, world) = match posed_mesh(entity, mesh, posed, poses) {
+                Some((entry, world)) => (entry, world),
+                None => {
+                    let entry = cache.entry(mesh3d.id()).or_insert_with(|| {
+                        let converted = core_mesh(mesh);
+                        if let Err(e) = &converted {
+                            warn!("fin shadows: mesh {:?} casts no fin shadow: {e:?}", mesh3d.id());
+                        }
+                        converted
+                    });
+                    (&*entry, false)
                 }
-                converted
-            });
+            };
             let Ok((core, topology, geometry)) = entry else {
                 scene.unread_bounds.extend(corners);
                 continue;
             };
-            match SceneObject::shared("mesh", core.clone(), topology.clone(), transform.affine()) {
+            let placed = if world { bevy::math::Affine3A::IDENTITY } else { transform.affine() };
+            if world {
+                // Its box is where the pose put it, not Bevy's (which may lag a frame).
+                let (lo, hi) = topology.bounds;
+                corners = Some(sun_fit::corners((lo, hi)));
+            }
+            match SceneObject::shared("mesh", core.clone(), topology.clone(), placed) {
                 Ok(mut o) => {
                     // Meshes that do not cast still receive: they count for the reference plane.
                     o.casts_shadows = !not_caster;
@@ -1021,7 +1075,8 @@ impl CasterScene {
             .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));
         let (lo, hi) = if lo.x <= hi.x { (lo, hi) } else { (Vec3::ZERO, Vec3::ONE) };
         if let (Light::Sphere(sphere), Some(face)) = (light, face) {
-            let nearest = self.nearest_caster(sphere.center);
+            let key = sphere.center.to_array().map(f32::to_bits);
+            let nearest = *self.nearest.borrow_mut().entry(key).or_insert_with(|| self.nearest_caster(sphere.center));
             return (sphere.face_frame(face, sphere.face_window(nearest)), (lo, hi));
         }
         (LightFrame::new(light, lo, hi), (lo, hi))
@@ -1074,12 +1129,10 @@ fn nearest_distance(corners: &[Vec3; 8], point: Vec3) -> f32 {
 }
 
 /// True when a box (its world corners) lies wholly outside a point light's
-/// cube-face window frustum (`LightFrame::outside_face_window` for each
-/// pair of corners: all beyond one plane); false for any other frame.
+/// cube-face window frustum (`LightFrame::outside_face_window`); false for
+/// any other frame.
 fn outside_face(corners: &[Vec3; 8], frame: &LightFrame) -> bool {
-    let p = corners.map(|c| frame.to_frame(c));
-    frame.face_window_planes().iter().any(|plane| p.iter().all(|q| plane.dot(*q) < 0.0))
-        || (frame.sphere_radius().is_some() && p.iter().all(|q| q.z <= 0.0))
+    frame.outside_face_window(&corners.map(|c| frame.to_frame(c)))
 }
 
 /// One light's frame (one cube face's, for a point light) from the scene's objects.
@@ -1506,17 +1559,44 @@ fn gpu_fin(f: &Fin, layer: u32) -> GpuFin {
     }
 }
 
+/// `entity`'s mesh posed (`pose.rs`), from `posed` while its pose is the
+/// same, and whether its positions are in world space; `None` when it is
+/// not drawn posed.
+pub(crate) fn posed_mesh<'a>(
+    entity: Entity,
+    mesh: &Mesh,
+    posed: &'a mut HashMap<Entity, (u64, CachedMesh, bool)>,
+    poses: &crate::pose::Poses,
+) -> Option<(&'a CachedMesh, bool)> {
+    if !poses.is_posed(entity) {
+        return None;
+    }
+    let mut hasher = std::collections::hash_map::DefaultHasher::new();
+    poses.hash_pose(entity, &mut hasher);
+    let key = hasher.finish();
+    if posed.get(&entity).is_none_or(|(k, ..)| *k != key) {
+        let pose = poses.pose(entity, mesh)?;
+        posed.insert(entity, (key, core_mesh_at(mesh, pose.positions), pose.world));
+    }
+    posed.get(&entity).map(|(_, m, world)| (m, *world))
+}
+
 /// A Bevy mesh's triangles as the core's mesh, with its topology and its
 /// packed GPU geometry.
 pub(crate) fn core_mesh(mesh: &Mesh) -> CachedMesh {
-    if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
-        return Err(FinSceneError::NotTriangles);
-    }
     let positions = match mesh.try_attribute_option(Mesh::ATTRIBUTE_POSITION) {
         Ok(Some(VertexAttributeValues::Float32x3(p))) => p.iter().map(|p| Vec3::from_array(*p)).collect::<Vec<_>>(),
         Ok(_) => return Err(FinSceneError::NotTriangles),
         Err(_) => return Err(FinSceneError::NoMainWorldData),
     };
+    core_mesh_at(mesh, positions)
+}
+
+/// [`core_mesh`] with the vertices at `positions` (a pose of the mesh).
+fn core_mesh_at(mesh: &Mesh, positions: Vec<Vec3>) -> CachedMesh {
+    if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
+        return Err(FinSceneError::NotTriangles);
+    }
     let indices: Vec<u32> = match mesh.try_indices_option() {
         Ok(Some(Indices::U16(i))) => i.iter().map(|&i| i as u32).collect(),
         Ok(Some(Indices::U32(i))) => i.clone(),

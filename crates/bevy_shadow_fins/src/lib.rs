@@ -172,6 +172,7 @@ mod extract;
 mod gltf;
 mod gpu_scene;
 mod light;
+mod pose;
 mod receivers;
 mod render;
 mod snapshot;

@@ -77,8 +77,9 @@ impl FinLight {
 ///   wider along the map position `m` than across it, which sizes the fins
 ///   off a face's axis), whose visibility passes each shade the receivers in
 ///   their face and fill the light's one visibility layer between them
-///   (`shadow_fins::sphere_light`). A face that sees no caster costs no
-///   pass. `radius: 0` gives exactly the hard shadow. The penumbra-map
+///   (`shadow_fins::sphere_light`). A face that sees no caster runs no
+///   extraction or map pass (its visibility pass writes 1 on its pixels).
+///   `radius: 0` gives exactly the hard shadow. The penumbra-map
 ///   budget is shared per face: a point light takes six shares.
 ///
 /// Bevy's own shadow map and contact shadows for the light are off while

@@ -92,6 +92,7 @@ pub(crate) fn count_unreached_receivers(
     >,
     mut counted: ResMut<FinReceivers>,
     forward: Option<Res<crate::FinForwardShading>>,
+    pending: Option<Res<crate::render::PbrFragment>>,
 ) {
     let material_changed = events.read().count() > 0;
     let (mut gone_material, mut gone_fin_marker, mut gone_marker) = removed;
@@ -112,7 +113,8 @@ pub(crate) fn count_unreached_receivers(
     if *counted != now {
         *counted = now;
     }
-    let hook = forward.is_some_and(|f| f.0);
+    // A hook still going in (its first frames) is counted as in: no warning.
+    let hook = forward.is_some_and(|f| f.0) || pending.is_some();
     if !frames.0.is_empty() && now.unreached(hook) > 0 {
         warn_once!(
             "fin shadows: {} meshes get Bevy's hard shadow, not fin shadows: {} alpha-blended/transmissive{} \

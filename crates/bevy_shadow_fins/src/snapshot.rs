@@ -29,10 +29,10 @@ pub struct FinSceneSnapshot {
 /// shares the plugin's error there.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FinSnapshotApproximation {
-    /// Skinned: modelled in its bind pose at its entity's transform.
-    Skinned,
-    /// Morph targets: modelled without them.
-    Morphed,
+    /// Skinned or morphed but not posable yet (its skin's inverse bind poses
+    /// not loaded, no joint attributes): modelled as stored. A posable one is
+    /// in its current pose, as the plugin shadows it (`pose.rs`).
+    Unposed,
     /// An alpha-masked material: modelled solid (no holes).
     AlphaMasked,
 }
@@ -52,8 +52,8 @@ pub enum FinSnapshotSkip {
 /// entities spawned for one glTF scene, say) as the core's [`Scene`], with
 /// the same triangles, transforms and caster/receiver flags the plugin's
 /// extraction uses. Hidden meshes (`InheritedVisibility`) are left out, as
-/// the plugin leaves them out. Skinned and morphed meshes are their bind pose
-/// (as the plugin's casters are, for now), listed in `approximated`. A
+/// the plugin leaves them out. Skinned and morphed meshes are in their
+/// current pose (joints and morph weights), as the plugin's casters are. A
 /// mesh's `RenderLayers` are not applied: the snapshot is every light's
 /// (the plugin drops casters a light does not share a layer with). Object
 /// names are the entities' `Name`s where they have one.
@@ -67,20 +67,23 @@ pub fn scene_snapshot(world: &mut World, root: Option<Entity>) -> FinSceneSnapsh
             CasterFlags,
             (Has<NotFinShadowReceiver>, Has<bevy::light::NotShadowReceiver>),
             Option<&Name>,
-            (Has<bevy::mesh::skinning::SkinnedMesh>, Has<bevy::mesh::morph::MeshMorphWeights>),
             Option<&MeshMaterial3d<StandardMaterial>>,
         )>,
         Query<&ChildOf>,
         Res<Assets<Mesh>>,
         Option<Res<Assets<StandardMaterial>>>,
+        crate::pose::Poses,
     )> = SystemState::new(world);
     // No `Assets<Mesh>` (a world without Bevy's render plugins): no meshes.
-    let Ok((meshes, parents, assets, materials)) = state.get(world) else { return FinSceneSnapshot::default() };
+    let Ok((meshes, parents, assets, materials, poses)) = state.get(world) else {
+        return FinSceneSnapshot::default();
+    };
+    let mut posed = std::collections::HashMap::new();
     let under_root =
         |entity: Entity| root.is_none_or(|root| entity == root || parents.iter_ancestors(entity).any(|a| a == root));
     let mut converted = bevy::platform::collections::HashMap::new();
     let mut snapshot = FinSceneSnapshot::default();
-    for (entity, mesh3d, transform, flags, not_receiver, name, (skinned, morphed), material) in &meshes {
+    for (entity, mesh3d, transform, flags, not_receiver, name, material) in &meshes {
         if !flags.drawn() || !under_root(entity) {
             continue;
         }
@@ -88,8 +91,14 @@ pub fn scene_snapshot(world: &mut World, root: Option<Entity>) -> FinSceneSnapsh
             snapshot.skipped.push((entity, FinSnapshotSkip::NotLoaded));
             continue;
         };
-        let core = converted.entry(mesh3d.id()).or_insert_with(|| core_mesh(mesh));
-        let (core, topology, _) = match core {
+        // Posed as the plugin poses it (`extract::posed_mesh`), else as stored.
+        let posed_entry = crate::extract::posed_mesh(entity, mesh, &mut posed, &poses).map(|(c, w)| (c.clone(), w));
+        let unposed = poses.is_posed(entity) && posed_entry.is_none();
+        let (core, world) = match posed_entry {
+            Some(posed) => posed,
+            None => (converted.entry(mesh3d.id()).or_insert_with(|| core_mesh(mesh)).clone(), false),
+        };
+        let (core, topology, _) = match &core {
             Ok(c) => c,
             Err(e) => {
                 snapshot.skipped.push((entity, FinSnapshotSkip::Unreadable(e.clone())));
@@ -97,7 +106,8 @@ pub fn scene_snapshot(world: &mut World, root: Option<Entity>) -> FinSceneSnapsh
             }
         };
         let name = name.map_or_else(|| format!("{entity}"), |n| n.as_str().to_owned());
-        match SceneObject::shared(name, core.clone(), topology.clone(), transform.affine()) {
+        let placed = if world { bevy::math::Affine3A::IDENTITY } else { transform.affine() };
+        match SceneObject::shared(name, core.clone(), topology.clone(), placed) {
             Ok(mut object) => {
                 object.casts_shadows = flags.casts();
                 // Bevy's own opt-out turns fin shadows off too (`NotFinShadowReceiver` adds it).
@@ -107,11 +117,9 @@ pub fn scene_snapshot(world: &mut World, root: Option<Entity>) -> FinSceneSnapsh
                     .zip(materials.as_ref())
                     .and_then(|(m, all)| all.get(&m.0))
                     .is_some_and(|m| matches!(m.alpha_mode, AlphaMode::Mask(_)));
-                for (is, what) in [
-                    (skinned, FinSnapshotApproximation::Skinned),
-                    (morphed, FinSnapshotApproximation::Morphed),
-                    (masked, FinSnapshotApproximation::AlphaMasked),
-                ] {
+                for (is, what) in
+                    [(unposed, FinSnapshotApproximation::Unposed), (masked, FinSnapshotApproximation::AlphaMasked)]
+                {
                     if is {
                         snapshot.approximated.push((entity, what));
                     }

@@ -399,29 +399,20 @@ impl LightFrame {
         ]
     }
 
-    /// True when a sphere light's face frame can leave out the segment
-    /// `a b` (frame space): both ends beyond the same plane of the face's
-    /// window frustum (`|x|, |y| ≤ window·L`), or both at or behind the
-    /// light's plane. No blocker of a receiver the face shadows lies there
-    /// ([`SphereLight::face_window`]), and such an edge's fins — nearly
-    /// level with the light, far off the face's axis — would be hundreds of
-    /// map units wide and cover the whole face. Always false for any other
-    /// frame.
-    pub fn outside_face_window(&self, a: Vec3, b: Vec3) -> bool {
-        let Aperture::Sphere { window, .. } = self.aperture else { return false };
-        let beyond = |f: fn(Vec3, f32) -> bool| f(a, window) && f(b, window);
-        beyond(|p, w| p.x > w * p.z)
-            || beyond(|p, w| -p.x > w * p.z)
-            || beyond(|p, w| p.y > w * p.z)
-            || beyond(|p, w| -p.y > w * p.z)
-            || (a.z <= 0.0 && b.z <= 0.0)
-    }
-
-    /// True when the frame-space point lies in this frame's cube face's
-    /// frustum (`|x|, |y| ≤ L`): the receivers a face shadows. Always true
-    /// for a frame that is not a cube face's.
-    pub fn face_holds(&self, p: Vec3) -> bool {
-        !matches!(self.aperture, Aperture::Sphere { .. }) || (p.z > 0.0 && p.x.abs() <= p.z && p.y.abs() <= p.z)
+    /// True when a sphere light's face frame can leave out what spans
+    /// `points` (frame space: a segment's ends, a box's corners): all beyond
+    /// the same plane of the face's window frustum (`|x|, |y| ≤ window·L`),
+    /// or all at or behind the light's plane. No blocker of a receiver the
+    /// face shadows lies there ([`SphereLight::face_window`]), and such an
+    /// edge's fins — nearly level with the light, far off the face's axis —
+    /// would be hundreds of map units wide and cover the whole face. Always
+    /// false for any other frame (and for no points).
+    pub fn outside_face_window(&self, points: &[Vec3]) -> bool {
+        if !matches!(self.aperture, Aperture::Sphere { .. }) || points.is_empty() {
+            return false;
+        }
+        let beyond = |plane: &Vec3| points.iter().all(|p| plane.dot(*p) < 0.0);
+        self.face_window_planes().iter().any(beyond) || points.iter().all(|p| p.z <= 0.0)
     }
 
     /// World point → frame point `(x, y, L)`.

@@ -263,6 +263,14 @@ impl LightSpaceScene {
         }
     }
 
+    /// A receiver at world point `p` with world normal `n`, in the frame of
+    /// the face of [`Self::faces`] that shadows it, and that face's index.
+    pub fn receiver_in_face(faces: &[Self], p: Vec3, n: Vec3) -> (usize, crate::oracle::Receiver) {
+        let k = Self::face_of(faces, p);
+        let frame = &faces[k].frame;
+        (k, crate::oracle::Receiver { position: frame.to_frame(p), normal: frame.dir_to_frame(n) })
+    }
+
     /// Moves the reference plane `L0` down to the deepest of `receivers` (light
     /// frame) when one lies beyond it, so that every receiver is in front of
     /// the plane the fins are built for (DESIGN §3).

@@ -141,7 +141,7 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
         };
         if !snapshot.approximated.is_empty() {
             skipped += &format!(
-                "; {} skinned, morphed or alpha-masked meshes modelled as their rest pose, solid \
+                "; {} alpha-masked meshes modelled solid, or posed meshes not posable yet \
                  (the ground truth shares that)",
                 snapshot.approximated.len()
             );

@@ -62,8 +62,8 @@ pub struct EditorPlugin {
 impl Plugin for EditorPlugin {
     fn build(&self, app: &mut App) {
         app.add_plugins((ShadowFinsPlugin, EguiPlugin::default(), RenderDiagnosticsPlugin))
-            // Fin shadows reach deferred materials; the plugin leaves the
-            // app-wide choice to the app, and the editor wants them everywhere.
+            // The editor shows the G-buffer path (fin shadows reach forward
+            // materials as well; the plugin leaves the app-wide choice to the app).
             .insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred())
             .insert_resource(self.options.clone())
             .init_resource::<EditorState>();

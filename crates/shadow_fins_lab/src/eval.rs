@@ -7,7 +7,6 @@ use shadow_fins::{
     bvh::Bvh,
     camera::{Camera, pixel_receiver},
     coverage::{CoverageModel, CoverageWork, ReferenceCount},
-    glam::Vec3,
     ground_truth::GroundTruth,
     light::Light,
     oracle::{FinSettings, FinShadowModel, Receiver},
@@ -95,9 +94,10 @@ pub fn evaluate(
     let start = Instant::now();
     let faces = LightSpaceScene::faces(scene, light_space.light);
     let frame = &light_space.frame;
-    let world: Vec<(Vec3, Vec3)> =
-        receivers.iter().map(|r| (frame.to_world(r.position), frame.dir_to_world(r.normal))).collect();
-    let face_of: Vec<usize> = world.iter().map(|(p, _)| LightSpaceScene::face_of(&faces, *p)).collect();
+    let routed: Vec<(usize, Receiver)> = receivers
+        .iter()
+        .map(|r| LightSpaceScene::receiver_in_face(&faces, frame.to_world(r.position), frame.dir_to_world(r.normal)))
+        .collect();
     let faces_ms = ms(start);
     let mut total = Evaluation {
         values: vec![0.0; receivers.len()],
@@ -109,14 +109,8 @@ pub fn evaluate(
         work: None,
     };
     for (k, mut face) in faces.into_iter().enumerate() {
-        let mine: Vec<usize> = (0..receivers.len()).filter(|&i| face_of[i] == k).collect();
-        let in_face: Vec<Receiver> = mine
-            .iter()
-            .map(|&i| Receiver {
-                position: face.frame.to_frame(world[i].0),
-                normal: face.frame.dir_to_frame(world[i].1),
-            })
-            .collect();
+        let mine: Vec<usize> = (0..receivers.len()).filter(|&i| routed[i].0 == k).collect();
+        let in_face: Vec<Receiver> = mine.iter().map(|&i| routed[i].1).collect();
         face.cover_receivers(in_face.iter().map(|r| r.position));
         let ev = evaluate_in_frame(scene, &face, measured, settings, map_resolution, samples, &in_face);
         for (&i, v) in mine.iter().zip(ev.values) {

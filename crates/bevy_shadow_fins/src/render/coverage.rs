@@ -72,24 +72,6 @@ struct CoverageParams {
     axis_n: [f32; 4],
 }
 
-/// `CoverageParams.info.w`.
-fn projection(f: &FinFrameData) -> u32 {
-    match (f.orthographic, f.aperture) {
-        (true, _) => 0,
-        (false, shadow_fins::light::Aperture::Sphere { .. }) => 2,
-        (false, _) => 1,
-    }
-}
-
-/// A point light's sphere radius (its frame's `R` is the bounding circle of
-/// its outline over the face), else 0.
-fn sphere_radius(f: &FinFrameData) -> f32 {
-    match f.aperture {
-        shadow_fins::light::Aperture::Sphere { stretch, .. } => f.size / stretch,
-        _ => 0.0,
-    }
-}
-
 fn params_of(f: &FinFrameData) -> Option<CoverageParams> {
     let c = f.coverage.as_ref()?;
     let v4 = |v: bevy::math::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
@@ -99,15 +81,15 @@ fn params_of(f: &FinFrameData) -> Option<CoverageParams> {
         counts: [c.region.resolution, NEAR_DEPTHS, FAR_DEPTHS, c.raster_work.len() as u32],
         light: [f.size, c.near.max(-3.0e38), c.extent * 1e-7, shadow_fins::scene::SURFACE_EPSILON],
         grid: c.grid,
-        // w: 1 perspective (disk), 0 orthographic (sun), 2 a point light's
-        // cube face (perspective; the light is the sphere's outline seen from
-        // each receiver, of radius axis_n.w, and only the face's frustum is shaded).
-        info: [c.dims[0], c.dims[1], c.samples.len() as u32, projection(f)],
+        // w: the fins' projection code (a point light's cube face: the light
+        // is the sphere's outline seen from each receiver, of radius
+        // axis_n.w, and only the face's frustum is shaded).
+        info: [c.dims[0], c.dims[1], c.samples.len() as u32, super::projection_code(f)],
         axis_u: v4(f.axes[0]),
         axis_v: v4(f.axes[1]),
         axis_n: {
             let mut n = v4(f.axes[2]);
-            n[3] = sphere_radius(f);
+            n[3] = f.sphere_radius().unwrap_or(0.0);
             n
         },
     })

@@ -36,6 +36,7 @@
 
 use std::any::Any;
 
+use bevy::asset::UntypedAssetId;
 use bevy::{
     core_pipeline::core_3d::{AlphaMask3d, Opaque3d},
     ecs::system::{SystemParamItem, lifetimeless::SRes},
@@ -75,15 +76,16 @@ const PBR_FRAGMENT: &str = "embedded://bevy_pbr/render/pbr_fragment.wgsl";
 /// The bind group the hook reads.
 const FIN_GROUP: usize = 4;
 
-/// Whether fin shadows reach forward materials on this device (it binds at
-/// least five groups); read by `bevy_shadow_maps.rs`: without it forward
-/// opaque meshes keep Bevy's maps on.
+/// Whether fin shadows reach forward materials: the device binds at least
+/// five groups and the hook is in Bevy's `pbr_fragment` shader. Read by
+/// `bevy_shadow_maps.rs`: until then forward opaque meshes keep Bevy's maps on.
 #[derive(Resource, Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FinForwardShading(pub bool);
 
-/// Bevy's `pbr_fragment` shader, kept so it can be given the hook's import.
+/// Bevy's `pbr_fragment` shader, kept so it can be given the hook's import;
+/// present while the hook is not in it yet (nor given up on).
 #[derive(Resource)]
-struct PbrFragment(Handle<Shader>);
+pub(crate) struct PbrFragment(Handle<Shader>);
 
 pub(crate) fn build(app: &mut App) {
     bevy::shader::load_shader_library!(app, "shaders/forward_hook.wgsl");
@@ -112,9 +114,10 @@ pub(crate) fn finish(app: &mut App) {
                 .after(prepare_erased_assets::<MeshMaterial3d<StandardMaterial>>),
         );
     let handle = app.world().resource::<AssetServer>().load::<Shader>(PBR_FRAGMENT);
+    // On once the hook is in Bevy's shader (`import_hook_into_pbr_fragment`).
     app.insert_resource(PbrFragment(handle))
-        .insert_resource(FinForwardShading(true))
-        .add_systems(PostUpdate, import_hook_into_pbr_fragment);
+        .insert_resource(FinForwardShading(false))
+        .add_systems(PostUpdate, import_hook_into_pbr_fragment.run_if(resource_exists::<PbrFragment>));
 }
 
 /// Adds the hook to `bevy_pbr::pbr_fragment`'s imports once it is loaded
@@ -122,14 +125,41 @@ pub(crate) fn finish(app: &mut App) {
 /// `additional_imports`, whose overrides then apply to every shader that
 /// imports `pbr_fragment` (Bevy's `imports` list makes the shader cache
 /// load the hook first).
-fn import_hook_into_pbr_fragment(fragment: Res<PbrFragment>, mut shaders: ResMut<Assets<Shader>>) {
+///
+/// Until it is in, `FinForwardShading` is off (forward meshes keep Bevy's
+/// maps); if Bevy's shader is not where this Bevy version keeps it, that is
+/// said once and the forward path stays Bevy's.
+fn import_hook_into_pbr_fragment(
+    mut commands: Commands,
+    fragment: Res<PbrFragment>,
+    asset_server: Res<AssetServer>,
+    mut shaders: ResMut<Assets<Shader>>,
+    mut forward: ResMut<FinForwardShading>,
+    mut frames: Local<u32>,
+) {
     let hooked = |s: &Shader| s.additional_imports.iter().any(|i| i.import == HOOK);
-    if shaders.get(&fragment.0).is_none_or(hooked) {
-        return;
-    }
-    if let Some(mut shader) = shaders.get_mut(&fragment.0) {
-        shader.imports.push(ShaderImport::Custom(HOOK.into()));
-        shader.additional_imports.push(ImportDefinition { import: HOOK.into(), items: vec![] });
+    match shaders.get(&fragment.0) {
+        Some(shader) if hooked(shader) => {
+            if !forward.0 {
+                forward.0 = true;
+            }
+        }
+        Some(_) => {
+            if let Some(mut shader) = shaders.get_mut(&fragment.0) {
+                shader.imports.push(ShaderImport::Custom(HOOK.into()));
+                shader.additional_imports.push(ImportDefinition { import: HOOK.into(), items: vec![] });
+            }
+        }
+        None => {
+            *frames += 1;
+            if asset_server.load_state(&fragment.0).is_failed() || *frames >= 600 {
+                warn!(
+                    "fin shadows: Bevy's forward shader {PBR_FRAGMENT} is not there to hook; forward-rendered \
+                     materials keep Bevy's shadows (deferred ones have fin shadows)"
+                );
+                commands.remove_resource::<PbrFragment>();
+            }
+        }
     }
 }
 
@@ -208,14 +238,18 @@ fn use_fin_pipelines(
     mut materials: ResMut<ErasedRenderAssets<PreparedMaterial>>,
     opaque: Res<DrawFunctions<Opaque3d>>,
     alpha_mask: Res<DrawFunctions<AlphaMask3d>>,
+    // The properties given to each material: a material whose properties are
+    // not these any more was prepared again by Bevy.
+    mut given: Local<std::collections::HashMap<UntypedAssetId, std::sync::Arc<MaterialProperties>>>,
 ) {
     let standard = std::any::TypeId::of::<StandardMaterial>();
     let (opaque, alpha_mask) =
         (opaque.read().id::<DrawMaterialWithFinShadows>(), alpha_mask.read().id::<DrawMaterialWithFinShadows>());
+    given.retain(|id, _| materials.get(*id).is_some());
     for (id, material) in materials.iter_mut() {
         let p = &material.properties;
         let wanted = matches!(p.render_phase_type, RenderPhaseType::Opaque | RenderPhaseType::AlphaMask);
-        let ours = p.user_specialize.is_some_and(|f| f as usize == SPECIALIZE_WITH_FIN_SHADOWS as usize);
+        let ours = given.get(&id).is_some_and(|g| std::sync::Arc::ptr_eq(g, p));
         if id.type_id() != standard || !wanted || ours {
             continue;
         }
@@ -245,12 +279,9 @@ fn use_fin_pipelines(
             shadows_enabled: p.shadows_enabled,
             prepass_enabled: p.prepass_enabled,
         });
+        given.insert(id, material.properties.clone());
     }
 }
-
-/// [`specialize_with_fin_shadows`] as the pointer a material's properties
-/// hold (how an already rewritten material is told apart).
-const SPECIALIZE_WITH_FIN_SHADOWS: bevy::material::specialize::UserSpecializeFn = specialize_with_fin_shadows;
 
 /// Bevy's `StandardMaterial` specialisation, then `FIN_FORWARD` and group 4.
 fn specialize_with_fin_shadows(

@@ -43,6 +43,7 @@ mod extract_gpu;
 mod forward;
 
 pub use forward::FinForwardShading;
+pub(crate) use forward::PbrFragment;
 
 pub(crate) fn build(app: &mut App) {
     load_shader_library!(app, "shaders/fin_types.wgsl");
@@ -248,7 +249,7 @@ enum MapsSource {
 }
 
 /// `FinParams.flags.w`: how the frame's maps project.
-fn projection_code(f: &FinFrameData) -> u32 {
+pub(super) fn projection_code(f: &FinFrameData) -> u32 {
     match (f.orthographic, f.aperture) {
         (true, _) => 1,
         (false, shadow_fins::light::Aperture::Sphere { .. }) => 2,

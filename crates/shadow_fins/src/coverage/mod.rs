@@ -229,10 +229,15 @@ impl<'a> CoverageModel<'a> {
         let ls = self.light_space;
         let eps = surface_epsilon(receiver.position, ls.extent);
         let p = receiver.position + receiver.normal * eps;
-        if !p.is_finite() || (ls.frame.is_perspective() && !(p.z > self.near)) {
+        if !p.is_finite() {
             return (0.0, work);
         }
+        // Inside a sphere light nothing comes between (before the near
+        // plane's test, as the GPU pass orders them).
         let Some(shape) = self.shape_at(p) else { return (1.0, work) };
+        if ls.frame.is_perspective() && !(p.z > self.near) {
+            return (0.0, work);
+        }
         // The light's part above the receiver's horizon.
         let n = receiver.normal;
         let above: Vec<bool> = self.samples.iter().map(|&q| n.dot(Self::sample_vector(shape, p, q)) >= 0.0).collect();

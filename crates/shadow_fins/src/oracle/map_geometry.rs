@@ -100,3 +100,50 @@ fn clip_polygon(poly: &[Vec3], side: impl Fn(Vec3) -> f32) -> Vec<Vec3> {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::light::SphereLight;
+
+    #[test]
+    fn a_cube_faces_casters_are_clipped_to_its_window_and_keep_what_lies_in_it() {
+        let light = SphereLight::new(Vec3::ZERO, 0.1).unwrap();
+        let frame = light.face_frame(crate::sphere_light::CubeFace::PosZ, 1.25);
+        // In frame space: a big triangle through the window and the light's plane.
+        let tri = [Vec3::new(-9.0, -1.0, 0.5), Vec3::new(6.0, -2.0, 3.0), Vec3::new(1.0, 8.0, -1.0)];
+        let original = MapTriangle::clipped(
+            &tri,
+            &LightFrame::disk(&crate::light::DiskLight::new(Vec3::ZERO, Vec3::Z, 0.1).unwrap()),
+            1e-3,
+            true,
+        );
+        let clipped = MapTriangle::clipped(&tri, &frame, 1e-3, true);
+        assert!(!clipped.is_empty());
+        for t in &clipped {
+            for c in t.corners {
+                assert!(c.x.abs() <= 1.25 + 1e-4 && c.y.abs() <= 1.25 + 1e-4, "{c} outside the window");
+            }
+        }
+        // A map point is covered by the clipped fan exactly when it is by the
+        // near-clipped triangle and lies in the window.
+        let mut seed = 7u32;
+        for _ in 0..4000 {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            let q = glam::Vec2::new(
+                (seed % 1000) as f32 / 1000.0 * 3.0 - 1.5,
+                ((seed / 1000) % 1000) as f32 / 1000.0 * 3.0 - 1.5,
+            );
+            let inside_window = q.x.abs() < 1.249 && q.y.abs() < 1.249;
+            let in_original = original.iter().any(|t| t.contains(q));
+            let in_clipped = clipped.iter().any(|t| t.contains(q));
+            if (q.x.abs() - 1.25).abs() > 1e-3 && (q.y.abs() - 1.25).abs() > 1e-3 {
+                assert_eq!(in_clipped, in_original && inside_window, "{q}");
+            }
+        }
+    }
+}

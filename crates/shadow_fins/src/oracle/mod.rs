@@ -351,7 +351,7 @@ impl FinExtractor {
         }
         self.patch_count = patches;
         // A sphere light's face keeps the silhouettes that can shade it.
-        self.silhouettes.retain(|e| !frame.outside_face_window(e.a, e.b));
+        self.silhouettes.retain(|e| !frame.outside_face_window(&[e.a, e.b]));
     }
 
     /// Stage 2: fins and fans of the silhouettes of stage 1 (eq. 3 widths).

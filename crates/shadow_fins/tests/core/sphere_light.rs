@@ -27,17 +27,12 @@ type InFace<'a> = dyn Fn(&Scene, &LightSpaceScene, &[Receiver]) -> Vec<f32> + 'a
 /// Each receiver evaluated in the face that shades it, back in order.
 fn routed(scene: &Scene, light: Light, receivers: &[World], evaluate: &InFace) -> Vec<f32> {
     let faces = LightSpaceScene::faces(scene, light);
+    let routed: Vec<(usize, Receiver)> =
+        receivers.iter().map(|(p, n)| LightSpaceScene::receiver_in_face(&faces, *p, *n)).collect();
     let mut out = vec![f32::NAN; receivers.len()];
     for (k, face) in faces.iter().enumerate() {
-        let mine: Vec<usize> =
-            (0..receivers.len()).filter(|&i| LightSpaceScene::face_of(&faces, receivers[i].0) == k).collect();
-        let in_face: Vec<Receiver> = mine
-            .iter()
-            .map(|&i| Receiver {
-                position: face.frame.to_frame(receivers[i].0),
-                normal: face.frame.dir_to_frame(receivers[i].1),
-            })
-            .collect();
+        let mine: Vec<usize> = (0..receivers.len()).filter(|&i| routed[i].0 == k).collect();
+        let in_face: Vec<Receiver> = mine.iter().map(|&i| routed[i].1).collect();
         for (&i, v) in mine.iter().zip(evaluate(scene, face, &in_face)) {
             out[i] = v;
         }
@@ -234,5 +229,50 @@ fn a_penumbra_across_a_face_border_has_no_seam() {
             at_border <= elsewhere.max(0.02),
             "z {z}: a seam of {at_border} at the border (elsewhere ≤ {elsewhere})"
         );
+    }
+}
+
+#[test]
+fn casters_at_through_or_around_a_point_lights_centre_stay_finite() {
+    // A box around the light (the light inside a closed caster), a wall
+    // through its centre, a ball nearer than its radius: every method stays
+    // finite in [0, 1]; inside the box nothing is lit outside.
+    let center = Vec3::new(0.0, 2.0, 0.0);
+    let light = Light::Sphere(SphereLight::new(center, 0.3).unwrap());
+    let around = shadow_fins::scene::SceneObject::new(
+        "around",
+        shadow_fins::shapes::cuboid(Vec3::splat(0.5)),
+        shadow_fins::glam::Affine3A::from_translation(center),
+    )
+    .unwrap();
+    let through = object("through", quad(-3.0, 3.0, -3.0, 3.0, 2.0));
+    let near = shadow_fins::scene::SceneObject::new(
+        "near",
+        shadow_fins::shapes::uv_sphere(0.1, 8, 16),
+        shadow_fins::glam::Affine3A::from_translation(center + Vec3::new(0.2, 0.0, 0.0)),
+    )
+    .unwrap();
+    let points: Vec<World> = (-20..=20)
+        .flat_map(|i| {
+            [(Vec3::new(i as f32 * 0.2, 0.0, 0.3), Vec3::Y), (Vec3::new(0.4, 4.0, i as f32 * 0.2), Vec3::NEG_Y)]
+        })
+        .collect();
+    for (name, objects) in
+        [("around", vec![ground(), around]), ("through", vec![ground(), through]), ("near", vec![ground(), near])]
+    {
+        let scene = Scene::new(objects);
+        let all = [
+            ("fins", routed(&scene, light, &points, &fins(Method::MultiLayer, FinSettings::default()))),
+            ("coverage", routed(&scene, light, &points, &coverage(64))),
+            ("truth", routed(&scene, light, &points, &truth(256))),
+        ];
+        for (method, v) in &all {
+            assert!(v.iter().all(|x| (0.0..=1.0).contains(x)), "{name} {method}: {v:?}");
+        }
+        if name == "around" {
+            for (method, v) in &all {
+                assert!(v.iter().all(|x| *x < 0.01), "{name} {method}: light escaped a closed box: {v:?}");
+            }
+        }
     }
 }

@@ -1,0 +1,133 @@
+//! Casters as Bevy draws them (issue 16, item 2): a skinned arm and a
+//! morph-target blob, loaded by Bevy's glTF loader, cast the shadow of their
+//! current pose — joints moved, morph weights changed — not of their bind
+//! pose, each pose judged by the raster oracle on the triangles the plugin
+//! posed (`scene_snapshot`, `pose.rs`).
+//!
+//! Tolerances as in `oracle_agreement.rs` (mean |GPU − oracle| ≤ 0.01, at
+//! most 3% of pixels off by more than 0.1).
+
+use bevy::{
+    mesh::morph::{MeshMorphWeights, MorphWeights},
+    prelude::*,
+};
+use bevy_shadow_fins::FinSnapshotApproximation;
+use shadow_fins::{light::Light, oracle::Method};
+use shadow_fins_app::harness::{Session, Setup, Shot};
+
+use super::common::{HEIGHT, WIDTH, assert_not_trivial, compare, oracle, per_pixel, save, settings};
+
+fn asset(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets").join(name)
+}
+
+/// `name` loaded by Bevy, seen from above the side its shadows fall to, under a
+/// low fin-shadowed sun (long shadows of a thin arm), twice the usual size.
+fn posed_setup(name: &str) -> Setup {
+    let import = shadow_fins::gltf_import::load_gltf(asset(name)).expect("the core importer reads it");
+    let camera = shadow_fins::camera::Camera::looking_at(Vec3::new(2.6, 2.4, 3.6), Vec3::new(0.3, 0.6, 0.4));
+    let sun = shadow_fins::light::SunLight::new(Vec3::new(0.55, -0.75, 0.8), 0.02).expect("a valid sun");
+    let mut setup = Setup::new(import.scene, Light::Sun(sun), camera, settings(), (2 * WIDTH, 2 * HEIGHT));
+    setup.gltf = Some(asset(name));
+    setup.sun_illuminance = 1500.0;
+    setup
+}
+
+/// The shot's visibility on the ground against the oracle of the scene the
+/// plugin saw (its snapshot: the posed triangles) from the same light and camera.
+fn matches_its_oracle(session: &mut Session, setup: &Setup, shot: &Shot, label: &str) -> f32 {
+    let snapshot = session.scene_snapshot();
+    assert!(
+        !snapshot.approximated.iter().any(|(_, a)| *a == FinSnapshotApproximation::Unposed),
+        "{label}: a mesh was not posed: {:?}",
+        snapshot.approximated
+    );
+    let lights = session.fin_lights();
+    assert_eq!(lights.len(), 1, "{label}: the sun");
+    let mut judged = setup.clone();
+    judged.scene = snapshot.scene;
+    judged.light = lights[0].1;
+    judged.camera = session.main_camera().expect("the view");
+    let expected = oracle(&judged, Method::MultiLayer);
+    // Judged on the ground, where the caster's shadow falls: at the caster's
+    // own outline on screen a pixel's receiver is the rasteriser's or the
+    // ray's by a hair (the spike is a sliver of such pixels).
+    let ls = shadow_fins::scene::LightSpaceScene::new(&judged.scene, judged.light);
+    // 2 on the ground (background pixels come back as 1).
+    let ground_at =
+        |r: shadow_fins::oracle::Receiver| if ls.frame.to_world(r.position).y.abs() < 1e-3 { 2.0 } else { 0.0 };
+    let ground = per_pixel(&judged, &judged.camera, &ls, ground_at);
+    let on_ground =
+        |v: &[f32]| -> Vec<f32> { v.iter().zip(&ground).filter(|(_, g)| **g == 2.0).map(|(v, _)| *v).collect() };
+    let (gpu, expected) = (on_ground(&shot.visibility), on_ground(&expected));
+    assert!(gpu.len() > 2000, "{label}: {} ground pixels", gpu.len());
+    let (mad, far) = compare(&gpu, &expected);
+    println!("{label}: mean |gpu − oracle of the posed scene| = {mad:.5}, share > 0.1 = {:.2}%", far * 100.0);
+    assert!(mad <= 0.01 && far <= 0.03, "{label}: {mad} / {far}");
+    mad
+}
+
+#[test]
+fn a_skinned_arm_casts_the_shadow_of_its_current_pose() {
+    let setup = posed_setup("skinned-arm.gltf");
+    let mut session = Session::new(&setup);
+    session.wait_for_gltf().expect("Bevy loads it");
+    let straight = session.settle(16).expect("render");
+    save(&straight, "posed_arm_straight");
+    assert_not_trivial(&straight);
+    matches_its_oracle(&mut session, &setup, &straight, "arm straight");
+    // The file's `bend` animation at 1 s: each joint turned about z.
+    let world = session.app.world_mut();
+    let mut joints = world.query::<(&Name, &mut Transform)>();
+    let mut turned = 0;
+    for (name, mut t) in joints.iter_mut(world) {
+        let bend = match name.as_str() {
+            "shoulder" => 0.35,
+            "elbow" => 0.6,
+            "wrist" => 0.5,
+            _ => continue,
+        };
+        t.rotation = Quat::from_xyzw(0.0, 0.0, bend, 1.0).normalize();
+        turned += 1;
+    }
+    assert_eq!(turned, 3, "the arm's three joints");
+    let bent = session.settle(16).expect("render");
+    save(&bent, "posed_arm_bent");
+    assert_not_trivial(&bent);
+    matches_its_oracle(&mut session, &setup, &bent, "arm bent");
+    let (apart, far) = compare(&straight.visibility, &bent.visibility);
+    println!("straight vs bent arm's shadow: {apart:.4} mean, {:.1}% of pixels by > 0.1", far * 100.0);
+    assert!(far > 0.01, "bending the arm hardly moved its shadow ({apart}, {far}): the bind pose is cast");
+}
+
+#[test]
+fn a_morph_blob_casts_the_shadow_of_its_current_weights() {
+    let setup = posed_setup("morph-blob.gltf");
+    let mut session = Session::new(&setup);
+    session.wait_for_gltf().expect("Bevy loads it");
+    let flat = session.settle(16).expect("render");
+    save(&flat, "posed_blob_flat");
+    assert_not_trivial(&flat);
+    matches_its_oracle(&mut session, &setup, &flat, "blob flat");
+    // `spike` and `lean` both at full weight: the top's middle 1.6 m up, the top leaning.
+    let world = session.app.world_mut();
+    let mut set = 0;
+    for mut w in world.query::<&mut MorphWeights>().iter_mut(world) {
+        w.weights_mut().iter_mut().for_each(|x| *x = 1.0);
+        set += 1;
+    }
+    for mut w in world.query::<&mut MeshMorphWeights>().iter_mut(world) {
+        if let MeshMorphWeights::Value { weights } = &mut *w {
+            weights.iter_mut().for_each(|x| *x = 1.0);
+            set += 1;
+        }
+    }
+    assert!(set > 0, "the blob has morph weights");
+    let grown = session.settle(16).expect("render");
+    save(&grown, "posed_blob_grown");
+    assert_not_trivial(&grown);
+    matches_its_oracle(&mut session, &setup, &grown, "blob grown");
+    let (apart, far) = compare(&flat.visibility, &grown.visibility);
+    println!("flat vs grown blob's shadow: {apart:.4} mean, {:.1}% of pixels by > 0.1", far * 100.0);
+    assert!(far > 0.01, "the morph targets hardly moved the shadow ({apart}, {far}): the base shape is cast");
+}
