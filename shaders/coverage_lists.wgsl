@@ -4,6 +4,7 @@
 // One workgroup per (caster, block of LIST_BLOCK texels of its bounding box).
 #import bevy_shadow_fins::coverage_types::{CoverageParams, INF_BITS, WORKGROUP, list_stride, texel_center, owns}
 #import bevy_shadow_fins::fin_types::{Caster, caster_depth_at}
+#import bevy_shadow_fins::cutout::caster_opaque
 
 @group(0) @binding(0) var<uniform> params: CoverageParams;
 @group(0) @binding(1) var<storage, read_write> lists_rw: array<atomic<u32>>;
@@ -65,7 +66,7 @@ fn raster_lists(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
         }
         // w: 1 perspective (disk), 0 orthographic (sun).
         let z = caster_depth_at(c, q, params.info.w == 1u);
-        if (!(z > params.light.y)) {
+        if (!(z > params.light.y) || !caster_opaque(c, q, params.info.w == 1u)) {
             continue;
         }
         let base = (y * params.counts.x + x) * list_stride(params);

@@ -446,6 +446,10 @@ fn facing_face(f: u32) -> bool {
     return (atomicLoad(&state[FACE_WORDS * f + 1u]) & FACING) != 0u;
 }
 
+fn in_maps_face(f: u32) -> bool {
+    return (atomicLoad(&state[FACE_WORDS * f + 1u]) & IN_MAPS) != 0u;
+}
+
 fn edge_silhouette_slot(edge: u32) -> u32 {
     return FACE_WORDS * params.totals.z + edge;
 }
@@ -528,8 +532,13 @@ fn find_silhouettes(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocat
     let f1 = g(inst, at + 3u);
     let facing0 = facing_face(inst.ids.z + f0);
     if (f1 == EDGE_BACK_FACE_MISSING) {
+        // A boundary outlines its face's side towards the light: the face's
+        // own, or an open mesh's back face's (in the maps too).
+        let forward = (flags & EDGE_FORWARD0) != 0u;
         if (facing0) {
-            emit_silhouette(k, inst, i, v0, v1, (flags & EDGE_FORWARD0) != 0u, f0, true);
+            emit_silhouette(k, inst, i, v0, v1, forward, f0, true);
+        } else if (in_maps_face(inst.ids.z + f0)) {
+            emit_silhouette(k, inst, i, v0, v1, !forward, f0, true);
         }
         return;
     }
@@ -861,7 +870,7 @@ fn emit_caster(p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, normal: vec3<f32>, o
         min(p0.z, min(p1.z, p2.z)),
         max(p0.z, max(p1.z, p2.z)),
         patch_id,
-        0u,
+        0u, // solid: frames with alpha-masked casters extract on the CPU
     );
     grow_region(min(c0, min(c1, c2)), max(c0, max(c1, c2)));
 }

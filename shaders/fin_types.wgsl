@@ -20,7 +20,8 @@ struct FinParams {
 }
 
 // One caster triangle in light-map space (`GpuCaster`, the core's `MapTriangle`):
-// corners, plane `normal · X = offset` in the light frame, depth range, layer.
+// corners, plane `normal · X = offset` in the light frame, depth range, layer,
+// and its cut-out (`cutout.wgsl`): 0 solid, else 1 + its index.
 struct Caster {
     corners: array<f32, 6>,
     normal: array<f32, 3>,
@@ -28,7 +29,7 @@ struct Caster {
     min_depth: f32,
     max_depth: f32,
     layer: u32,
-    pad: u32,
+    cutout: u32,
 }
 
 // One fin (`GpuFin`): header = (kind 0 quad / 1 sector, side 0 inner / 1 outer,

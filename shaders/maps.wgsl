@@ -5,6 +5,7 @@
     FinParams, Caster, Fin, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, INF_BITS, texel_index, min_key, max_key,
     texel_center, cross2, orthographic, caster_depth_at,
 }
+#import bevy_shadow_fins::cutout::caster_opaque
 
 @group(0) @binding(0) var<uniform> params: FinParams;
 @group(0) @binding(1) var<storage, read_write> maps: array<atomic<u32>>;
@@ -72,7 +73,7 @@ fn raster_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocatio
             continue;
         }
         let z = caster_depth_at(c, q, orthographic(params));
-        if (z > params.light.y) {
+        if (z > params.light.y && caster_opaque(c, q, orthographic(params))) {
             atomicMin(&maps[texel_index(params, c.layer, x, y)], bitcast<u32>(z));
         }
     }

@@ -236,11 +236,33 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
     let (w, h) = (setup.width, setup.height);
     let material = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial::default());
     let own_meshes = if setup.gltf.is_some() { &[][..] } else { &setup.scene.objects[..] };
+    // An alpha-masked object (the core's cut-out) as a masked material over
+    // its mask, one material per mask.
+    let mut masked: Vec<(*const shadow_fins::cutout::AlphaMask, Handle<StandardMaterial>)> = Vec::new();
     for object in own_meshes {
-        let mesh = world.resource_mut::<Assets<Mesh>>().add(bevy_shadow_fins::mesh_from_core(&object.mesh));
+        let uvs = object.cutout.as_ref().map(|c| c.vertex_uvs.as_slice());
+        let mesh = world.resource_mut::<Assets<Mesh>>().add(bevy_shadow_fins::mesh_from_core_with_uvs(&object.mesh, uvs));
+        let material = match &object.cutout {
+            None => material.clone(),
+            Some(c) => match masked.iter().find(|(m, _)| *m == Arc::as_ptr(&c.mask)) {
+                Some((_, h)) => h.clone(),
+                None => {
+                    let image = world.resource_mut::<Assets<Image>>().add(bevy_shadow_fins::image_of_mask(&c.mask));
+                    let h = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial {
+                        base_color_texture: Some(image),
+                        alpha_mode: AlphaMode::Mask(c.mask.cutoff()),
+                        double_sided: true,
+                        cull_mode: None,
+                        ..default()
+                    });
+                    masked.push((Arc::as_ptr(&c.mask), h.clone()));
+                    h
+                }
+            },
+        };
         let mut e = world.spawn((
             Mesh3d(mesh),
-            MeshMaterial3d(material.clone()),
+            MeshMaterial3d(material),
             Transform::from_matrix(Mat4::from(object.transform)),
         ));
         if !object.casts_shadows {

@@ -3,6 +3,7 @@
 //! same map resolution. One test binary, a module per topic.
 
 mod render {
+    mod alpha_masked;
     mod bevy_renderer;
     pub mod common;
     mod compositing;

@@ -107,7 +107,7 @@ pub fn measure(
         let snapshot = session.scene_snapshot();
         if !snapshot.skipped.is_empty() || !snapshot.approximated.is_empty() {
             eprintln!(
-                "warning: {}: {} meshes Bevy draws are not in the ground truth, {} are modelled solid (alpha-masked) or unposed",
+                "warning: {}: {} meshes Bevy draws are not in the ground truth, {} are modelled solid (an alpha mask unreadable) or unposed",
                 input.name,
                 snapshot.skipped.len(),
                 snapshot.approximated.len()

@@ -65,6 +65,9 @@ pub(crate) struct CoverageFrame {
     pub grid: [f32; 4],
     pub dims: [u32; 2],
     pub casters: Vec<GpuCaster>,
+    /// The casters' cut-outs and the alpha masks they read (`cutout.wgsl`).
+    pub cutouts: Vec<crate::extract::GpuCutout>,
+    pub mask_words: Vec<u32>,
     /// `raster_lists` work: (caster, block of `LIST_BLOCK_TEXELS` texels of
     /// its bounding box), one workgroup each.
     pub raster_work: Vec<[u32; 2]>,
@@ -123,7 +126,7 @@ pub(crate) fn coverage_frame(
     // One list per texel, no layers to trade: resolution is what goes.
     let alloc = allocate_maps(resolution, 1, LIST_WORDS * 4, map_bytes, f32::INFINITY);
     let mut degraded = alloc.degradation;
-    let triangles = reference::map_triangles(&ls.casters, &ls.frame, near);
+    let triangles = reference::map_triangles(&ls, near);
     let region = in_frame.covering(triangles.iter().map(|t| t.bounds()), alloc.resolution.clamp(1, 8192));
     let edges = potential_silhouette_edges(scene, &ls, near);
     let index = EdgeIndex::new(&edges, &ls.frame, ls.reference_depth, 1.5 * region.texel);
@@ -171,19 +174,7 @@ pub(crate) fn coverage_frame(
         }
         cell_starts.push(cell_items.len() as u32);
     }
-    let casters = triangles
-        .iter()
-        .take(n_casters)
-        .map(|t| GpuCaster {
-            corners: [t.corners[0].x, t.corners[0].y, t.corners[1].x, t.corners[1].y, t.corners[2].x, t.corners[2].y],
-            normal: t.normal.to_array(),
-            offset: t.offset,
-            min_depth: t.min_depth,
-            max_depth: t.max_depth,
-            layer: 0,
-            _pad: 0,
-        })
-        .collect();
+    let (casters, cutouts, mask_words) = crate::extract::gpu_casters(&triangles[..n_casters], None, &ls.masks);
     let mut raster_work: Vec<[u32; 2]> = triangles
         .iter()
         .take(n_casters)
@@ -203,6 +194,8 @@ pub(crate) fn coverage_frame(
         grid: [min.x, min.y, inv_cell.x, inv_cell.y],
         dims: [dims[0] as u32, dims[1] as u32],
         casters,
+        cutouts,
+        mask_words,
         raster_work,
         region,
         samples: ls.frame.aperture.samples(samples.clamp(1, 256)).iter().map(|q| q.to_array()).collect(),

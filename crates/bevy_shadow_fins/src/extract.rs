@@ -28,7 +28,7 @@ use shadow_fins::{
     fins::{Fin, FinShape, FinSide},
     light::{Aperture, CubeFace, DiskLight, Light, LightFrame, RectLight as RectArea, SphereLight, SunLight},
     mesh::{Mesh as CoreMesh, Topology},
-    oracle::{FinShadowModel, MapRegion},
+    oracle::{FinShadowModel, MapRegion, MapTriangle},
     scene::{LightSpaceScene, Scene, SceneObject},
 };
 
@@ -93,7 +93,76 @@ pub(crate) struct GpuCaster {
     pub min_depth: f32,
     pub max_depth: f32,
     pub layer: u32,
-    pub _pad: u32,
+    /// 0: solid; else 1 + its index in the frame's [`GpuCutout`]s.
+    pub cutout: u32,
+}
+
+/// An alpha-masked map triangle's cut-out (the core's `MapCutout`;
+/// `cutout.wgsl`): UVs at its corners, the corners' depths, and where its
+/// mask starts in the frame's mask words.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct GpuCutout {
+    pub uvs: [f32; 6],
+    pub depths: [f32; 3],
+    pub mask: u32,
+}
+
+/// Map triangles as the GPU reads them, with their cut-outs and the masks
+/// those index, packed as `cutout.wgsl` reads them (`layers`: each
+/// triangle's layer, or layer 0).
+pub(crate) fn gpu_casters(
+    triangles: &[MapTriangle],
+    layers: Option<&[u32]>,
+    masks: &[std::sync::Arc<shadow_fins::cutout::AlphaMask>],
+) -> (Vec<GpuCaster>, Vec<GpuCutout>, Vec<u32>) {
+    // Each mask once: header (width, height, threshold bits, wrap modes), then
+    // four 8-bit alphas a word.
+    let mut mask_words: Vec<u32> = Vec::new();
+    let mut mask_at: Vec<Option<u32>> = vec![None; masks.len()];
+    let mut cutouts = Vec::new();
+    let casters = triangles
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let cutout = match t.cutout {
+                None => 0,
+                Some(c) => {
+                    let at = *mask_at[c.mask as usize].get_or_insert_with(|| {
+                        let m = &masks[c.mask as usize];
+                        let at = mask_words.len() as u32;
+                        let code = |a: shadow_fins::cutout::Address| match a {
+                            shadow_fins::cutout::Address::Repeat => 0u32,
+                            shadow_fins::cutout::Address::MirroredRepeat => 1,
+                            shadow_fins::cutout::Address::ClampToEdge => 2,
+                        };
+                        let [u, v] = m.address();
+                        mask_words.extend([m.width(), m.height(), m.threshold().to_bits(), code(u) | code(v) << 8]);
+                        mask_words.extend(m.alpha().chunks(4).map(|q| {
+                            q.iter().enumerate().fold(0u32, |w, (k, &a)| w | (a as u32) << (8 * k))
+                        }));
+                        at
+                    });
+                    cutouts.push(GpuCutout {
+                        uvs: [c.uvs[0].x, c.uvs[0].y, c.uvs[1].x, c.uvs[1].y, c.uvs[2].x, c.uvs[2].y],
+                        depths: c.depths,
+                        mask: at,
+                    });
+                    cutouts.len() as u32
+                }
+            };
+            GpuCaster {
+                corners: [t.corners[0].x, t.corners[0].y, t.corners[1].x, t.corners[1].y, t.corners[2].x, t.corners[2].y],
+                normal: t.normal.to_array(),
+                offset: t.offset,
+                min_depth: t.min_depth,
+                max_depth: t.max_depth,
+                layer: layers.map_or(0, |l| l[i]),
+                cutout,
+            }
+        })
+        .collect();
+    (casters, cutouts, mask_words)
 }
 
 /// One fin: `header = [kind (0 quad, 1 sector), side (0 inner, 1 outer), layer, 0]`,
@@ -112,6 +181,9 @@ pub struct FinFrameData {
     pub generation: u64,
     pub stats: FinFrameStats,
     pub(crate) casters: Vec<GpuCaster>,
+    /// The casters' cut-outs and the alpha masks they read (`cutout.wgsl`).
+    pub(crate) cutouts: Vec<GpuCutout>,
+    pub(crate) mask_words: Vec<u32>,
     pub(crate) fins: Vec<GpuFin>,
     pub(crate) region: MapRegion,
     /// Map layers allocated (what fits the budget; the GPU merges the deepest
@@ -354,6 +426,7 @@ pub(crate) struct MeshCache {
 pub(crate) fn build(app: &mut App) {
     app.init_resource::<FinFrames>()
         .init_resource::<MeshCache>()
+        .init_resource::<crate::cutout::CutoutCache>()
         .init_resource::<FinShadowStats>()
         .init_resource::<FinCasterScans>()
         .add_systems(
@@ -627,6 +700,19 @@ struct OtherLights<'w, 's> {
     points: PointLights<'w, 's>,
 }
 
+/// The casters' meshes and materials, and what changed of them.
+#[derive(bevy::ecs::system::SystemParam)]
+struct CasterAssets<'w, 's> {
+    meshes: Res<'w, Assets<Mesh>>,
+    mesh_events: MessageReader<'w, 's, AssetEvent<Mesh>>,
+    materials: crate::cutout::CasterMaterials<'w, 's>,
+}
+
+/// A material's cut-out changed: every frame's signature changes with it.
+fn kept_material_epoch(changes: &mut CasterChanges) {
+    changes.kept.mesh_epoch += 1;
+}
+
 /// Rebuilds each light's frame when it, a setting or a caster changed.
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
 fn update_fin_frames(
@@ -639,18 +725,22 @@ fn update_fin_frames(
     light_layers: Query<&RenderLayers>,
     views: Query<(&GlobalTransform, &Projection), With<FinShadowView>>,
     mut light_stats: Query<&mut FinLightStats>,
-    meshes: Res<Assets<Mesh>>,
+    mut assets: CasterAssets,
     budget: Res<FinShadowBudget>,
     device: Res<FinDeviceLimits>,
     unsupported: Option<Res<FinShadowsUnsupported>>,
-    mut mesh_events: MessageReader<AssetEvent<Mesh>>,
     mut cache: ResMut<MeshCache>,
     mut frames: ResMut<FinFrames>,
 ) {
+    let meshes = &assets.meshes;
     let mut meshes_changed = false;
-    // Any mesh event (one finishing loading, too) changes what casts.
-    let mut mesh_event = false;
-    for event in mesh_events.read() {
+    // Any mesh event (one finishing loading, too) changes what casts; so
+    // does a change of what an alpha-masked material cuts out.
+    let mut mesh_event = assets.materials.refresh();
+    if mesh_event {
+        kept_material_epoch(&mut changes);
+    }
+    for event in assets.mesh_events.read() {
         mesh_event = true;
         if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
             cache.meshes.remove(id);
@@ -730,6 +820,8 @@ fn update_fin_frames(
             mesh.id().hash(&mut hasher);
             // A mesh that finishes loading changes the frame too.
             meshes.contains(mesh.id()).hash(&mut hasher);
+            // What it casts with (an alpha-masked material cuts it out).
+            assets.materials.material_of(entity).hash(&mut hasher);
             hash_floats(&mut hasher, &transform.to_matrix().to_cols_array());
             changes.poses.hash_pose(entity, &mut hasher);
         }
@@ -798,7 +890,7 @@ fn update_fin_frames(
         let light = source.light;
         let scene = scene.get_or_insert_with(|| {
             let MeshCache { meshes: cached, posed, .. } = &mut *cache;
-            CasterScene::collect(&casters, &meshes, cached, posed, &changes.poses)
+            CasterScene::collect(&casters, &assets.meshes, cached, posed, &changes.poses, &mut assets.materials)
         });
         let max_buffer = device.max_buffer(&budget);
         // The maps' budget is shared equally between the frames.
@@ -947,6 +1039,7 @@ impl CasterScene {
         cache: &mut HashMap<AssetId<Mesh>, CachedMesh>,
         posed: &mut HashMap<Entity, (u64, CachedMesh, bool)>,
         poses: &crate::pose::Poses,
+        materials: &mut crate::cutout::CasterMaterials,
     ) -> Self {
         let mut scene = Self {
             objects: vec![],
@@ -994,6 +1087,9 @@ impl CasterScene {
                 Ok(mut o) => {
                     // Meshes that do not cast still receive: they count for the reference plane.
                     o.casts_shadows = !not_caster;
+                    if o.casts_shadows {
+                        o.cutout = materials.cutout(entity, mesh3d.id(), mesh, core, topology, world);
+                    }
                     scene.objects.push(o);
                     scene.gpu_meshes.push(geometry.clone());
                     scene.bounds.push(corners);
@@ -1172,6 +1268,11 @@ fn light_frame(
         return data;
     }
     let mut extraction = settings.extraction;
+    // The GPU extraction has no UVs and no outlines: a frame with an
+    // alpha-masked caster extracts on the CPU (the maps still run on the GPU).
+    if objects.iter().any(|o| o.casts_shadows && o.cutout.is_some()) {
+        extraction = FinExtraction::Cpu;
+    }
     let mut gpu_scene = None;
     let max_buffer = limits.max_buffer;
     if extraction == FinExtraction::Gpu {
@@ -1226,6 +1327,8 @@ fn light_frame(
                 generation,
                 stats,
                 casters: Vec::new(),
+                cutouts: Vec::new(),
+                mask_words: Vec::new(),
                 fins: Vec::new(),
                 region: MapRegion { min: Vec2::ZERO, texel: 1.0, resolution: alloc.resolution },
                 map_layers: alloc.layers,
@@ -1299,6 +1402,8 @@ fn coverage_data(
         generation,
         stats,
         casters: Vec::new(),
+        cutouts: Vec::new(),
+        mask_words: Vec::new(),
         fins: Vec::new(),
         region: coverage.region,
         map_layers: 1,
@@ -1460,21 +1565,8 @@ fn cpu_frame(
     };
     let n_casters = capped("map casters", model.casters.len(), size_of::<GpuCaster>() as u64);
     let n_fins = capped("fins", model.fins.len(), size_of::<GpuFin>() as u64);
-    let casters_gpu: Vec<GpuCaster> = model
-        .casters
-        .iter()
-        .take(n_casters)
-        .zip(&model.caster_layers)
-        .map(|(t, &layer)| GpuCaster {
-            corners: [t.corners[0].x, t.corners[0].y, t.corners[1].x, t.corners[1].y, t.corners[2].x, t.corners[2].y],
-            normal: t.normal.to_array(),
-            offset: t.offset,
-            min_depth: t.min_depth,
-            max_depth: t.max_depth,
-            layer,
-            _pad: 0,
-        })
-        .collect();
+    let (casters_gpu, cutouts, mask_words) =
+        gpu_casters(&model.casters[..n_casters], Some(&model.caster_layers[..n_casters]), &ls.masks);
     let fins_gpu: Vec<GpuFin> =
         model.fins.iter().take(n_fins).zip(&model.fin_layers).map(|(f, &l)| gpu_fin(f, l)).collect();
     let stats = FinFrameStats {
@@ -1494,6 +1586,8 @@ fn cpu_frame(
         generation,
         stats,
         casters: casters_gpu,
+        cutouts,
+        mask_words,
         fins: fins_gpu,
         region,
         map_layers: alloc.layers,

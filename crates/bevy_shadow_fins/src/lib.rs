@@ -168,6 +168,7 @@
 mod bevy_shadow_maps;
 mod budget;
 mod coverage_frame;
+mod cutout;
 mod extract;
 mod gltf;
 mod gpu_scene;
@@ -192,6 +193,7 @@ pub use light::{
     FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster,
     NotFinShadowReceiver,
 };
+pub use cutout::{image_of_mask, mask_of_image};
 pub use receivers::FinReceivers;
 pub use render::FinForwardShading;
 pub use shadow_fins;
@@ -203,16 +205,25 @@ use bevy::prelude::*;
 /// vertices and face normal, so the normal prepass holds the facets the fins
 /// are built from). For showing the core's scenes and glTF imports.
 pub fn mesh_from_core(mesh: &shadow_fins::mesh::Mesh) -> Mesh {
+    mesh_from_core_with_uvs(mesh, None)
+}
+
+/// [`mesh_from_core`] with one UV per vertex as `ATTRIBUTE_UV_0` (an
+/// alpha-masked object's: `shadow_fins::cutout::Cutout::vertex_uvs`, its
+/// material from [`image_of_mask`]).
+pub fn mesh_from_core_with_uvs(mesh: &shadow_fins::mesh::Mesh, uvs: Option<&[shadow_fins::glam::Vec2]>) -> Mesh {
     use bevy::{
         asset::RenderAssetUsages,
         mesh::{Indices, PrimitiveTopology},
     };
-    Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
-        .with_inserted_attribute(
-            Mesh::ATTRIBUTE_POSITION,
-            mesh.positions().iter().map(|p| p.to_array()).collect::<Vec<_>>(),
-        )
-        .with_inserted_indices(Indices::U32(mesh.indices().to_vec()))
+    let mut out = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default()).with_inserted_attribute(
+        Mesh::ATTRIBUTE_POSITION,
+        mesh.positions().iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+    );
+    if let Some(uvs) = uvs.filter(|uvs| uvs.len() == mesh.positions().len()) {
+        out.insert_attribute(Mesh::ATTRIBUTE_UV_0, uvs.iter().map(|uv| uv.to_array()).collect::<Vec<_>>());
+    }
+    out.with_inserted_indices(Indices::U32(mesh.indices().to_vec()))
         .with_duplicated_vertices()
         .with_computed_flat_normals()
 }

@@ -33,7 +33,10 @@ pub enum FinSnapshotApproximation {
     /// not loaded, no joint attributes): modelled as stored. A posable one is
     /// in its current pose, as the plugin shadows it (`pose.rs`).
     Unposed,
-    /// An alpha-masked material: modelled solid (no holes).
+    /// An alpha-masked material modelled solid, as the plugin models it:
+    /// its texture still loading, compressed or not readable in the main
+    /// world, or its mesh without the UVs it reads (`cutout.rs`). A readable
+    /// one is cut out in the snapshot as in the plugin's casters.
     AlphaMasked,
 }
 
@@ -73,11 +76,16 @@ pub fn scene_snapshot(world: &mut World, root: Option<Entity>) -> FinSceneSnapsh
         Res<Assets<Mesh>>,
         Option<Res<Assets<StandardMaterial>>>,
         crate::pose::Poses,
-    )> = SystemState::new(world);
+        crate::cutout::CasterMaterials,
+    )> = {
+        world.init_resource::<crate::cutout::CutoutCache>();
+        SystemState::new(world)
+    };
     // No `Assets<Mesh>` (a world without Bevy's render plugins): no meshes.
-    let Ok((meshes, parents, assets, materials, poses)) = state.get(world) else {
+    let Ok((meshes, parents, assets, materials, poses, mut cutouts)) = state.get_mut(world) else {
         return FinSceneSnapshot::default();
     };
+    cutouts.refresh();
     let mut posed = std::collections::HashMap::new();
     let under_root =
         |entity: Entity| root.is_none_or(|root| entity == root || parents.iter_ancestors(entity).any(|a| a == root));
@@ -112,11 +120,14 @@ pub fn scene_snapshot(world: &mut World, root: Option<Entity>) -> FinSceneSnapsh
                 object.casts_shadows = flags.casts();
                 // Bevy's own opt-out turns fin shadows off too (`NotFinShadowReceiver` adds it).
                 object.receives_shadows = !(not_receiver.0 || not_receiver.1);
+                // Cut out as the plugin's casters are.
+                object.cutout = cutouts.cutout(entity, mesh3d.id(), mesh, core, topology, world);
+                let masked = object.cutout.is_none()
+                    && material
+                        .zip(materials.as_ref())
+                        .and_then(|(m, all)| all.get(&m.0))
+                        .is_some_and(|m| matches!(m.alpha_mode, AlphaMode::Mask(_) | AlphaMode::AlphaToCoverage));
                 snapshot.scene.objects.push(object);
-                let masked = material
-                    .zip(materials.as_ref())
-                    .and_then(|(m, all)| all.get(&m.0))
-                    .is_some_and(|m| matches!(m.alpha_mode, AlphaMode::Mask(_)));
                 for (is, what) in
                     [(unposed, FinSnapshotApproximation::Unposed), (masked, FinSnapshotApproximation::AlphaMasked)]
                 {

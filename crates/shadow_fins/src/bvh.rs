@@ -57,6 +57,31 @@ impl Bvh {
         hit
     }
 
+    /// True when the segment crosses a triangle that `blocks(index, u, v)`
+    /// says blocks at the crossing's barycentrics (an alpha-masked caster's
+    /// holes let it through; `crate::scene::LightSpaceScene::blocks_at`).
+    pub fn any_hit_where(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        t_min: f32,
+        t_max: f32,
+        blocks: impl Fn(u32, f32, f32) -> bool,
+    ) -> bool {
+        let inv = dir.recip();
+        let mut hit = false;
+        self.traverse(
+            |node| slab_hit(node, origin, inv, t_min, t_max),
+            |k| {
+                let found = intersect_uv(&self.triangles[k], origin, dir)
+                    .is_some_and(|(t, u, v)| t > t_min && t < t_max && blocks(self.original[k], u, v));
+                hit |= found;
+                found
+            },
+        );
+        hit
+    }
+
     /// How many triangles the segment `origin + t·dir`, `t ∈ (t_min, t_max)`,
     /// crosses: the depth complexity along it (Laine et al. 2005), which the
     /// coverage method needs at one reference point of the light.
@@ -66,6 +91,32 @@ impl Bvh {
             hits += 1;
             false
         });
+        hits
+    }
+
+    /// [`Bvh::count_hits`] counting only the crossings `blocks(index, u, v)`
+    /// accepts at their barycentrics (an alpha-masked caster's opaque part).
+    pub fn count_hits_where(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        t_min: f32,
+        t_max: f32,
+        blocks: impl Fn(u32, f32, f32) -> bool,
+    ) -> u32 {
+        let inv = dir.recip();
+        let mut hits = 0;
+        self.traverse(
+            |node| slab_hit(node, origin, inv, t_min, t_max),
+            |k| {
+                if let Some((t, u, v)) = intersect_uv(&self.triangles[k], origin, dir) {
+                    if t > t_min && t < t_max && blocks(self.original[k], u, v) {
+                        hits += 1;
+                    }
+                }
+                false
+            },
+        );
         hits
     }
 
@@ -141,6 +192,18 @@ impl Bvh {
 
     /// Nearest hit with `t > t_min`.
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, t_min: f32) -> Option<Hit> {
+        self.closest_hit_where(origin, dir, t_min, |_, _, _| true)
+    }
+
+    /// Nearest hit with `t > t_min` that `accept(index, u, v)` takes at its
+    /// barycentrics (an alpha-masked surface's opaque part).
+    pub fn closest_hit_where(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        t_min: f32,
+        accept: impl Fn(u32, f32, f32) -> bool,
+    ) -> Option<Hit> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -159,8 +222,8 @@ impl Bvh {
             if node.count > 0 {
                 let s = node.index as usize;
                 for (k, tri) in self.triangles[s..s + node.count as usize].iter().enumerate() {
-                    if let Some(t) = intersect(tri, origin, dir) {
-                        if t > t_min && best.is_none_or(|b| t < b.0) {
+                    if let Some((t, u, v)) = intersect_uv(tri, origin, dir) {
+                        if t > t_min && best.is_none_or(|b| t < b.0) && accept(self.original[s + k], u, v) {
                             best = Some((t, s + k));
                         }
                     }
@@ -232,6 +295,13 @@ pub fn ray_hits_box(min: Vec3, max: Vec3, origin: Vec3, inv: Vec3, t_min: f32, t
 /// Möller–Trumbore; returns the ray parameter of the hit.
 #[inline]
 pub fn intersect(tri: &[Vec3; 3], origin: Vec3, dir: Vec3) -> Option<f32> {
+    intersect_uv(tri, origin, dir).map(|(t, _, _)| t)
+}
+
+/// Möller–Trumbore; returns the ray parameter of the hit and its
+/// barycentrics `(u, v)` (weights `1 − u − v`, `u`, `v` of the corners).
+#[inline]
+pub fn intersect_uv(tri: &[Vec3; 3], origin: Vec3, dir: Vec3) -> Option<(f32, f32, f32)> {
     let e1 = tri[1] - tri[0];
     let e2 = tri[2] - tri[0];
     let p = dir.cross(e2);
@@ -250,7 +320,7 @@ pub fn intersect(tri: &[Vec3; 3], origin: Vec3, dir: Vec3) -> Option<f32> {
     if !(v >= 0.0 && u + v <= 1.0) {
         return None;
     }
-    Some(e2.dot(q) * inv_det)
+    Some((e2.dot(q) * inv_det, u, v))
 }
 
 #[cfg(test)]

@@ -42,7 +42,13 @@ pub fn pixel_receiver(
 ) -> Option<crate::oracle::Receiver> {
     let (o, d) = camera.ray(x, y, width, height);
     let (o, d) = (light_space.frame.to_frame(o), light_space.frame.dir_to_frame(d));
-    bvh.closest_hit(o, d, 0.0).map(|h| {
+    // An alpha-masked surface is seen where it is opaque, as it casts.
+    let hit = if light_space.caster_cutouts.is_empty() {
+        bvh.closest_hit(o, d, 0.0)
+    } else {
+        bvh.closest_hit_where(o, d, 0.0, |k, u, v| light_space.blocks_at(k as usize, u, v))
+    };
+    hit.map(|h| {
         let normal = if h.normal.dot(d) > 0.0 { -h.normal } else { h.normal };
         crate::oracle::Receiver { position: o + d * h.t, normal }
     })

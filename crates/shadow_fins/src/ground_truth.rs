@@ -39,6 +39,18 @@ impl<'a> GroundTruth<'a> {
         &self.bvh
     }
 
+    /// True when a caster blocks the segment `p + t·dir`, `t ∈ (t_min,
+    /// t_max)`: any triangle for solid casters, where its alpha passes the
+    /// cutoff at the crossing for an alpha-masked one ([`crate::cutout`]).
+    #[inline]
+    fn blocked(&self, p: glam::Vec3, dir: glam::Vec3, t_min: f32, t_max: f32) -> bool {
+        if self.scene.caster_cutouts.is_empty() {
+            self.bvh.any_hit(p, dir, t_min, t_max)
+        } else {
+            self.bvh.any_hit_where(p, dir, t_min, t_max, |k, u, v| self.scene.blocks_at(k as usize, u, v))
+        }
+    }
+
     /// Fraction of the disk visible from the receiver, in `[0, 1]`, counting only
     /// the part of the disk above the receiver's tangent plane when its normal
     /// is known.
@@ -75,7 +87,7 @@ impl<'a> GroundTruth<'a> {
                 }
                 above += 1;
                 let t_min = eps / dir.length().max(eps);
-                if !self.bvh.any_hit(p, dir, t_min, 1.0) {
+                if !self.blocked(p, dir, t_min, 1.0) {
                     visible += 1;
                 }
             }
@@ -95,7 +107,7 @@ impl<'a> GroundTruth<'a> {
                     above += 1;
                     // Segment p → target, t ∈ (ε, 1): excludes the receiver itself.
                     let t_min = eps / dir.length().max(eps);
-                    if !self.bvh.any_hit(p, dir, t_min, 1.0) {
+                    if !self.blocked(p, dir, t_min, 1.0) {
                         visible += 1;
                     }
                 }
@@ -108,7 +120,7 @@ impl<'a> GroundTruth<'a> {
                         continue;
                     }
                     above += 1;
-                    if !self.bvh.any_hit(p, dir, eps, far) {
+                    if !self.blocked(p, dir, eps, far) {
                         visible += 1;
                     }
                 }

@@ -8,6 +8,7 @@
 //! - [`light`]: disk, rectangle and sun lights and the light frame everything runs in;
 //! - [`sphere_light`]: sphere (point) lights, as six cube-face frames;
 //! - [`silhouette`], [`fins`], [`layers`], [`refine`]: the method's stages;
+//! - [`cutout`]: alpha-masked casters' holes (glTF `MASK` materials);
 //! - [`coverage`]: exact coverage with occluder fusion (beyond the paper):
 //!   per light sample, the depth complexity counted from potential
 //!   silhouette edges;
@@ -43,6 +44,7 @@ pub mod bvh;
 pub mod camera;
 pub mod cell_grid;
 pub mod coverage;
+pub mod cutout;
 pub mod default_view;
 pub mod error;
 pub mod fins;

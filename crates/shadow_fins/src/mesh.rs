@@ -107,6 +107,8 @@ pub struct Topology {
     pub positions: Vec<Vec3>,
     /// Non-degenerate faces, as welded vertex indices in the input winding.
     pub faces: Vec<[u32; 3]>,
+    /// Per face, the input triangle it is (its index in the mesh's triangles).
+    pub source_triangles: Vec<u32>,
     /// Unnormalised face normal `(b − a) × (c − a)` and `dot(normal, a)`, so that
     /// "faces a point `x`" is `dot(normal, x) > offset` with no per-frame work.
     pub face_planes: Vec<(Vec3, f32)>,
@@ -136,14 +138,16 @@ impl Topology {
     pub fn build(mesh: &Mesh) -> Self {
         let (positions, remap) = weld_positions(mesh.positions());
         let mut faces = Vec::with_capacity(mesh.triangle_count());
+        let mut source_triangles = Vec::with_capacity(mesh.triangle_count());
         let mut degenerate_faces = 0;
-        for tri in mesh.indices().chunks_exact(3) {
+        for (t, tri) in mesh.indices().chunks_exact(3).enumerate() {
             let f = [remap[tri[0] as usize], remap[tri[1] as usize], remap[tri[2] as usize]];
             let [a, b, c] = f.map(|i| positions[i as usize]);
             if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] || triangle_is_degenerate(a, b, c) {
                 degenerate_faces += 1;
             } else {
                 faces.push(f);
+                source_triangles.push(t as u32);
             }
         }
         let face_planes: Vec<(Vec3, f32)> = faces
@@ -218,6 +222,7 @@ impl Topology {
             bounds,
             positions,
             faces,
+            source_triangles,
             face_planes,
             vertex_normals,
             face_neighbors,

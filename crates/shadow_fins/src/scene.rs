@@ -22,6 +22,9 @@ pub struct SceneObject {
     pub casts_shadows: bool,
     /// Receives shadows: its depth counts for the reference plane `L0`.
     pub receives_shadows: bool,
+    /// Holes where its material's alpha is below the cutoff (an
+    /// alpha-masked material, [`crate::cutout`]); `None`: solid.
+    pub cutout: Option<crate::cutout::Cutout>,
 }
 
 impl SceneObject {
@@ -43,7 +46,15 @@ impl SceneObject {
         if !transform.is_finite() || !(det.abs() > 1e-20) {
             return Err(MeshError::BadTransform(det));
         }
-        Ok(Self { name: name.into(), mesh, topology, transform, casts_shadows: true, receives_shadows: true })
+        Ok(Self {
+            name: name.into(),
+            mesh,
+            topology,
+            transform,
+            casts_shadows: true,
+            receives_shadows: true,
+            cutout: None,
+        })
     }
 
     /// The object → world transform in f64.
@@ -190,6 +201,11 @@ pub struct LightSpaceScene {
     pub object_frames: Vec<ObjectToFrame>,
     /// Reference plane depth `L0`: the deepest receiver (so real receivers never lie beyond it).
     pub reference_depth: f32,
+    /// Per caster (same order as `casters`), its cut-out, or empty when no
+    /// caster has one ([`crate::cutout`]).
+    pub caster_cutouts: Vec<Option<crate::cutout::CasterCutout>>,
+    /// The alpha masks `caster_cutouts` index.
+    pub masks: Vec<std::sync::Arc<crate::cutout::AlphaMask>>,
     /// World-space diagonal of the scene's bounds.
     pub extent: f32,
 }
@@ -227,6 +243,8 @@ impl LightSpaceScene {
         let object_frames: Vec<ObjectToFrame> = scene.objects.iter().map(|o| ObjectToFrame::new(o, &frame)).collect();
         let mut casters = Vec::with_capacity(scene.triangle_count());
         let mut deepest = f32::NEG_INFINITY;
+        let cut = scene.objects.iter().any(|o| o.casts_shadows && o.cutout.is_some());
+        let (mut caster_cutouts, mut masks) = (Vec::new(), Vec::new());
         for (o, to_frame) in scene.objects.iter().zip(&object_frames) {
             let pts: Vec<Vec3> = o.topology.positions.iter().map(|&p| to_frame.point(p)).collect();
             if o.receives_shadows || o.casts_shadows {
@@ -234,11 +252,23 @@ impl LightSpaceScene {
             }
             if o.casts_shadows {
                 casters.extend(o.topology.faces.iter().map(|f| f.map(|i| pts[i as usize])));
+                if cut {
+                    match &o.cutout {
+                        Some(c) => {
+                            masks.push(c.mask.clone());
+                            let mask = masks.len() as u32 - 1;
+                            caster_cutouts.extend(
+                                c.face_uvs.iter().map(|uvs| Some(crate::cutout::CasterCutout { mask, uvs: *uvs })),
+                            );
+                        }
+                        None => caster_cutouts.extend(o.topology.faces.iter().map(|_| None)),
+                    }
+                }
             }
         }
         // A scene entirely behind the light still needs a positive L0.
         let reference_depth = if deepest > 0.0 { deepest } else { extent };
-        Self { light, frame, casters, object_frames, reference_depth, extent }
+        Self { light, frame, casters, object_frames, reference_depth, extent, caster_cutouts, masks }
     }
 
     /// The scene in every frame the light's maps are made in: one for a
@@ -269,6 +299,23 @@ impl LightSpaceScene {
         let k = Self::face_of(faces, p);
         let frame = &faces[k].frame;
         (k, crate::oracle::Receiver { position: frame.to_frame(p), normal: frame.dir_to_frame(n) })
+    }
+
+    /// The cut-out of caster `k`, if it has one.
+    #[inline]
+    pub fn cutout(&self, k: usize) -> Option<crate::cutout::CasterCutout> {
+        self.caster_cutouts.get(k).copied().flatten()
+    }
+
+    /// True when caster `k` blocks light at its barycentric point `(u, v)`
+    /// (weights `1 − u − v`, `u`, `v` of its corners): always for a solid
+    /// caster, where its alpha passes the cutoff for a masked one.
+    #[inline]
+    pub fn blocks_at(&self, k: usize, u: f32, v: f32) -> bool {
+        match self.cutout(k) {
+            None => true,
+            Some(c) => self.masks[c.mask as usize].opaque(c.uvs[0] * (1.0 - u - v) + c.uvs[1] * u + c.uvs[2] * v),
+        }
     }
 
     /// Moves the reference plane `L0` down to the deepest of `receivers` (light

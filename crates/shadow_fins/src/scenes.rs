@@ -67,10 +67,15 @@ pub enum SceneId {
     /// radius) above a table, seen from inside: shadows on the floor and on
     /// two walls, across the cube faces the sphere light is modelled by.
     LampRoom,
+    /// Five alpha-masked leaf cards (a leaf with three round holes cut from
+    /// a square card by its texture's alpha) standing and tilted over the
+    /// ground: light through the holes and around the blade, not the
+    /// card's square. `assets/leaf-cards.gltf` in the core's terms.
+    LeafCards,
 }
 
 impl SceneId {
-    pub const ALL: [SceneId; 13] = [
+    pub const ALL: [SceneId; 14] = [
         SceneId::BoxOverPlane,
         SceneId::NearContact,
         SceneId::RingPlate,
@@ -84,6 +89,7 @@ impl SceneId {
         SceneId::Figure,
         SceneId::GreebleTower,
         SceneId::LampRoom,
+        SceneId::LeafCards,
     ];
 
     /// The scenes lit by a light whose maps are one frame (every light but a
@@ -111,6 +117,7 @@ impl SceneId {
             SceneId::Figure => "figure",
             SceneId::GreebleTower => "greeble-tower",
             SceneId::LampRoom => "lamp-room",
+            SceneId::LeafCards => "leaf-cards",
         }
     }
 
@@ -215,6 +222,7 @@ fn build(id: SceneId) -> BuiltinScene {
         SceneId::Figure => figure(),
         SceneId::GreebleTower => greeble_tower(),
         SceneId::LampRoom => lamp_room(),
+        SceneId::LeafCards => leaf_cards(),
     };
     BuiltinScene { id, scene: Scene::new(objects), light, camera }
 }
@@ -267,6 +275,40 @@ fn lamp_room() -> (Vec<SceneObject>, Light, Camera) {
     }
     let light = Light::Sphere(SphereLight::new(Vec3::new(0.0, 2.0, 0.0), 0.2).expect("a valid lamp"));
     (objects, light, Camera::looking_at(Vec3::new(5.0, 3.6, 5.5), Vec3::new(-1.4, 1.0, -1.6)))
+}
+
+/// The cards of `assets/leaf-cards.gltf` (`shadow-fins-lab make-assets`):
+/// 0.6 × 0.9 m, their stems at the nodes' translations, turned by the
+/// nodes' rotations, the leaf mask at 128² with glTF's default cutoff 0.5.
+fn leaf_cards() -> (Vec<SceneObject>, Light, Camera) {
+    use crate::cutout::{AlphaMask, Cutout};
+    let (card, uvs) = shapes::card(0.6, 0.9);
+    let card = std::sync::Arc::new(card);
+    let topology = std::sync::Arc::new(crate::mesh::Topology::build(&card));
+    let mask = AlphaMask::new(128, 128, shapes::leaf_alpha(128), 1.0, 0.5).expect("the leaf mask is valid");
+    let cutout = Cutout::new(std::sync::Arc::new(mask), &uvs, &card, &topology).expect("one UV per corner");
+    let mut objects = vec![ground(8.0)];
+    let cards: [(Vec3, [f32; 4]); 5] = [
+        (Vec3::new(0.0, 0.3, 0.0), [0.0, 0.2, 0.0, 1.0]),
+        (Vec3::new(0.7, 0.5, 0.3), [-0.3, 0.5, 0.0, 1.0]),
+        (Vec3::new(-0.6, 0.25, 0.5), [0.2, -0.6, 0.1, 1.0]),
+        (Vec3::new(0.2, 0.9, -0.6), [-0.6, 0.1, 0.2, 1.0]),
+        (Vec3::new(-0.3, 1.2, -0.2), [-0.9, 0.3, 0.0, 1.0]),
+    ];
+    for (i, (p, q)) in cards.into_iter().enumerate() {
+        let rotation = Quat::from_array(q).normalize();
+        let mut o = SceneObject::shared(
+            format!("card-{i}"),
+            card.clone(),
+            topology.clone(),
+            Affine3A::from_rotation_translation(rotation, p),
+        )
+        .expect("valid");
+        o.cutout = Some(cutout.clone());
+        objects.push(o);
+    }
+    let camera = Camera::looking_at(Vec3::new(2.5, 2.2, 3.5), Vec3::new(0.0, 0.6, 0.0));
+    (objects, disk(Vec3::new(0.5, 4.0, 0.6), 0.4), camera)
 }
 
 fn placed(p: Vec3, rotation: Quat, scale: Vec3) -> Affine3A {

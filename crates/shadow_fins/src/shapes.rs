@@ -194,6 +194,45 @@ pub fn signed_volume(mesh: &Mesh) -> f32 {
     mesh.triangles().map(|[a, b, c]| a.dot(b.cross(c)) / 6.0).sum()
 }
 
+/// The leaf's three holes: centre `(u, v)` in the texture and radius in
+/// texels at 128².
+pub const LEAF_HOLES: [(f32, f32, f32); 3] = [(0.35, 0.4, 7.0), (0.62, 0.55, 6.0), (0.52, 0.28, 5.0)];
+
+/// A `size`² alpha mask of a leaf, tip at the top (`v = 0`) and stem at the
+/// bottom: 255 on the blade and the stem, 0 outside it and in three round
+/// holes ([`LEAF_HOLES`]). Row-major from `v = 0`: the alpha channel of
+/// `assets/leaf-cards.gltf`'s leaf texture and of the `leaf-cards` scene.
+pub fn leaf_alpha(size: u32) -> Vec<u8> {
+    let scale = size as f32 / 128.0;
+    (0..size * size)
+        .map(|i| {
+            let (u, v) = (((i % size) as f32 + 0.5) / size as f32, ((i / size) as f32 + 0.5) / size as f32);
+            let x = (u - 0.5) * 2.0;
+            // The blade from v = 0.05 to 0.9, widest in its middle; then the stem.
+            let s = (v - 0.05) / 0.85;
+            let blade = (0.0..=1.0).contains(&s) && x.abs() < 0.9 * 4.0 * s * (1.0 - s);
+            let stem = v > 0.85 && x.abs() < 0.05;
+            let hole = LEAF_HOLES.iter().any(|&(cu, cv, r)| {
+                let (dx, dy) = ((u - cu) * size as f32, (v - cv) * size as f32);
+                dx * dx + dy * dy < (r * scale) * (r * scale)
+            });
+            if (blade || stem) && !hole { 255 } else { 0 }
+        })
+        .collect()
+}
+
+/// A `width × height` card in the XY plane facing +Z, its bottom edge's
+/// middle at the origin, with the UVs of a texture standing on it (`v = 0`
+/// at the top): positions, indices and one UV per vertex.
+pub fn card(width: f32, height: f32) -> (Mesh, Vec<glam::Vec2>) {
+    let h = width / 2.0;
+    let positions =
+        vec![Vec3::new(-h, 0.0, 0.0), Vec3::new(h, 0.0, 0.0), Vec3::new(h, height, 0.0), Vec3::new(-h, height, 0.0)];
+    let uvs = vec![glam::Vec2::new(0.0, 1.0), glam::Vec2::new(1.0, 1.0), glam::Vec2::new(1.0, 0.0), glam::Vec2::ZERO];
+    let mesh = Mesh::new(positions, vec![0, 1, 2, 0, 2, 3]).expect("a card is valid by construction");
+    (mesh, uvs)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,7 +3,8 @@
 //! A face faces the light when its normal points towards the light centre (disk)
 //! or against the light's travel direction (sun). An edge is a silhouette when:
 //! - it has two faces and exactly one faces the light;
-//! - it has one face (boundary) and that face faces the light;
+//! - it has one face (boundary) and that face faces the light, or the mesh
+//!   is open (its back faces are in the maps too): then oriented by the back;
 //! - it has three or more faces (non-manifold) and they disagree: at least one
 //!   faces the light and at least one does not. The first light-facing face
 //!   orients it. (All-facing non-manifold edges cast no fins, by choice: they lie
@@ -74,7 +75,9 @@ pub struct SilhouetteScratch {
 /// its faces to `face_patches` (in face order; [`NO_PATCH`] for faces outside
 /// the maps). Patch ids start at `patch_base`; returns how many were made.
 ///
-/// `vertex_base` makes vertex ids unique across objects.
+/// `vertex_base` makes vertex ids unique across objects. An alpha-masked
+/// object's silhouettes are drawn from its `outline` ([`crate::cutout`])
+/// instead of its mesh edges: the outline's vertex ids follow the mesh's.
 #[allow(clippy::too_many_arguments)]
 pub fn extract_object_silhouettes(
     topology: &Topology,
@@ -85,6 +88,7 @@ pub fn extract_object_silhouettes(
     scratch: &mut SilhouetteScratch,
     face_patches: &mut Vec<u32>,
     out: &mut Vec<SilhouetteEdge>,
+    outline: Option<&crate::cutout::Outline>,
 ) -> u32 {
     let SilhouetteScratch { facing, stack } = scratch;
     facing.clear();
@@ -123,25 +127,41 @@ pub fn extract_object_silhouettes(
     }
     let face_patches = &face_patches[first..];
 
+    // Vertex ids, light-frame points and normals of the edges' ends: the
+    // mesh's own, or for an alpha-masked mesh its outline's, numbered after
+    // the mesh's.
+    let (positions, normals, id_base) = match outline {
+        Some(o) => (&o.positions, &o.normals, vertex_base + topology.positions.len() as u32),
+        None => (&topology.positions, &topology.vertex_normals, vertex_base),
+    };
     let mut emit = |v0: u32, v1: u32, forward: bool, face: u32, crease: bool| {
         // Orient along the light-facing face's winding.
         let (va, vb) = if forward { (v0, v1) } else { (v1, v0) };
         out.push(SilhouetteEdge {
-            a: to_frame.point(topology.positions[va as usize]),
-            b: to_frame.point(topology.positions[vb as usize]),
-            vertex_a: vertex_base + va,
-            vertex_b: vertex_base + vb,
-            normal_a: to_frame.normal(topology.vertex_normals[va as usize]),
-            normal_b: to_frame.normal(topology.vertex_normals[vb as usize]),
+            a: to_frame.point(positions[va as usize]),
+            b: to_frame.point(positions[vb as usize]),
+            vertex_a: id_base + va,
+            vertex_b: id_base + vb,
+            normal_a: to_frame.normal(normals[va as usize]),
+            normal_b: to_frame.normal(normals[vb as usize]),
             patch: face_patches[face as usize],
             crease,
         });
     };
-    for (e, &crease) in topology.edges.iter().zip(&topology.crease) {
+    let (edges, creases) = match outline {
+        Some(o) => (&o.edges, &o.crease),
+        None => (&topology.edges, &topology.crease),
+    };
+    for (e, &crease) in edges.iter().zip(creases) {
         let f0 = facing[e.faces[0] as usize];
         if e.faces[1] == NO_FACE {
+            // A boundary is the outline of its face's side towards the light:
+            // the face's own when it faces the light, the back's when an open
+            // mesh's back face is in the maps.
             if f0 {
                 emit(e.vertices[0], e.vertices[1], e.forward[0], e.faces[0], true);
+            } else if !closed {
+                emit(e.vertices[0], e.vertices[1], !e.forward[0], e.faces[0], true);
             }
             continue;
         }
@@ -151,11 +171,14 @@ pub fn extract_object_silhouettes(
             emit(e.vertices[0], e.vertices[1], e.forward[k], e.faces[k], crease);
         }
     }
-    for e in &topology.non_manifold_edges {
-        let first_facing = e.faces.iter().find(|(f, _)| facing[*f as usize]);
-        let any_back = e.faces.iter().any(|(f, _)| !facing[*f as usize]);
-        if let (Some(&(face, forward)), true) = (first_facing, any_back) {
-            emit(e.vertices[0], e.vertices[1], forward, face, true);
+    // An outline has its non-manifold edges' stretches among its edges.
+    if outline.is_none() {
+        for e in &topology.non_manifold_edges {
+            let first_facing = e.faces.iter().find(|(f, _)| facing[*f as usize]);
+            let any_back = e.faces.iter().any(|(f, _)| !facing[*f as usize]);
+            if let (Some(&(face, forward)), true) = (first_facing, any_back) {
+                emit(e.vertices[0], e.vertices[1], forward, face, true);
+            }
         }
     }
     patches

@@ -5,6 +5,7 @@ mod core {
     mod contact;
     mod convergence;
     mod coverage;
+    mod cutout;
     mod default_view;
     mod gltf_files;
     mod ground_truth_closed_form;

@@ -141,8 +141,8 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
         };
         if !snapshot.approximated.is_empty() {
             skipped += &format!(
-                "; {} alpha-masked meshes modelled solid, or posed meshes not posable yet \
-                 (the ground truth shares that)",
+                "; {} alpha-masked meshes whose mask is unreadable (modelled solid), or posed \
+                 meshes not posable yet (the ground truth shares that)",
                 snapshot.approximated.len()
             );
         }

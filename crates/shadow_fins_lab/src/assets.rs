@@ -901,30 +901,20 @@ fn wood_png(size: u32) -> Result<Vec<u8>, LabError> {
     png_bytes(size, png::ColorType::Rgb, &data)
 }
 
-/// The leaf's three holes: centre (u, v) in the texture and radius in texels (at 128²).
-const LEAF_HOLES: [(f32, f32, f32); 3] = [(0.35, 0.4, 7.0), (0.62, 0.55, 6.0), (0.52, 0.28, 5.0)];
-
-/// A `size`² RGBA leaf, tip at the top (v = 0) and stem at the bottom: alpha 1
-/// on the blade and the stem, 0 outside it and in three round holes; a darker
-/// midrib. The RGB outside is the leaf's green, so filtering leaves no fringe.
+/// A `size`² RGBA leaf, tip at the top (v = 0) and stem at the bottom: its
+/// alpha is the core's [`shadow_fins::shapes::leaf_alpha`] (the blade and
+/// stem opaque, three round holes), which the core's `leaf-cards` scene
+/// cuts with too; a darker midrib. The RGB outside is the leaf's green, so
+/// filtering leaves no fringe.
 fn leaf_png(size: u32) -> Result<Vec<u8>, LabError> {
-    let scale = size as f32 / 128.0;
+    let alpha = shadow_fins::shapes::leaf_alpha(size);
     let data: Vec<u8> = (0..size * size)
         .flat_map(|i| {
             let (u, v) = (((i % size) as f32 + 0.5) / size as f32, ((i / size) as f32 + 0.5) / size as f32);
-            let x = (u - 0.5) * 2.0;
-            // The blade from v = 0.05 to 0.9, widest in its middle; then the stem.
-            let s = (v - 0.05) / 0.85;
-            let blade = (0.0..=1.0).contains(&s) && x.abs() < 0.9 * 4.0 * s * (1.0 - s);
-            let stem = v > 0.85 && x.abs() < 0.05;
-            let hole = LEAF_HOLES.iter().any(|&(cu, cv, r)| {
-                let (dx, dy) = ((u - cu) * size as f32, (v - cv) * size as f32);
-                dx * dx + dy * dy < (r * scale) * (r * scale)
-            });
-            let opaque = (blade || stem) && !hole;
+            let (x, s) = ((u - 0.5) * 2.0, (v - 0.05) / 0.85);
             let rib = x.abs() < 0.04 && s > 0.05;
             let [r, g, b] = if rib { [48, 96, 30] } else { [70 + ((i * 7) % 13) as u8, 132, 44] };
-            [r, g, b, if opaque { 255 } else { 0 }]
+            [r, g, b, alpha[i as usize]]
         })
         .collect();
     png_bytes(size, png::ColorType::Rgba, &data)

@@ -21,7 +21,9 @@ use crate::LabError;
 #[derive(Args, Debug, Clone)]
 pub struct SceneArgs {
     /// Built-in scene: box-over-plane, near-contact, ring-plate, large-light,
-    /// tilted-receiver, star-prism, sphere-grid, dense-blob.
+    /// tilted-receiver, star-prism, sphere-grid, dense-blob, demo, kitbash,
+    /// figure, greeble-tower, lamp-room (a sphere light), leaf-cards
+    /// (alpha-masked cards).
     #[arg(long, default_value = "box-over-plane", conflicts_with = "gltf")]
     pub scene: String,
     /// A glTF/GLB file instead of a built-in scene (needs a light: --light-center or --sun-direction).

@@ -116,6 +116,9 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
                 storage_buffer_sized(false, None),
                 storage_buffer_read_only_sized(false, None),
                 storage_buffer_read_only_sized(false, None),
+                // The casters' cut-outs and alpha masks (`cutout.wgsl`).
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
             ),
         ),
     );
@@ -173,6 +176,8 @@ struct CoverageGpu {
     items: Option<Buffer>,
     samples: Option<Buffer>,
     work: Option<Buffer>,
+    cutouts: Option<Buffer>,
+    mask_words: Option<Buffer>,
     lists_bind_group: Option<BindGroup>,
     /// (raster work items, texels, 32-sample words)
     counts: (u32, u32, u32),
@@ -238,6 +243,8 @@ fn prepare_light(
     upload(&mut g.items, "fin_coverage_cell_items", bytemuck::cast_slice(&c.cell_items));
     upload(&mut g.samples, "fin_coverage_samples", bytemuck::cast_slice(&c.sample_planes()));
     upload(&mut g.work, "fin_coverage_raster_work", bytemuck::cast_slice(&c.raster_work));
+    upload(&mut g.cutouts, "fin_coverage_cutouts", bytemuck::cast_slice(&c.cutouts));
+    upload(&mut g.mask_words, "fin_coverage_mask_words", bytemuck::cast_slice(&c.mask_words));
     queue.write_buffer(g.params.as_ref().unwrap(), 0, bytemuck::bytes_of(&params));
     g.lists_bind_group = Some(device.create_bind_group(
         "fin_coverage_lists_bind_group",
@@ -247,6 +254,8 @@ fn prepare_light(
             g.lists.as_ref().unwrap().as_entire_binding(),
             g.casters.as_ref().unwrap().as_entire_binding(),
             g.work.as_ref().unwrap().as_entire_binding(),
+            g.cutouts.as_ref().unwrap().as_entire_binding(),
+            g.mask_words.as_ref().unwrap().as_entire_binding(),
         )),
     ));
     g.counts = (c.raster_work.len() as u32, texels as u32, c.samples.len().div_ceil(32) as u32);

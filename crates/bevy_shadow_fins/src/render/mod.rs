@@ -47,6 +47,7 @@ pub(crate) use forward::PbrFragment;
 
 pub(crate) fn build(app: &mut App) {
     load_shader_library!(app, "shaders/fin_types.wgsl");
+    load_shader_library!(app, "shaders/cutout.wgsl");
     embedded_asset!(app, "shaders/maps.wgsl");
     embedded_asset!(app, "shaders/visibility.wgsl");
     app.add_plugins((
@@ -182,6 +183,9 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
                 storage_buffer_sized(false, None),
                 storage_buffer_read_only_sized(false, None),
                 storage_buffer_read_only_sized(false, None),
+                // The casters' cut-outs and alpha masks (`cutout.wgsl`).
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
             ),
         ),
     );
@@ -230,6 +234,8 @@ struct FinMapsGpu {
     maps: Option<Buffer>,
     casters: Option<Buffer>,
     fins: Option<Buffer>,
+    cutouts: Option<Buffer>,
+    mask_words: Option<Buffer>,
     bind_group: Option<BindGroup>,
     counts: (u32, u32, u64),
     mode: MapsSource,
@@ -344,6 +350,15 @@ fn prepare_light_maps(
     };
     ensure(&mut gpu.casters, device, "fin_casters", caster_bytes.max(64), storage, cap);
     ensure(&mut gpu.fins, device, "fin_fins", fin_bytes.max(64), storage, cap);
+    // Alpha-masked casters' cut-outs (CPU extraction only; empty otherwise).
+    let cutout_bytes: &[u8] = bytemuck::cast_slice(&f.cutouts);
+    let mask_bytes: &[u8] = bytemuck::cast_slice(&f.mask_words);
+    ensure(&mut gpu.cutouts, device, "fin_cutouts", (cutout_bytes.len() as u64).max(64), storage, cap);
+    ensure(&mut gpu.mask_words, device, "fin_mask_words", (mask_bytes.len() as u64).max(64), storage, cap);
+    if !cutout_bytes.is_empty() {
+        queue.write_buffer(gpu.cutouts.as_ref().unwrap(), 0, cutout_bytes);
+        queue.write_buffer(gpu.mask_words.as_ref().unwrap(), 0, mask_bytes);
+    }
     gpu.mode = match &f.gpu {
         None => MapsSource::Cpu,
         Some(scene) if scene.totals[1] == 0 => MapsSource::Nothing,
@@ -387,6 +402,8 @@ fn prepare_light_maps(
             gpu.maps.as_ref().unwrap().as_entire_binding(),
             gpu.casters.as_ref().unwrap().as_entire_binding(),
             gpu.fins.as_ref().unwrap().as_entire_binding(),
+            gpu.cutouts.as_ref().unwrap().as_entire_binding(),
+            gpu.mask_words.as_ref().unwrap().as_entire_binding(),
         )),
     ));
     gpu.counts = (f.casters.len() as u32, f.fins.len() as u32, texels);

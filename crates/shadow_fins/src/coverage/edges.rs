@@ -77,7 +77,9 @@ fn facing(normal: Vec3, offset: f32, projection: Projection) -> Facing {
     }
 }
 
-/// Every potential silhouette edge of every casting object, light frame.
+/// Every potential silhouette edge of every casting object, light frame; an
+/// alpha-masked object's from its outline ([`crate::cutout::Outline`]),
+/// whose one-face edges stand for the border of its opaque region.
 /// `near` clips disk-light casters at the light's plane; its cuts become
 /// boundary edges.
 pub fn potential_silhouette_edges(scene: &Scene, light_space: &LightSpaceScene, near: f32) -> Vec<CoverageEdge> {
@@ -105,21 +107,54 @@ pub fn potential_silhouette_edges(scene: &Scene, light_space: &LightSpaceScene, 
             let v = f.into_iter().find(|&v| v != v0 && v != v1).unwrap_or(f[0]);
             pts[v as usize]
         };
-        for e in &t.edges {
-            let [v0, v1] = e.vertices;
-            let (a, b) = (pts[v0 as usize], pts[v1 as usize]);
-            if e.faces[1] == NO_FACE {
-                out.push(CoverageEdge { a, b, third: [third(e.faces[0], v0, v1), Vec3::ZERO], faces: 1 });
-                continue;
+        if let Some(cutout) = &object.cutout {
+            // An alpha-masked object: its outline's edges ([`crate::cutout`]).
+            let o = &cutout.outline;
+            for e in &o.edges {
+                let [v0, v1] = e.vertices;
+                let (pa, pb) = (o.positions[v0 as usize], o.positions[v1 as usize]);
+                let (a, b) = (to_frame.point(pa), to_frame.point(pb));
+                if e.faces[1] == NO_FACE {
+                    // A point of its face's plane on the opaque side: left of
+                    // the edge walked the face's way, seen from the face's front.
+                    let (n, _) = t.face_planes[e.faces[0] as usize];
+                    let walk = if e.forward[0] { pb - pa } else { pa - pb };
+                    let side = n.normalize_or_zero().cross(walk.normalize_or_zero()) * n.length().sqrt();
+                    let inside = to_frame.point(0.5 * (pa + pb) + side);
+                    out.push(CoverageEdge { a, b, third: [inside, Vec3::ZERO], faces: 1 });
+                    continue;
+                }
+                let (f0, f1) = (facings[e.faces[0] as usize], facings[e.faces[1] as usize]);
+                if f0 == f1 && f0 != Facing::Cuts {
+                    continue;
+                }
+                // The faces' own third corners: off the mesh edge the stretch lies on.
+                let third_of = |face: u32| {
+                    let f = t.faces[face as usize];
+                    let [x, y, z] = f.map(|i| pts[i as usize]);
+                    // The corner farthest from the stretch's line.
+                    let d = |p: Vec3| (p - a).cross(b - a).length_squared();
+                    if d(x) >= d(y) && d(x) >= d(z) { x } else if d(y) >= d(z) { y } else { z }
+                };
+                out.push(CoverageEdge { a, b, third: [third_of(e.faces[0]), third_of(e.faces[1])], faces: 2 });
             }
-            let (f0, f1) = (facings[e.faces[0] as usize], facings[e.faces[1] as usize]);
-            if f0 == f1 && f0 != Facing::Cuts {
-                continue;
+        } else {
+            for e in &t.edges {
+                let [v0, v1] = e.vertices;
+                let (a, b) = (pts[v0 as usize], pts[v1 as usize]);
+                if e.faces[1] == NO_FACE {
+                    out.push(CoverageEdge { a, b, third: [third(e.faces[0], v0, v1), Vec3::ZERO], faces: 1 });
+                    continue;
+                }
+                let (f0, f1) = (facings[e.faces[0] as usize], facings[e.faces[1] as usize]);
+                if f0 == f1 && f0 != Facing::Cuts {
+                    continue;
+                }
+                let third = [third(e.faces[0], v0, v1), third(e.faces[1], v0, v1)];
+                out.push(CoverageEdge { a, b, third, faces: 2 });
             }
-            let third = [third(e.faces[0], v0, v1), third(e.faces[1], v0, v1)];
-            out.push(CoverageEdge { a, b, third, faces: 2 });
         }
-        for e in &t.non_manifold_edges {
+        for e in t.non_manifold_edges.iter().filter(|_| object.cutout.is_none()) {
             let [v0, v1] = e.vertices;
             let (a, b) = (pts[v0 as usize], pts[v1 as usize]);
             for &(face, _) in &e.faces {

@@ -176,7 +176,7 @@ impl<'a> CoverageModel<'a> {
         let depth_lists = match settings.reference {
             ReferenceCount::Exact => None,
             ReferenceCount::Raster { resolution, depths } => {
-                Some(DepthLists::new(&light_space.casters, &light_space.frame, near, resolution, depths))
+                Some(DepthLists::new(light_space, near, resolution, depths))
             }
         };
         let margin = depth_lists.as_ref().map_or(0.0, |d| 1.5 * d.region.texel);
@@ -306,11 +306,15 @@ impl<'a> CoverageModel<'a> {
     /// the light point (a disk or a sphere's outline), or out of the scene
     /// (the sun).
     fn count_to_light(&self, shape: LightShape, p: Vec3, u: Vec3, eps: f32) -> u32 {
-        match shape {
-            LightShape::Disk { .. } | LightShape::Outline { .. } => {
-                self.bvh.count_hits(p, u, eps / u.length().max(eps), 1.0)
-            }
-            LightShape::Sun { .. } => self.bvh.count_hits(p, u, eps, self.light_space.extent * 4.0 + p.z.abs()),
+        let (t_min, t_max) = match shape {
+            LightShape::Disk { .. } | LightShape::Outline { .. } => (eps / u.length().max(eps), 1.0),
+            LightShape::Sun { .. } => (eps, self.light_space.extent * 4.0 + p.z.abs()),
+        };
+        let ls = self.light_space;
+        if ls.caster_cutouts.is_empty() {
+            self.bvh.count_hits(p, u, t_min, t_max)
+        } else {
+            self.bvh.count_hits_where(p, u, t_min, t_max, |k, a, b| ls.blocks_at(k as usize, a, b))
         }
     }
 

@@ -10,11 +10,12 @@
 //! most `K + K/4` casters (the near and far lists), up to
 //! [`super::MAX_REFERENCE_COUNT`].
 
-use glam::{Vec2, Vec3};
+use glam::Vec2;
 
 use crate::{
     light::LightFrame,
     oracle::{MapRegion, MapTriangle},
+    scene::LightSpaceScene,
 };
 
 /// Where `D(r)` comes from.
@@ -59,9 +60,10 @@ pub struct DepthLists {
 impl DepthLists {
     /// Rasterises every caster triangle (both sides: every crossing counts)
     /// at texel centres, clipped at the near plane like the fins' maps.
-    pub fn new(casters: &[[Vec3; 3]], frame: &LightFrame, near: f32, resolution: u32, depths: u32) -> Self {
+    pub fn new(light_space: &LightSpaceScene, near: f32, resolution: u32, depths: u32) -> Self {
+        let frame = &light_space.frame;
         let depths = depths.clamp(1, 64) as usize;
-        let triangles = map_triangles(casters, frame, near);
+        let triangles = map_triangles(light_space, near);
         let region = covering_region(&triangles, resolution, frame);
         let resolution = region.resolution;
         let far_depths = far_list_length(depths as u32) as usize;
@@ -75,7 +77,7 @@ impl DepthLists {
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     let q = region.texel_center(x, y);
-                    if !owns(&t.corners, q) {
+                    if !owns(&t.corners, q) || !t.opaque_at(q, &light_space.masks) {
                         continue;
                     }
                     let d = t.depth_at(q);
@@ -129,9 +131,15 @@ impl DepthLists {
 
 /// Every caster triangle, both sides, in map space, clipped at the near plane
 /// (what the depth lists rasterise, on the CPU and on the GPU).
-pub fn map_triangles(casters: &[[Vec3; 3]], frame: &LightFrame, near: f32) -> Vec<MapTriangle> {
+pub fn map_triangles(light_space: &LightSpaceScene, near: f32) -> Vec<MapTriangle> {
+    let frame = &light_space.frame;
     let perspective = frame.is_perspective();
-    casters.iter().flat_map(|t| MapTriangle::clipped(t, frame, near, perspective)).collect()
+    light_space
+        .casters
+        .iter()
+        .enumerate()
+        .flat_map(|(k, t)| MapTriangle::clipped_with_cutout(t, light_space.cutout(k), frame, near, perspective))
+        .collect()
 }
 
 /// The square of map space the depth lists cover: every caster, a perspective
@@ -175,6 +183,7 @@ fn insert_sorted(list: &mut [f32], d: f32) {
 
 #[cfg(test)]
 mod tests {
+    use glam::Vec3;
     use super::*;
 
     #[test]
@@ -207,13 +216,24 @@ mod tests {
     #[test]
     fn counts_are_exact_in_both_lists_and_bounded_between_them() {
         use crate::light::{DiskLight, LightFrame};
-        let frame = LightFrame::disk(&DiskLight::new(Vec3::ZERO, Vec3::NEG_Y, 0.5).unwrap());
+        let light = DiskLight::new(Vec3::ZERO, Vec3::NEG_Y, 0.5).unwrap();
+        let frame = LightFrame::disk(&light);
         let square = |z: f32| {
             let (a, b, c, d) = (Vec3::new(-z, -z, z), Vec3::new(z, -z, z), Vec3::new(z, z, z), Vec3::new(-z, z, z));
             [[a, b, c], [a, c, d]]
         };
         let casters: Vec<[Vec3; 3]> = (1..=35).flat_map(|k| square(k as f32 * 0.25)).collect();
-        let lists = DepthLists::new(&casters, &frame, 0.01, 16, DEPTH_LIST_LENGTH);
+        let ls = LightSpaceScene {
+            light: crate::light::Light::Disk(light),
+            frame,
+            casters,
+            object_frames: Vec::new(),
+            reference_depth: 10.0,
+            caster_cutouts: Vec::new(),
+            masks: Vec::new(),
+            extent: 20.0,
+        };
+        let lists = DepthLists::new(&ls, 0.01, 16, DEPTH_LIST_LENGTH);
         assert_eq!((lists.depths, far_list_length(DEPTH_LIST_LENGTH)), (24, 6));
         let texel = lists.texel_of(Vec2::new(0.013, 0.007)).unwrap();
         for k in 0..=36u32 {

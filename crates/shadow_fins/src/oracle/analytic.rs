@@ -53,7 +53,7 @@ impl<'m, 'a> AnalyticIndex<'m, 'a> {
         for &id in self.grid.cell(q) {
             let id = id as usize;
             if let Some(tri) = m.casters.get(id) {
-                if tri.contains(q) {
+                if tri.contains(q) && tri.opaque_at(q, &m.light_space.masks) {
                     let d = tri.depth_at(q);
                     if d > m.near {
                         out[m.caster_layers[id] as usize].add_caster(d);

@@ -2,6 +2,7 @@
 
 use glam::{Vec2, Vec3};
 
+use crate::cutout::{AlphaMask, CasterCutout};
 use crate::light::LightFrame;
 
 /// A caster triangle in map space with its light-frame plane, so the depth at
@@ -16,6 +17,18 @@ pub struct MapTriangle {
     pub min_depth: f32,
     pub max_depth: f32,
     perspective: bool,
+    /// An alpha-masked caster's holes ([`crate::cutout`]).
+    pub cutout: Option<MapCutout>,
+}
+
+/// The cut-out of one map triangle: its mask (an index into the scene's
+/// masks), the UVs at its own corners and the corners' light-frame depths,
+/// which perspective-correct interpolation needs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MapCutout {
+    pub mask: u32,
+    pub uvs: [Vec2; 3],
+    pub depths: [f32; 3],
 }
 
 impl MapTriangle {
@@ -28,8 +41,25 @@ impl MapTriangle {
     /// inside test loses every digit). Returns the fan of the clipped
     /// polygon; edge-on triangles are dropped.
     pub fn clipped(tri: &[Vec3; 3], frame: &LightFrame, near: f32, perspective: bool) -> Vec<MapTriangle> {
+        Self::clipped_with_cutout(tri, None, frame, near, perspective)
+    }
+
+    /// [`MapTriangle::clipped`] for a caster that may have a cut-out: each
+    /// piece carries the UVs at its own corners (a clipped corner's by its
+    /// barycentrics in the original triangle, which it lies on).
+    pub fn clipped_with_cutout(
+        tri: &[Vec3; 3],
+        cutout: Option<CasterCutout>,
+        frame: &LightFrame,
+        near: f32,
+        perspective: bool,
+    ) -> Vec<MapTriangle> {
         let normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
         let offset = normal.dot(tri[0]);
+        let uv_at = |c: &CasterCutout, p: Vec3| {
+            let b = barycentrics_3d(tri, p);
+            c.uvs[0] * b.x + c.uvs[1] * b.y + c.uvs[2] * b.z
+        };
         let make = |p: [Vec3; 3]| {
             let corners = p.map(|v| frame.map(v));
             let area = (corners[1] - corners[0]).perp_dot(corners[2] - corners[0]);
@@ -41,6 +71,7 @@ impl MapTriangle {
                 min_depth,
                 max_depth,
                 perspective,
+                cutout: cutout.map(|c| MapCutout { mask: c.mask, uvs: p.map(|v| uv_at(&c, v)), depths: p.map(|v| v.z) }),
             })
         };
         let window = frame.face_window_planes();
@@ -79,10 +110,44 @@ impl MapTriangle {
         if z.is_finite() { z.clamp(self.min_depth, self.max_depth) } else { self.min_depth }
     }
 
+    /// True when the triangle blocks light at the covered map point `q`:
+    /// always for a solid caster; for a masked one where the alpha at the
+    /// UV interpolated perspective-correctly, `Σ (bᵢ/zᵢ) uvᵢ / Σ bᵢ/zᵢ`
+    /// over `q`'s barycentrics `bᵢ` (linearly under an orthographic map),
+    /// passes the cutoff.
+    #[inline]
+    pub fn opaque_at(&self, q: Vec2, masks: &[std::sync::Arc<AlphaMask>]) -> bool {
+        let Some(c) = self.cutout else {
+            return true;
+        };
+        let [a, b, d] = self.corners;
+        let area = (b - a).perp_dot(d - a);
+        let mut w = Vec3::new((d - b).perp_dot(q - b), (a - d).perp_dot(q - d), (b - a).perp_dot(q - a)) / area;
+        if self.perspective {
+            w /= Vec3::from(c.depths).max(Vec3::splat(f32::MIN_POSITIVE));
+        }
+        let uv = (c.uvs[0] * w.x + c.uvs[1] * w.y + c.uvs[2] * w.z) / (w.x + w.y + w.z);
+        masks.get(c.mask as usize).is_none_or(|m| m.opaque(uv))
+    }
+
     pub fn bounds(&self) -> (Vec2, Vec2) {
         let [a, b, c] = self.corners;
         (a.min(b).min(c), a.max(b).max(c))
     }
+}
+
+/// Barycentric weights of `p` (on the triangle's plane) for its corners.
+fn barycentrics_3d(tri: &[Vec3; 3], p: Vec3) -> Vec3 {
+    let (e1, e2, ep) = (tri[1] - tri[0], tri[2] - tri[0], p - tri[0]);
+    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let (dp1, dp2) = (ep.dot(e1), ep.dot(e2));
+    let det = d11 * d22 - d12 * d12;
+    if !(det.abs() > 0.0) {
+        return Vec3::new(1.0, 0.0, 0.0);
+    }
+    let v = (d22 * dp1 - d12 * dp2) / det;
+    let w = (d11 * dp2 - d12 * dp1) / det;
+    Vec3::new(1.0 - v - w, v, w)
 }
 
 /// The part of a polygon where `side(p) >= 0` (Sutherland–Hodgman, one plane).

@@ -19,7 +19,7 @@ mod raster;
 use glam::{Vec2, Vec3};
 
 pub use analytic::AnalyticIndex;
-pub use map_geometry::MapTriangle;
+pub use map_geometry::{MapCutout, MapTriangle};
 pub use raster::{MapRegion, RASTER_MAP_LIMIT, RasterMaps};
 
 use crate::{
@@ -345,9 +345,11 @@ impl FinExtractor {
                     &mut self.scratch,
                     &mut self.face_patches,
                     &mut self.silhouettes,
+                    object.cutout.as_ref().map(|c| &*c.outline),
                 );
             }
-            vertex_base += object.topology.positions.len() as u32;
+            vertex_base += object.topology.positions.len() as u32
+                + object.cutout.as_ref().map_or(0, |c| c.outline.positions.len() as u32);
         }
         self.patch_count = patches;
         // A sphere light's face keeps the silhouettes that can shade it.
@@ -427,9 +429,10 @@ impl<'a> FinShadowModel<'a> {
         let near = near_depth(light_space);
         let perspective = light_space.frame.is_perspective();
         let (mut casters, mut caster_layers) = (Vec::new(), Vec::new());
-        for (tri, &patch) in light_space.casters.iter().zip(&ex.face_patches) {
+        for (k, (tri, &patch)) in light_space.casters.iter().zip(&ex.face_patches).enumerate() {
             if patch != NO_PATCH {
-                for t in MapTriangle::clipped(tri, &light_space.frame, near, perspective) {
+                let cutout = light_space.cutout(k);
+                for t in MapTriangle::clipped_with_cutout(tri, cutout, &light_space.frame, near, perspective) {
                     casters.push(t);
                     caster_layers.push(ex.patch_layers[patch as usize]);
                 }

@@ -98,7 +98,7 @@ impl<'m, 'a> RasterMaps<'m, 'a> {
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     let q = region.texel_center(x, y);
-                    if tri.contains(q) {
+                    if tri.contains(q) && tri.opaque_at(q, &model.light_space.masks) {
                         let d = tri.depth_at(q);
                         if d > model.near {
                             layers[layer as usize][y as usize * res + x as usize].add_caster(d);

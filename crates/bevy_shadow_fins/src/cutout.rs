@@ -1,0 +1,300 @@
+//! Alpha-masked casters as Bevy draws them: a mesh whose `StandardMaterial`
+//! is `AlphaMode::Mask(cutoff)` (or `AlphaToCoverage`, a mask at 0.5 without
+//! MSAA, which fin-shadowed views run without) casts only where the alpha of
+//! its base colour — the base colour texture's, read by its sampler's wrap
+//! modes at the material's `uv_transform`ed UVs, times the base colour's
+//! alpha — reaches the cutoff. The core's [`shadow_fins::cutout`] models it:
+//! the mask and the outline of the opaque region, built once per mesh and
+//! material (per pose for a posed mesh) and shared by every instance.
+//!
+//! What is modelled solid, each said once in the log: a texture still
+//! loading (re-read when it arrives), a compressed texture (no main-world
+//! texels to read), a mesh without the UV channel the material reads.
+//! Materials other than `StandardMaterial` (`ExtendedMaterial`, custom) cast
+//! solid.
+
+use std::{collections::HashMap, sync::Arc};
+
+use bevy::{
+    asset::AssetId,
+    image::{ImageAddressMode, ImageSampler},
+    math::Affine2,
+    mesh::{UvChannel, VertexAttributeValues},
+    prelude::*,
+};
+use shadow_fins::{
+    cutout::{Address, AlphaMask, Cutout},
+    glam::Vec2,
+    mesh::{Mesh as CoreMesh, Topology},
+};
+
+/// The alpha mask a `StandardMaterial` casts with, if any: what it was made
+/// from (to tell a change that matters from one that does not) and the mask.
+#[derive(Clone)]
+struct MaterialMask {
+    key: MaskKey,
+    /// `None`: the material casts solid.
+    mask: Option<Arc<AlphaMask>>,
+    /// The texture it reads, still loading: read again when it arrives.
+    waiting_for: Option<AssetId<Image>>,
+}
+
+/// What a material's mask depends on.
+#[derive(Clone, PartialEq)]
+struct MaskKey {
+    cutoff: Option<u32>,
+    base_alpha: u32,
+    texture: Option<AssetId<Image>>,
+    channel: u8,
+    uv_transform: [u32; 6],
+}
+
+fn key_of(material: &StandardMaterial) -> MaskKey {
+    let cutoff = match material.alpha_mode {
+        AlphaMode::Mask(c) => Some(c.to_bits()),
+        // Without MSAA (fin-shadowed views have none) Bevy draws it as a mask at 0.5.
+        AlphaMode::AlphaToCoverage => Some(0.5f32.to_bits()),
+        _ => None,
+    };
+    let t = material.uv_transform;
+    MaskKey {
+        cutoff,
+        base_alpha: material.base_color.alpha().to_bits(),
+        texture: material.base_color_texture.as_ref().map(|h| h.id()),
+        channel: match material.base_color_channel {
+            UvChannel::Uv0 => 0,
+            UvChannel::Uv1 => 1,
+        },
+        uv_transform: [t.matrix2.x_axis.x, t.matrix2.x_axis.y, t.matrix2.y_axis.x, t.matrix2.y_axis.y, t.translation.x, t.translation.y]
+            .map(f32::to_bits),
+    }
+}
+
+/// Per material its mask, and per (mesh, material) the cut-out.
+#[derive(Resource, Default)]
+pub(crate) struct CutoutCache {
+    masks: HashMap<AssetId<StandardMaterial>, MaterialMask>,
+    cutouts: HashMap<(AssetId<Mesh>, AssetId<StandardMaterial>), Option<Cutout>>,
+}
+
+/// What the frame builder reads of the casters' materials.
+#[derive(bevy::ecs::system::SystemParam)]
+pub(crate) struct CasterMaterials<'w, 's> {
+    of: Query<'w, 's, &'static MeshMaterial3d<StandardMaterial>>,
+    materials: Option<Res<'w, Assets<StandardMaterial>>>,
+    images: Option<Res<'w, Assets<Image>>>,
+    material_events: MessageReader<'w, 's, AssetEvent<StandardMaterial>>,
+    image_events: MessageReader<'w, 's, AssetEvent<Image>>,
+    changed: Query<'w, 's, (), Changed<MeshMaterial3d<StandardMaterial>>>,
+    removed: RemovedComponents<'w, 's, MeshMaterial3d<StandardMaterial>>,
+    pub(crate) cache: ResMut<'w, CutoutCache>,
+}
+
+impl CasterMaterials<'_, '_> {
+    /// Reads this frame's material and texture events; true when what some
+    /// caster casts may have changed: a caster's material swapped, a cached
+    /// material's mask inputs changed, or a texture a mask reads (or waits
+    /// for) changed or arrived. A colour change alone is not one.
+    pub(crate) fn refresh(&mut self) -> bool {
+        let mut changed = !self.changed.is_empty() | (self.removed.read().count() > 0);
+        let CutoutCache { masks, cutouts } = &mut *self.cache;
+        for event in self.material_events.read() {
+            if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
+                let now = self.materials.as_ref().and_then(|m| m.get(*id)).map(key_of);
+                if masks.get(id).is_some_and(|m| Some(&m.key) != now.as_ref()) {
+                    masks.remove(id);
+                    cutouts.retain(|(_, material), _| material != id);
+                    changed = true;
+                }
+            }
+        }
+        for event in self.image_events.read() {
+            let (AssetEvent::Added { id }
+            | AssetEvent::Modified { id }
+            | AssetEvent::Removed { id }
+            | AssetEvent::LoadedWithDependencies { id }) = event
+            else {
+                continue;
+            };
+            let stale: Vec<AssetId<StandardMaterial>> = masks
+                .iter()
+                .filter(|(_, m)| m.key.texture == Some(*id) || m.waiting_for == Some(*id))
+                .map(|(k, _)| *k)
+                .collect();
+            for material in stale {
+                masks.remove(&material);
+                cutouts.retain(|(_, m), _| *m != material);
+                changed = true;
+            }
+        }
+        changed
+    }
+
+    /// The material id an entity casts with, for the frame's signature.
+    pub(crate) fn material_of(&self, entity: Entity) -> Option<AssetId<StandardMaterial>> {
+        self.of.get(entity).ok().map(|m| m.id())
+    }
+
+    /// The cut-out `entity`'s mesh casts with: `None` when it casts solid.
+    /// `posed` meshes (their topology changes with the pose) are not cached.
+    pub(crate) fn cutout(
+        &mut self,
+        entity: Entity,
+        mesh_id: AssetId<Mesh>,
+        mesh: &Mesh,
+        core: &CoreMesh,
+        topology: &Topology,
+        posed: bool,
+    ) -> Option<Cutout> {
+        let material_id = self.material_of(entity)?;
+        let mask = self.mask(material_id)?;
+        if !posed && let Some(c) = self.cache.cutouts.get(&(mesh_id, material_id)) {
+            return c.clone();
+        }
+        let material = self.materials.as_ref()?.get(material_id)?;
+        let cutout = build_cutout(mask, material, mesh, core, topology, mesh_id);
+        if !posed {
+            self.cache.cutouts.insert((mesh_id, material_id), cutout.clone());
+        }
+        cutout
+    }
+
+    /// A material's mask, read once (and again when it or its texture changes).
+    fn mask(&mut self, id: AssetId<StandardMaterial>) -> Option<Arc<AlphaMask>> {
+        if let Some(m) = self.cache.masks.get(&id) {
+            return m.mask.clone();
+        }
+        let material = self.materials.as_ref()?.get(id)?;
+        let key = key_of(material);
+        let mut waiting_for = None;
+        let mask = key.cutoff.and_then(|cutoff| {
+            let cutoff = f32::from_bits(cutoff);
+            let base_alpha = material.base_color.alpha();
+            let Some(texture) = &material.base_color_texture else {
+                return AlphaMask::new(0, 0, vec![], base_alpha, cutoff).ok().map(Arc::new);
+            };
+            let Some(image) = self.images.as_ref().and_then(|i| i.get(texture)) else {
+                // Still loading: solid until it arrives (an image event re-reads it).
+                waiting_for = Some(texture.id());
+                return None;
+            };
+            match mask_of_image(image, base_alpha, cutoff) {
+                Ok(mask) => Some(Arc::new(mask)),
+                Err(why) => {
+                    warn_once!("fin shadows: an alpha-masked material casts solid: {why}");
+                    None
+                }
+            }
+        });
+        self.cache.masks.insert(id, MaterialMask { key, mask: mask.clone(), waiting_for });
+        mask
+    }
+}
+
+/// The alpha channel of `image` (its first layer and mip level) as a mask,
+/// with its sampler's wrap modes.
+pub fn mask_of_image(image: &Image, base_alpha: f32, cutoff: f32) -> Result<AlphaMask, String> {
+    use bevy::render::render_resource::TextureFormat as F;
+    let (w, h) = (image.width(), image.height());
+    let Some(data) = image.data.as_ref() else {
+        return Err("its texture has no main-world data (RenderAssetUsages::RENDER_WORLD only)".into());
+    };
+    let texels = w as usize * h as usize;
+    let format = image.texture_descriptor.format;
+    let alpha: Vec<u8> = match format {
+        F::Rgba8Unorm | F::Rgba8UnormSrgb | F::Bgra8Unorm | F::Bgra8UnormSrgb => {
+            if data.len() < texels * 4 {
+                return Err(format!("its {w} x {h} texture holds {} bytes", data.len()));
+            }
+            data.chunks_exact(4).take(texels).map(|t| t[3]).collect()
+        }
+        // No alpha channel: opaque texels.
+        F::R8Unorm | F::Rg8Unorm => vec![255; texels],
+        _ if image.is_compressed() => return Err(format!("its texture is compressed ({format:?})")),
+        _ => {
+            let mut alpha = Vec::with_capacity(texels);
+            for y in 0..h {
+                for x in 0..w {
+                    let c = image.get_color_at(x, y).map_err(|e| format!("its {format:?} texture: {e}"))?;
+                    alpha.push((c.alpha().clamp(0.0, 1.0) * 255.0).round() as u8);
+                }
+            }
+            alpha
+        }
+    };
+    let address = |a: ImageAddressMode| match a {
+        ImageAddressMode::Repeat => Address::Repeat,
+        ImageAddressMode::MirrorRepeat => Address::MirroredRepeat,
+        // The border colour is not known here: clamped, as is the default.
+        ImageAddressMode::ClampToEdge | ImageAddressMode::ClampToBorder => Address::ClampToEdge,
+    };
+    let modes = match &image.sampler {
+        ImageSampler::Descriptor(d) => [address(d.address_mode_u), address(d.address_mode_v)],
+        // `ImagePlugin`'s default sampler clamps.
+        ImageSampler::Default => [Address::ClampToEdge; 2],
+    };
+    Ok(AlphaMask::new(w, h, alpha, base_alpha, cutoff).map_err(|e| e.to_string())?.with_address(modes))
+}
+
+/// The cut-out of `mesh` under `material`'s mask, from the UV channel the
+/// material reads, `uv_transform`ed.
+fn build_cutout(
+    mask: Arc<AlphaMask>,
+    material: &StandardMaterial,
+    mesh: &Mesh,
+    core: &CoreMesh,
+    topology: &Topology,
+    mesh_id: AssetId<Mesh>,
+) -> Option<Cutout> {
+    let attribute = match material.base_color_channel {
+        UvChannel::Uv0 => Mesh::ATTRIBUTE_UV_0,
+        UvChannel::Uv1 => Mesh::ATTRIBUTE_UV_1,
+    };
+    let uvs = match mesh.try_attribute_option(attribute) {
+        Ok(Some(VertexAttributeValues::Float32x2(uv))) => uv,
+        _ => {
+            warn_once!("fin shadows: mesh {mesh_id:?} has no {attribute:?} for its alpha-masked material: it casts solid");
+            return None;
+        }
+    };
+    let t: Affine2 = material.uv_transform;
+    let uvs: Vec<Vec2> = uvs.iter().map(|uv| t.transform_point2(Vec2::from_array(*uv))).collect();
+    match Cutout::new(mask, &uvs, core, topology) {
+        Ok(c) => Some(c),
+        Err(e) => {
+            warn_once!("fin shadows: mesh {mesh_id:?}'s alpha mask is not usable ({e}): it casts solid");
+            None
+        }
+    }
+}
+
+/// An RGBA image whose alpha is `mask`'s (white elsewhere), sampled with
+/// its wrap modes and linear filtering: what shows a core scene's masked
+/// object in Bevy as the core models it (`mesh_from_core` with its UVs).
+pub fn image_of_mask(mask: &AlphaMask) -> Image {
+    use bevy::{
+        asset::RenderAssetUsages,
+        image::ImageSamplerDescriptor,
+        render::render_resource::{Extent3d, TextureDimension, TextureFormat},
+    };
+    let data: Vec<u8> = mask.alpha().iter().flat_map(|&a| [255, 255, 255, a]).collect();
+    let mut image = Image::new(
+        Extent3d { width: mask.width(), height: mask.height(), depth_or_array_layers: 1 },
+        TextureDimension::D2,
+        data,
+        TextureFormat::Rgba8Unorm,
+        RenderAssetUsages::default(),
+    );
+    let address = |a: Address| match a {
+        Address::Repeat => ImageAddressMode::Repeat,
+        Address::MirroredRepeat => ImageAddressMode::MirrorRepeat,
+        Address::ClampToEdge => ImageAddressMode::ClampToEdge,
+    };
+    let [u, v] = mask.address();
+    image.sampler = ImageSampler::Descriptor(ImageSamplerDescriptor {
+        address_mode_u: address(u),
+        address_mode_v: address(v),
+        ..ImageSamplerDescriptor::linear()
+    });
+    image
+}

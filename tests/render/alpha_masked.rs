@@ -1,0 +1,106 @@
+//! Alpha-masked casters (issue 16, item 2): leaf cards whose material is
+//! `AlphaMode::Mask` cast light through their holes and around their blades,
+//! on the GPU as in the core's oracles (`cutout.rs`, `cutout.wgsl`), for the
+//! fins and the coverage method, built from Bevy's own glTF load and from a
+//! core scene spawned with masked materials.
+//!
+//! Tolerances as in `oracle_agreement.rs` and `coverage.rs`, judged on the
+//! ground, where the cards' shadows fall: on the cards themselves every
+//! hole's and blade's outline on screen is a caster outline, where a
+//! pixel's receiver is Bevy's alpha test (8-bit filtered texels) or the
+//! ray's by a hair (as at any caster's outline, `posed.rs`).
+
+use bevy::prelude::*;
+use bevy_shadow_fins::{FinExtraction, FinSnapshotApproximation};
+use shadow_fins::{light::Light, oracle::Method, scenes::SceneId};
+use shadow_fins_app::harness::{Session, Setup};
+
+use super::{
+    common::{HEIGHT, WIDTH, assert_not_trivial, compare, oracle, per_pixel, render, save, settings, setup},
+    coverage::{coverage_oracle, coverage_settings},
+};
+
+/// `gpu` and `expected` on the pixels that see the ground (y = 0).
+fn on_ground(setup: &Setup, gpu: &[f32], expected: &[f32]) -> (Vec<f32>, Vec<f32>) {
+    let ls = shadow_fins::scene::LightSpaceScene::new(&setup.scene, setup.light);
+    let ground = per_pixel(setup, &setup.camera, &ls, |r| {
+        if ls.frame.to_world(r.position).y.abs() < 1e-3 { 2.0 } else { 0.0 }
+    });
+    let keep = |v: &[f32]| -> Vec<f32> { v.iter().zip(&ground).filter(|(_, g)| **g == 2.0).map(|(v, _)| *v).collect() };
+    let (g, e) = (keep(gpu), keep(expected));
+    assert!(g.len() * 3 > gpu.len(), "{} of {} pixels see the ground", g.len(), gpu.len());
+    (g, e)
+}
+
+fn leaf_cards_gltf() -> Setup {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets").join("leaf-cards.gltf");
+    let import = shadow_fins::gltf_import::load_gltf(&path).expect("the core importer reads it");
+    let camera = shadow_fins::camera::Camera::looking_at(Vec3::new(2.2, 3.0, 2.8), Vec3::new(0.0, 0.2, 0.0));
+    let sun = shadow_fins::light::SunLight::new(Vec3::new(0.25, -1.0, 0.15), 0.03).expect("a valid sun");
+    let mut setup = Setup::new(import.scene, Light::Sun(sun), camera, settings(), (2 * WIDTH, 2 * HEIGHT));
+    setup.gltf = Some(path);
+    setup.sun_illuminance = 1500.0;
+    setup
+}
+
+#[test]
+fn leaf_cards_as_bevy_loads_them_cast_through_their_holes() {
+    let setup = leaf_cards_gltf();
+    let mut session = Session::new(&setup);
+    session.wait_for_gltf().expect("Bevy loads it");
+    let shot = session.settle(16).expect("render");
+    save(&shot, "alpha_leaf_cards_gltf");
+    assert_not_trivial(&shot);
+    // Bevy's textures are read: the snapshot cuts the cards out as the plugin does.
+    let snapshot = session.scene_snapshot();
+    assert!(
+        !snapshot.approximated.iter().any(|(_, a)| *a == FinSnapshotApproximation::AlphaMasked),
+        "a masked card was modelled solid: {:?}",
+        snapshot.approximated
+    );
+    let cut = snapshot.scene.objects.iter().filter(|o| o.cutout.is_some()).count();
+    assert_eq!(cut, 5, "the five leaf cards are cut out");
+    assert_eq!(shot.stats.extraction, FinExtraction::Cpu, "masked casters extract on the CPU");
+    let lights = session.fin_lights();
+    let mut judged = setup.clone();
+    judged.scene = snapshot.scene.clone();
+    judged.light = lights[0].1;
+    judged.camera = session.main_camera().expect("the view");
+    let (gpu, expected) = on_ground(&judged, &shot.visibility, &oracle(&judged, Method::MultiLayer));
+    let (mad, far) = compare(&gpu, &expected);
+    println!("leaf cards: mean |gpu − oracle| = {mad:.5}, share > 0.1 = {:.2}%", far * 100.0);
+    assert!(mad <= 0.01 && far <= 0.03, "{mad} / {far}");
+    // The same cards solid cast a visibly different shadow: the holes and
+    // the blades' outlines are what the GPU drew.
+    let mut solid = judged.clone();
+    solid.scene.objects.iter_mut().for_each(|o| o.cutout = None);
+    let (_, solid_shadow) = on_ground(&judged, &shot.visibility, &oracle(&solid, Method::MultiLayer));
+    let (apart, differ) = compare(&solid_shadow, &expected);
+    let (gpu_apart, _) = compare(&gpu, &solid_shadow);
+    println!("solid vs cut out: {apart:.4} mean, {:.1}% of pixels by > 0.1; gpu vs solid {gpu_apart:.4}", differ * 100.0);
+    assert!(differ > 0.02 && gpu_apart > 3.0 * mad, "the cut-outs hardly mattered ({apart}, {differ})");
+}
+
+#[test]
+fn gpu_coverage_and_fins_cut_a_core_scenes_masked_cards_as_the_oracles_do() {
+    // Spawned by the harness from the core scene (masked materials over the
+    // core's masks): fins against the raster oracle, coverage against the
+    // coverage oracle at the same resolution and samples.
+    let fins = setup(SceneId::LeafCards, settings());
+    let shot = render(&fins);
+    save(&shot, "alpha_leaf_cards_fins");
+    assert_not_trivial(&shot);
+    let (gpu, expected) = on_ground(&fins, &shot.visibility, &oracle(&fins, Method::MultiLayer));
+    let (mad, far) = compare(&gpu, &expected);
+    println!("leaf-cards fins: mean |gpu − oracle| = {mad:.5}, share > 0.1 = {:.2}%", far * 100.0);
+    assert!(mad <= 0.01 && far <= 0.03, "fins: {mad} / {far}");
+
+    let coverage = setup(SceneId::LeafCards, coverage_settings());
+    let shot = render(&coverage);
+    save(&shot, "alpha_leaf_cards_coverage");
+    assert_not_trivial(&shot);
+    let (gpu, expected) = on_ground(&coverage, &shot.visibility, &coverage_oracle(&coverage));
+    let (mad, far) = compare(&gpu, &expected);
+    println!("leaf-cards coverage: mean |gpu − oracle| = {mad:.5}, share > 0.1 = {:.2}%", far * 100.0);
+    assert!(mad <= 0.002 && far <= 0.005, "coverage: {mad} / {far}");
+}
