@@ -64,7 +64,7 @@ fn raster_lists(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
         if (!owns(a, b, d, q)) {
             continue;
         }
-        // w: 1 perspective (disk), 0 orthographic (sun).
+        // w: the projection code (0 disk or rectangle, 1 sun, 2 cube face): 1 is orthographic.
         let z = caster_depth_at(c, q, params.info.w == 1u);
         if (!(z > params.light.y) || !caster_opaque(c, q, params.info.w == 1u)) {
             continue;

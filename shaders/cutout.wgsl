@@ -16,8 +16,8 @@ struct CasterCutout {
 }
 
 @group(0) @binding(4) var<storage, read> cutouts: array<CasterCutout>;
-// Per mask: width, height, threshold (f32 bits: the cutoff less the core's
-// tie), wrap modes (u | v << 8: 0 repeat, 1 mirrored repeat, 2 clamp), then
+// Per mask: width, height, threshold (f32 bits: `AlphaMask::threshold`, the
+// cutoff over the base alpha less the core's tie), wrap modes (u | v << 8: 0 repeat, 1 mirrored repeat, 2 clamp), then
 // the alphas, four 8-bit texels a word, row-major from v = 0.
 @group(0) @binding(5) var<storage, read> mask_words: array<u32>;
 
@@ -73,7 +73,8 @@ fn caster_opaque(c: Caster, q: vec2<f32>, orthographic: bool) -> bool {
     }
     let uv = (vec2<f32>(k.uvs[0], k.uvs[1]) * w.x + vec2<f32>(k.uvs[2], k.uvs[3]) * w.y
         + vec2<f32>(k.uvs[4], k.uvs[5]) * w.z) / (w.x + w.y + w.z);
-    if (any(uv != uv)) {
+    // Not finite (a NaN fails every comparison): blocks, as on the CPU.
+    if (!all(abs(uv) <= vec2<f32>(3.0e38))) {
         return true;
     }
     return mask_alpha(k.mask, uv) >= bitcast<f32>(mask_words[k.mask + 2u]);

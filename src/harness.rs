@@ -241,7 +241,8 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
     let mut masked: Vec<(*const shadow_fins::cutout::AlphaMask, Handle<StandardMaterial>)> = Vec::new();
     for object in own_meshes {
         let uvs = object.cutout.as_ref().map(|c| c.vertex_uvs.as_slice());
-        let mesh = world.resource_mut::<Assets<Mesh>>().add(bevy_shadow_fins::mesh_from_core_with_uvs(&object.mesh, uvs));
+        let mesh =
+            world.resource_mut::<Assets<Mesh>>().add(bevy_shadow_fins::mesh_from_core_with_uvs(&object.mesh, uvs));
         let material = match &object.cutout {
             None => material.clone(),
             Some(c) => match masked.iter().find(|(m, _)| *m == Arc::as_ptr(&c.mask)) {
@@ -249,6 +250,7 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
                 None => {
                     let image = world.resource_mut::<Assets<Image>>().add(bevy_shadow_fins::image_of_mask(&c.mask));
                     let h = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial {
+                        base_color: Color::WHITE.with_alpha(c.mask.base_alpha()),
                         base_color_texture: Some(image),
                         alpha_mode: AlphaMode::Mask(c.mask.cutoff()),
                         double_sided: true,
@@ -260,11 +262,8 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
                 }
             },
         };
-        let mut e = world.spawn((
-            Mesh3d(mesh),
-            MeshMaterial3d(material),
-            Transform::from_matrix(Mat4::from(object.transform)),
-        ));
+        let mut e =
+            world.spawn((Mesh3d(mesh), MeshMaterial3d(material), Transform::from_matrix(Mat4::from(object.transform))));
         if !object.casts_shadows {
             e.insert(NotFinShadowCaster);
         }

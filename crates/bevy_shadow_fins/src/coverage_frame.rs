@@ -174,7 +174,8 @@ pub(crate) fn coverage_frame(
         }
         cell_starts.push(cell_items.len() as u32);
     }
-    let (casters, cutouts, mask_words) = crate::extract::gpu_casters(&triangles[..n_casters], None, &ls.masks);
+    let (mut casters, mut cutouts, mut mask_words) =
+        crate::extract::gpu_casters(&triangles[..n_casters], None, &ls.masks);
     let mut raster_work: Vec<[u32; 2]> = triangles
         .iter()
         .take(n_casters)
@@ -184,6 +185,9 @@ pub(crate) fn coverage_frame(
     // Blocks past the buffer limit are dropped (their texels miss casters).
     let n_work = keep("depth-list raster work", raster_work.len(), size_of::<[u32; 2]>() as u64);
     raster_work.truncate(n_work);
+    if let Some(why) = crate::extract::fit_cutouts(&mut casters, &mut cutouts, &mut mask_words, max_buffer) {
+        degraded = degraded.or(Some(why));
+    }
     if degraded.is_none() {
         degraded = long_cell(&cell_starts, LONG_CELL_EDGES);
     }

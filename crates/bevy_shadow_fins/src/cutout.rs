@@ -7,11 +7,17 @@
 //! the mask and the outline of the opaque region, built once per mesh and
 //! material (per pose for a posed mesh) and shared by every instance.
 //!
-//! What is modelled solid, each said once in the log: a texture still
-//! loading (re-read when it arrives), a compressed texture (no main-world
-//! texels to read), a mesh without the UV channel the material reads.
-//! Materials other than `StandardMaterial` (`ExtendedMaterial`, custom) cast
-//! solid.
+//! What is modelled solid: a texture still loading (re-read when it
+//! arrives), and — said once in the log — a compressed texture or one kept
+//! in the render world only (no main-world texels to read), a mesh without
+//! the UV channel the material reads. A mask every texel of which passes
+//! the cutoff is solid (no cut-out to pay for). Materials other than
+//! `StandardMaterial` (`ExtendedMaterial`, custom) cast solid. Approximated:
+//! the texture's filter is taken as linear (a nearest-filtered mask's
+//! outline is smoothed), `ImageSampler::Default` as clamping (the
+//! `ImagePlugin` default; an app that changed it is not read), vertex colour
+//! alpha is not applied, and a posed (skinned, morphed) masked mesh builds
+//! its outline again at every new pose.
 
 use std::{collections::HashMap, sync::Arc};
 
@@ -49,6 +55,8 @@ struct MaskKey {
     uv_transform: [u32; 6],
 }
 
+/// A material's mask inputs; all alike for a material that is no mask, so
+/// that fading a blended material or animating its texture changes nothing.
 fn key_of(material: &StandardMaterial) -> MaskKey {
     let cutoff = match material.alpha_mode {
         AlphaMode::Mask(c) => Some(c.to_bits()),
@@ -56,6 +64,9 @@ fn key_of(material: &StandardMaterial) -> MaskKey {
         AlphaMode::AlphaToCoverage => Some(0.5f32.to_bits()),
         _ => None,
     };
+    if cutoff.is_none() {
+        return MaskKey { cutoff, base_alpha: 0, texture: None, channel: 0, uv_transform: [0; 6] };
+    }
     let t = material.uv_transform;
     MaskKey {
         cutoff,
@@ -65,8 +76,15 @@ fn key_of(material: &StandardMaterial) -> MaskKey {
             UvChannel::Uv0 => 0,
             UvChannel::Uv1 => 1,
         },
-        uv_transform: [t.matrix2.x_axis.x, t.matrix2.x_axis.y, t.matrix2.y_axis.x, t.matrix2.y_axis.y, t.translation.x, t.translation.y]
-            .map(f32::to_bits),
+        uv_transform: [
+            t.matrix2.x_axis.x,
+            t.matrix2.x_axis.y,
+            t.matrix2.y_axis.x,
+            t.matrix2.y_axis.y,
+            t.translation.x,
+            t.translation.y,
+        ]
+        .map(f32::to_bits),
     }
 }
 
@@ -75,6 +93,21 @@ fn key_of(material: &StandardMaterial) -> MaskKey {
 pub(crate) struct CutoutCache {
     masks: HashMap<AssetId<StandardMaterial>, MaterialMask>,
     cutouts: HashMap<(AssetId<Mesh>, AssetId<StandardMaterial>), Option<Cutout>>,
+    /// Bumped whenever what some material cuts out may have changed: the
+    /// frame builder rebuilds when it moved (whoever read the events first,
+    /// the builder or a `scene_snapshot`).
+    generation: u64,
+}
+
+impl CutoutCache {
+    /// Forgets the cut-outs of a mesh asset that changed.
+    pub(crate) fn forget_mesh(&mut self, id: AssetId<Mesh>) {
+        self.cutouts.retain(|(mesh, _), _| *mesh != id);
+    }
+
+    pub(crate) fn generation(&self) -> u64 {
+        self.generation
+    }
 }
 
 /// What the frame builder reads of the casters' materials.
@@ -83,51 +116,74 @@ pub(crate) struct CasterMaterials<'w, 's> {
     of: Query<'w, 's, &'static MeshMaterial3d<StandardMaterial>>,
     materials: Option<Res<'w, Assets<StandardMaterial>>>,
     images: Option<Res<'w, Assets<Image>>>,
-    material_events: MessageReader<'w, 's, AssetEvent<StandardMaterial>>,
-    image_events: MessageReader<'w, 's, AssetEvent<Image>>,
+    // Optional: a world without Bevy's PBR or image plugins has none.
+    material_events: Option<MessageReader<'w, 's, AssetEvent<StandardMaterial>>>,
+    image_events: Option<MessageReader<'w, 's, AssetEvent<Image>>>,
     changed: Query<'w, 's, (), Changed<MeshMaterial3d<StandardMaterial>>>,
     removed: RemovedComponents<'w, 's, MeshMaterial3d<StandardMaterial>>,
     pub(crate) cache: ResMut<'w, CutoutCache>,
 }
 
 impl CasterMaterials<'_, '_> {
-    /// Reads this frame's material and texture events; true when what some
-    /// caster casts may have changed: a caster's material swapped, a cached
-    /// material's mask inputs changed, or a texture a mask reads (or waits
-    /// for) changed or arrived. A colour change alone is not one.
+    /// Reads this frame's material and texture events. Forgets (and bumps
+    /// the cache's generation for) what they make stale: a material whose
+    /// mask inputs changed, one that arrived as a mask, a texture a mask reads
+    /// or waits for. A colour change, a non-mask material's, is none.
+    /// Returns whether a caster's material was swapped (its id is in the
+    /// frame's signature: the casters are walked again).
     pub(crate) fn refresh(&mut self) -> bool {
-        let mut changed = !self.changed.is_empty() | (self.removed.read().count() > 0);
-        let CutoutCache { masks, cutouts } = &mut *self.cache;
-        for event in self.material_events.read() {
-            if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
+        let swapped = !self.changed.is_empty() | (self.removed.read().count() > 0);
+        let CutoutCache { masks, cutouts, generation } = &mut *self.cache;
+        let mut stale = false;
+        if let Some(events) = self.material_events.as_mut() {
+            for event in events.read() {
+                let (AssetEvent::Added { id }
+                | AssetEvent::Modified { id }
+                | AssetEvent::Removed { id }
+                | AssetEvent::LoadedWithDependencies { id }) = event
+                else {
+                    continue;
+                };
                 let now = self.materials.as_ref().and_then(|m| m.get(*id)).map(key_of);
-                if masks.get(id).is_some_and(|m| Some(&m.key) != now.as_ref()) {
+                let was = masks.get(id).map(|m| &m.key);
+                let is_mask = |k: Option<&MaskKey>| k.is_some_and(|k| k.cutoff.is_some());
+                // A change that matters: the key moved, or a mask arrived unseen.
+                let matters = match was {
+                    Some(was) => Some(was) != now.as_ref(),
+                    None => is_mask(now.as_ref()),
+                };
+                if matters {
                     masks.remove(id);
                     cutouts.retain(|(_, material), _| material != id);
-                    changed = true;
+                    stale = true;
                 }
             }
         }
-        for event in self.image_events.read() {
-            let (AssetEvent::Added { id }
-            | AssetEvent::Modified { id }
-            | AssetEvent::Removed { id }
-            | AssetEvent::LoadedWithDependencies { id }) = event
-            else {
-                continue;
-            };
-            let stale: Vec<AssetId<StandardMaterial>> = masks
-                .iter()
-                .filter(|(_, m)| m.key.texture == Some(*id) || m.waiting_for == Some(*id))
-                .map(|(k, _)| *k)
-                .collect();
-            for material in stale {
-                masks.remove(&material);
-                cutouts.retain(|(_, m), _| *m != material);
-                changed = true;
+        if let Some(events) = self.image_events.as_mut() {
+            for event in events.read() {
+                let (AssetEvent::Added { id }
+                | AssetEvent::Modified { id }
+                | AssetEvent::Removed { id }
+                | AssetEvent::LoadedWithDependencies { id }) = event
+                else {
+                    continue;
+                };
+                let reading: Vec<AssetId<StandardMaterial>> = masks
+                    .iter()
+                    .filter(|(_, m)| m.key.texture == Some(*id) || m.waiting_for == Some(*id))
+                    .map(|(k, _)| *k)
+                    .collect();
+                for material in reading {
+                    masks.remove(&material);
+                    cutouts.retain(|(_, m), _| *m != material);
+                    stale = true;
+                }
             }
         }
-        changed
+        if stale {
+            *generation += 1;
+        }
+        swapped
     }
 
     /// The material id an entity casts with, for the frame's signature.
@@ -171,7 +227,8 @@ impl CasterMaterials<'_, '_> {
             let cutoff = f32::from_bits(cutoff);
             let base_alpha = material.base_color.alpha();
             let Some(texture) = &material.base_color_texture else {
-                return AlphaMask::new(0, 0, vec![], base_alpha, cutoff).ok().map(Arc::new);
+                // The base alpha alone: solid, or (below the cutoff) a card that casts nothing.
+                return AlphaMask::new(0, 0, vec![], base_alpha, cutoff).ok().filter(|m| !m.is_solid()).map(Arc::new);
             };
             let Some(image) = self.images.as_ref().and_then(|i| i.get(texture)) else {
                 // Still loading: solid until it arrives (an image event re-reads it).
@@ -179,6 +236,8 @@ impl CasterMaterials<'_, '_> {
                 return None;
             };
             match mask_of_image(image, base_alpha, cutoff) {
+                // Every texel passes: solid, and no cut-out to pay for.
+                Ok(mask) if mask.is_solid() => None,
                 Ok(mask) => Some(Arc::new(mask)),
                 Err(why) => {
                     warn_once!("fin shadows: an alpha-masked material casts solid: {why}");
@@ -253,7 +312,9 @@ fn build_cutout(
     let uvs = match mesh.try_attribute_option(attribute) {
         Ok(Some(VertexAttributeValues::Float32x2(uv))) => uv,
         _ => {
-            warn_once!("fin shadows: mesh {mesh_id:?} has no {attribute:?} for its alpha-masked material: it casts solid");
+            warn_once!(
+                "fin shadows: mesh {mesh_id:?} has no {attribute:?} for its alpha-masked material: it casts solid"
+            );
             return None;
         }
     };
@@ -268,9 +329,11 @@ fn build_cutout(
     }
 }
 
-/// An RGBA image whose alpha is `mask`'s (white elsewhere), sampled with
-/// its wrap modes and linear filtering: what shows a core scene's masked
-/// object in Bevy as the core models it (`mesh_from_core` with its UVs).
+/// An RGBA image whose alpha is `mask`'s texture's (white elsewhere),
+/// sampled with its wrap modes and linear filtering: what shows a core
+/// scene's masked object in Bevy as the core models it (`mesh_from_core`
+/// with its UVs, a material with `AlphaMode::Mask(mask.cutoff())` and base
+/// colour alpha `mask.base_alpha()`).
 pub fn image_of_mask(mask: &AlphaMask) -> Image {
     use bevy::{
         asset::RenderAssetUsages,
@@ -297,4 +360,66 @@ pub fn image_of_mask(mask: &AlphaMask) -> Image {
         ..ImageSamplerDescriptor::linear()
     });
     image
+}
+
+#[cfg(test)]
+mod tests {
+    use bevy::{
+        asset::RenderAssetUsages,
+        image::ImageSamplerDescriptor,
+        render::render_resource::{Extent3d, TextureDimension, TextureFormat},
+    };
+
+    use super::*;
+
+    fn image(format: TextureFormat, texel: &[u8], sampler: ImageSampler) -> Image {
+        let data = [
+            texel,
+            &[255, 255, 255, 255][..texel.len()],
+            &[255, 255, 255, 255][..texel.len()],
+            &[255, 255, 255, 255][..texel.len()],
+        ]
+        .concat();
+        let mut image = Image::new(
+            Extent3d { width: 2, height: 2, depth_or_array_layers: 1 },
+            TextureDimension::D2,
+            data,
+            format,
+            RenderAssetUsages::default(),
+        );
+        image.sampler = sampler;
+        image
+    }
+
+    #[test]
+    fn a_textures_first_row_is_v_0_and_its_sampler_wraps_the_mask() {
+        // The first texel of the data (top-left, u and v < 0.5) is the hole.
+        let repeat = ImageSampler::Descriptor(ImageSamplerDescriptor {
+            address_mode_u: ImageAddressMode::Repeat,
+            address_mode_v: ImageAddressMode::MirrorRepeat,
+            ..ImageSamplerDescriptor::linear()
+        });
+        for format in [TextureFormat::Rgba8UnormSrgb, TextureFormat::Bgra8Unorm] {
+            let m = mask_of_image(&image(format, &[10, 20, 30, 0], repeat.clone()), 1.0, 0.5).unwrap();
+            assert!(!m.opaque(Vec2::new(0.25, 0.25)), "{format:?}: the hole is at the top left");
+            assert!(
+                m.opaque(Vec2::new(0.75, 0.25)) && m.opaque(Vec2::new(0.25, 0.75)) && m.opaque(Vec2::new(0.75, 0.75))
+            );
+            assert_eq!(m.address(), [Address::Repeat, Address::MirroredRepeat]);
+        }
+        // Bevy's default sampler clamps; the base alpha scales the texels.
+        let m =
+            mask_of_image(&image(TextureFormat::Rgba8Unorm, &[0, 0, 0, 0], ImageSampler::Default), 0.4, 0.5).unwrap();
+        assert_eq!(m.address(), [Address::ClampToEdge; 2]);
+        assert!(!m.opaque(Vec2::new(0.75, 0.75)), "alpha 1 × base 0.4 < 0.5");
+        // Another format by its colours; no alpha channel: opaque.
+        let float = image(TextureFormat::R8Unorm, &[0], ImageSampler::Default);
+        assert!(mask_of_image(&float, 1.0, 0.5).unwrap().is_solid());
+        let mut empty = image(TextureFormat::Rgba8Unorm, &[0, 0, 0, 0], ImageSampler::Default);
+        empty.data = None;
+        assert!(mask_of_image(&empty, 1.0, 0.5).is_err(), "no main-world data is an error, not a panic");
+        let mut short = image(TextureFormat::Rgba8Unorm, &[0, 0, 0, 0], ImageSampler::Default);
+        short.data.as_mut().unwrap().truncate(5);
+        assert!(mask_of_image(&short, 1.0, 0.5).is_err(), "too few bytes is an error, not a panic");
+    }
 }

@@ -108,6 +108,32 @@ pub(crate) struct GpuCutout {
     pub mask: u32,
 }
 
+/// The cut-outs and masks of a frame, or none when they do not fit one GPU
+/// buffer (every caster then solid, and said so): the masks a frame's
+/// instances share are packed once, so only thousands of distinct masks
+/// get here.
+pub(crate) fn fit_cutouts(
+    casters: &mut [GpuCaster],
+    cutouts: &mut Vec<GpuCutout>,
+    mask_words: &mut Vec<u32>,
+    max_buffer: u64,
+) -> Option<FinDegradation> {
+    let bytes = (size_of_val(cutouts.as_slice()) as u64).max(size_of_val(mask_words.as_slice()) as u64);
+    if bytes <= max_buffer {
+        return None;
+    }
+    let wanted = cutouts.len() as u32;
+    casters.iter_mut().for_each(|c| c.cutout = 0);
+    cutouts.clear();
+    mask_words.clear();
+    Some(FinDegradation::Capacity {
+        buffer: "alpha masks (casters made solid)",
+        kept: 0,
+        wanted,
+        limit_bytes: max_buffer,
+    })
+}
+
 /// Map triangles as the GPU reads them, with their cut-outs and the masks
 /// those index, packed as `cutout.wgsl` reads them (`layers`: each
 /// triangle's layer, or layer 0).
@@ -138,9 +164,11 @@ pub(crate) fn gpu_casters(
                         };
                         let [u, v] = m.address();
                         mask_words.extend([m.width(), m.height(), m.threshold().to_bits(), code(u) | code(v) << 8]);
-                        mask_words.extend(m.alpha().chunks(4).map(|q| {
-                            q.iter().enumerate().fold(0u32, |w, (k, &a)| w | (a as u32) << (8 * k))
-                        }));
+                        mask_words.extend(
+                            m.alpha()
+                                .chunks(4)
+                                .map(|q| q.iter().enumerate().fold(0u32, |w, (k, &a)| w | (a as u32) << (8 * k))),
+                        );
                         at
                     });
                     cutouts.push(GpuCutout {
@@ -152,7 +180,14 @@ pub(crate) fn gpu_casters(
                 }
             };
             GpuCaster {
-                corners: [t.corners[0].x, t.corners[0].y, t.corners[1].x, t.corners[1].y, t.corners[2].x, t.corners[2].y],
+                corners: [
+                    t.corners[0].x,
+                    t.corners[0].y,
+                    t.corners[1].x,
+                    t.corners[1].y,
+                    t.corners[2].x,
+                    t.corners[2].y,
+                ],
                 normal: t.normal.to_array(),
                 offset: t.offset,
                 min_depth: t.min_depth,
@@ -421,6 +456,8 @@ pub(crate) struct MeshCache {
     /// rebuilt when the pose changed.
     posed: HashMap<Entity, (u64, CachedMesh, bool)>,
     pub(crate) lights: HashMap<FrameKey, LightState>,
+    /// The `CutoutCache` generation the frames were built with.
+    cutout_generation: u64,
 }
 
 pub(crate) fn build(app: &mut App) {
@@ -737,13 +774,17 @@ fn update_fin_frames(
     // Any mesh event (one finishing loading, too) changes what casts; so
     // does a change of what an alpha-masked material cuts out.
     let mut mesh_event = assets.materials.refresh();
-    if mesh_event {
+    let cutouts = assets.materials.cache.generation();
+    if cutouts != cache.cutout_generation {
+        cache.cutout_generation = cutouts;
         kept_material_epoch(&mut changes);
+        mesh_event = true;
     }
     for event in assets.mesh_events.read() {
         mesh_event = true;
         if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
             cache.meshes.remove(id);
+            assets.materials.cache.forget_mesh(*id);
             // A posed mesh of that asset is posed again (rare: clear them all).
             cache.posed.clear();
             meshes_changed = true;
@@ -1565,8 +1606,11 @@ fn cpu_frame(
     };
     let n_casters = capped("map casters", model.casters.len(), size_of::<GpuCaster>() as u64);
     let n_fins = capped("fins", model.fins.len(), size_of::<GpuFin>() as u64);
-    let (casters_gpu, cutouts, mask_words) =
+    let (mut casters_gpu, mut cutouts, mut mask_words) =
         gpu_casters(&model.casters[..n_casters], Some(&model.caster_layers[..n_casters]), &ls.masks);
+    if let Some(why) = fit_cutouts(&mut casters_gpu, &mut cutouts, &mut mask_words, limits.max_buffer) {
+        degraded = degraded.or(Some(why));
+    }
     let fins_gpu: Vec<GpuFin> =
         model.fins.iter().take(n_fins).zip(&model.fin_layers).map(|(f, &l)| gpu_fin(f, l)).collect();
     let stats = FinFrameStats {

@@ -181,6 +181,7 @@ mod sun_fit;
 
 pub use bevy_shadow_maps::BevyShadowMapsKept;
 pub use budget::{FinDegradation, FinShadowBudget};
+pub use cutout::{image_of_mask, mask_of_image};
 pub use extract::{
     FinCasterScans, FinFrameStats, FinFrames, FinLightFrame, FinLightStats, FinSceneError, FinShadowStats,
     MAX_FIN_LIGHTS,
@@ -193,7 +194,6 @@ pub use light::{
     FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster,
     NotFinShadowReceiver,
 };
-pub use cutout::{image_of_mask, mask_of_image};
 pub use receivers::FinReceivers;
 pub use render::FinForwardShading;
 pub use shadow_fins;

@@ -23,8 +23,12 @@
 //!   and a leaf's blade have penumbrae of their own;
 //! - a mask larger than [`MAX_MASK_SIDE`] on a side is box-filtered down to
 //!   it first (a hole smaller than 1/256 of the texture is not modelled):
-//!   the outline's size, and so the work per light, is bounded by the mask,
-//!   not by the texture's resolution.
+//!   the outline's detail follows the mask, not the texture's resolution;
+//!   the work of building it is capped per face ([`MAX_CELLS_PER_FACE`])
+//!   and per mesh ([`MAX_CELLS_PER_MESH`]), past which faces are modelled
+//!   by their edges' opaque stretches alone;
+//! - a non-manifold edge (three or more faces) is cut per face, each face's
+//!   opaque stretches a one-face edge.
 
 use std::sync::Arc;
 
@@ -38,16 +42,23 @@ pub const MAX_MASK_SIDE: u32 = 256;
 /// ([`Outline::unmodelled_faces`]).
 pub const MAX_CELLS_PER_FACE: u64 = 1 << 20;
 
+/// The most grid cells one mesh's outline walks in all (an atlas of
+/// thousands of cards): the faces past it are modelled whole.
+pub const MAX_CELLS_PER_MESH: u64 = 1 << 23;
+
+/// The largest UV coordinate taken (a texture repeated a million times).
+pub const MAX_UV: f32 = 1e6;
+
 /// Why an alpha mask cannot be used.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CutoutError {
     #[error("alpha mask of {width} x {height} texels holds {len} values: give width x height alphas")]
     Size { width: u32, height: u32, len: usize },
-    #[error("alpha cutoff {0} is not finite: use a cutoff in [0, 1] (glTF's default is 0.5)")]
+    #[error("alpha cutoff {0} is not a number: use a cutoff in [0, 1] (glTF's default is 0.5)")]
     Cutoff(f32),
     #[error("{uvs} UVs for {vertices} vertices: give one UV per mesh vertex")]
     Uvs { uvs: usize, vertices: usize },
-    #[error("a UV is not finite: {0}")]
+    #[error("a UV is not finite or beyond ±{MAX_UV}: {0}")]
     BadUv(Vec2),
 }
 
@@ -92,6 +103,8 @@ pub struct AlphaMask {
     alpha: Vec<u8>,
     /// The alpha below which the caster is a hole, in `[0, 1]`.
     cutoff: f32,
+    /// The material's base alpha, which multiplies every texel's.
+    base_alpha: f32,
     /// How `u` and `v` outside `[0, 1]` read the texture.
     address: [Address; 2],
 }
@@ -110,11 +123,20 @@ impl AlphaMask {
         if cutoff.is_nan() {
             return Err(CutoutError::Cutoff(cutoff));
         }
-        let base = if base_alpha.is_finite() { base_alpha.clamp(0.0, 1.0) } else { 1.0 };
+        let base_alpha = if base_alpha.is_finite() { base_alpha.clamp(0.0, 1.0) } else { 1.0 };
         let (alpha, width, height) = if alpha.is_empty() { (vec![255], 1, 1) } else { (alpha, width, height) };
         let (alpha, width, height) = box_filter(alpha, width, height);
-        let alpha = alpha.into_iter().map(|a| (a as f32 * base).round() as u8).collect();
-        Ok(Self { width, height, alpha, cutoff: cutoff.clamp(0.0, 1.0), address: [Address::Repeat; 2] })
+        Ok(Self { width, height, alpha, cutoff: cutoff.clamp(0.0, 1.0), base_alpha, address: [Address::Repeat; 2] })
+    }
+
+    pub fn base_alpha(&self) -> f32 {
+        self.base_alpha
+    }
+
+    /// True when every texel passes the cutoff: the material casts solid.
+    pub fn is_solid(&self) -> bool {
+        let t = self.threshold();
+        self.alpha.iter().all(|&a| a as f32 / 255.0 >= t)
     }
 
     /// The mask read with these wrap modes for `u` and `v` (default: repeat).
@@ -135,10 +157,19 @@ impl AlphaMask {
         1e-3 / self.width.max(self.height) as f32 + 1e-6
     }
 
-    /// The alpha the comparisons use: the cutoff less [`TIE`].
+    /// What the texture's own alpha (before the base alpha) is compared
+    /// with: `alpha · base ≥ cutoff` as `alpha ≥ cutoff / base`, less
+    /// [`TIE`] (no rounding of `alpha · base` into 8 bits, which Bevy does
+    /// not do either). A base of 0 passes nothing but a cutoff of 0.
     #[inline]
     pub fn threshold(&self) -> f32 {
-        self.cutoff - TIE
+        if self.base_alpha > 0.0 {
+            self.cutoff / self.base_alpha - TIE
+        } else if self.cutoff <= 0.0 {
+            -TIE
+        } else {
+            f32::INFINITY
+        }
     }
 
     pub fn width(&self) -> u32 {
@@ -149,7 +180,8 @@ impl AlphaMask {
         self.height
     }
 
-    /// The alphas, row-major (what a GPU copy uploads).
+    /// The texture's alphas, row-major, before the base alpha (what a GPU
+    /// copy uploads, with [`AlphaMask::threshold`]).
     pub fn alpha(&self) -> &[u8] {
         &self.alpha
     }
@@ -165,7 +197,8 @@ impl AlphaMask {
         self.alpha[(y * self.width + x) as usize] as f32 * (1.0 / 255.0)
     }
 
-    /// The alpha at `uv`: bilinear between texel centres, read by the wrap modes.
+    /// The texture's alpha at `uv` (before the base alpha): bilinear between
+    /// texel centres, read by the wrap modes.
     #[inline]
     pub fn alpha_at(&self, uv: Vec2) -> f32 {
         let x = uv.x as f64 * self.width as f64 - 0.5;
@@ -186,20 +219,25 @@ impl AlphaMask {
     }
 }
 
-/// `alpha` box-filtered by the smallest integer factor that brings both
-/// sides to at most [`MAX_MASK_SIDE`].
+/// `alpha` box-filtered down to at most [`MAX_MASK_SIDE`] a side, each new
+/// texel the mean of the source texels under it (source ranges split in
+/// proportion, so the filtered mask stays aligned with the texture).
 fn box_filter(alpha: Vec<u8>, width: u32, height: u32) -> (Vec<u8>, u32, u32) {
-    let factor = width.max(height).div_ceil(MAX_MASK_SIDE);
-    if factor <= 1 {
+    if width <= MAX_MASK_SIDE && height <= MAX_MASK_SIDE {
         return (alpha, width, height);
     }
+    let factor = width.max(height).div_ceil(MAX_MASK_SIDE);
     let (w, h) = (width.div_ceil(factor), height.div_ceil(factor));
+    let span = |i: u32, n: u32, to: u32| {
+        let (a, b) = ((i as u64 * n as u64 / to as u64) as u32, ((i as u64 + 1) * n as u64 / to as u64) as u32);
+        a..b.max(a + 1).min(n)
+    };
     let mut out = Vec::with_capacity((w * h) as usize);
     for y in 0..h {
         for x in 0..w {
             let (mut sum, mut n) = (0u32, 0u32);
-            for sy in y * factor..((y + 1) * factor).min(height) {
-                for sx in x * factor..((x + 1) * factor).min(width) {
+            for sy in span(y, height, h) {
+                for sx in span(x, width, w) {
                     sum += alpha[(sy * width + sx) as usize] as u32;
                     n += 1;
                 }
@@ -234,7 +272,7 @@ impl Cutout {
         if uvs.len() != mesh.positions().len() {
             return Err(CutoutError::Uvs { uvs: uvs.len(), vertices: mesh.positions().len() });
         }
-        if let Some(bad) = uvs.iter().find(|uv| !uv.is_finite()) {
+        if let Some(bad) = uvs.iter().find(|uv| !uv.is_finite() || uv.abs().max_element() > MAX_UV) {
             return Err(CutoutError::BadUv(*bad));
         }
         let face_uvs: Vec<[Vec2; 3]> = topology
@@ -275,9 +313,13 @@ pub struct Outline {
     pub edges: Vec<crate::mesh::Edge>,
     /// Per edge, whether it is a crease: every one-face edge is.
     pub crease: Vec<bool>,
-    /// Faces whose UVs span more than [`MAX_CELLS_PER_FACE`] cells: modelled
-    /// by their mesh edges' opaque stretches only.
+    /// Faces whose UVs span more cells than a face's or the mesh's share
+    /// ([`MAX_CELLS_PER_FACE`], [`MAX_CELLS_PER_MESH`]): modelled by their
+    /// mesh edges' opaque stretches only.
     pub unmodelled_faces: usize,
+    /// Dangling ends joined (see `close_dangling_ends`): 0 but where an
+    /// iso-line meets a face's edge within a hair of a corner.
+    pub joined_ends: usize,
 }
 
 /// A break of a face's edge `k` (from corner `k` to `k + 1`) at parameter
@@ -300,9 +342,10 @@ impl Outline {
         // Segments: face, UV ends, 3D ends (filled once the breaks are merged).
         let mut segments: Vec<(u32, [Vec2; 2], [Vec3; 2])> = Vec::new();
         let corners3 = |f: usize| topology.faces[f].map(|i| topology.positions[i as usize]);
+        let mut budget = MAX_CELLS_PER_MESH;
         for (f, uv) in face_uvs.iter().enumerate() {
             let mut face_breaks: [Vec<EdgeBreak>; 3] = Default::default();
-            match iso_segments(mask, uv) {
+            match iso_segments(mask, uv, &mut budget) {
                 None => out.unmodelled_faces += 1,
                 Some(segs) => {
                     for (ends, on_edges) in segs {
@@ -353,14 +396,32 @@ impl Outline {
             })
         };
         let mut pending: Vec<(Vec3, Vec3, [u32; 2], [bool; 2])> = Vec::new();
-        for e in &topology.edges {
-            let [v0, v1] = e.vertices;
+        // Each mesh edge with its faces; a non-manifold edge once per face
+        // (each face's opaque stretches a one-face edge of their own).
+        let jobs = topology
+            .edges
+            .iter()
+            .map(|e| {
+                let faces: Vec<(u32, bool)> =
+                    (0..2).filter(|&i| e.faces[i] != NO_FACE).map(|i| (e.faces[i], e.forward[i])).collect();
+                (e.vertices, faces)
+            })
+            .chain(topology.non_manifold_edges.iter().flat_map(|e| e.faces.iter().map(|&f| (e.vertices, vec![f]))));
+        for ([v0, v1], edge_faces) in jobs {
             let (p0, p1) = (topology.positions[v0 as usize], topology.positions[v1 as usize]);
             // One formula for every point of the edge, so ends meet bit for bit.
-            let point_at = |s: f32| if s <= 0.0 { p0 } else if s >= 1.0 { p1 } else { p0.lerp(p1, s) };
-            let faces: Vec<(u32, bool, usize, bool)> = (0..2)
-                .filter(|&i| e.faces[i] != NO_FACE)
-                .filter_map(|i| corner_of(e.faces[i], v0, v1).map(|(k, same)| (e.faces[i], e.forward[i], k, same)))
+            let point_at = |s: f32| {
+                if s <= 0.0 {
+                    p0
+                } else if s >= 1.0 {
+                    p1
+                } else {
+                    p0.lerp(p1, s)
+                }
+            };
+            let faces: Vec<(u32, bool, usize, bool)> = edge_faces
+                .iter()
+                .filter_map(|&(f, forward)| corner_of(f, v0, v1).map(|(k, same)| (f, forward, k, same)))
                 .collect();
             // Breaks in the edge's own parameter s (v0 → v1), merged within
             // 1e-5: (s, face slot, opaque after it in s, segment, end).
@@ -465,19 +526,6 @@ impl Outline {
                 flush(from, 1.0, o, &mut pending);
             }
         }
-        // Non-manifold edges stay whole: each face's stretch, one-face.
-        for e in &topology.non_manifold_edges {
-            let [v0, v1] = e.vertices;
-            for &(f, forward) in &e.faces {
-                pending.push((
-                    topology.positions[v0 as usize],
-                    topology.positions[v1 as usize],
-                    [f, NO_FACE],
-                    [forward, false],
-                ));
-            }
-        }
-
         let mut vertex = |p: Vec3, normal: Vec3, out: &mut Outline| -> u32 {
             *welder.entry(p.to_array().map(f32::to_bits)).or_insert_with(|| {
                 out.positions.push(p);
@@ -509,8 +557,7 @@ impl Outline {
             // A two-face stretch is a crease when its mesh edge is.
             let crease = !two || {
                 let (n0, n1) = (topology.face_planes[faces[0] as usize].0, topology.face_planes[faces[1] as usize].0);
-                n0.normalize_or_zero().dot(n1.normalize_or_zero())
-                    < crate::mesh::CREASE_ANGLE_DEG.to_radians().cos()
+                n0.normalize_or_zero().dot(n1.normalize_or_zero()) < crate::mesh::CREASE_ANGLE_DEG.to_radians().cos()
             };
             out.edges.push(crate::mesh::Edge { vertices: [ia, ib], faces, forward });
             out.crease.push(crease);
@@ -559,6 +606,7 @@ impl Outline {
                     forward: [true, false],
                 });
                 self.crease.push(true);
+                self.joined_ends += 1;
                 degree[v] -= 1;
                 degree[w as usize] += 1;
                 if degree[w as usize] == 0 {
@@ -582,18 +630,21 @@ fn barycentrics_2d(t: &[Vec2; 3], q: Vec2) -> Vec3 {
 
 /// The iso-line `alpha = cutoff` inside the UV triangle `uv`: segments with
 /// the opaque side on their left (in `(u, v)` with the usual orientation),
-/// and per end the triangle edge that clipped it. `None` when the triangle
-/// spans more than [`MAX_CELLS_PER_FACE`] cells.
+/// and per end the triangle edges it ends on. `None` when the triangle
+/// spans more than [`MAX_CELLS_PER_FACE`] cells or more than the mesh's
+/// `budget` of cells left (which it takes from).
 #[allow(clippy::type_complexity)]
-fn iso_segments(mask: &AlphaMask, uv: &[Vec2; 3]) -> Option<Vec<([Vec2; 2], [[bool; 3]; 2])>> {
+fn iso_segments(mask: &AlphaMask, uv: &[Vec2; 3], budget: &mut u64) -> Option<Vec<([Vec2; 2], [[bool; 3]; 2])>> {
     let (w, h) = (mask.width as f64, mask.height as f64);
     let lo = uv[0].min(uv[1]).min(uv[2]);
     let hi = uv[0].max(uv[1]).max(uv[2]);
     let (i0, i1) = ((lo.x as f64 * w - 0.5).floor() as i64, (hi.x as f64 * w - 0.5).floor() as i64);
     let (j0, j1) = ((lo.y as f64 * h - 0.5).floor() as i64, (hi.y as f64 * h - 0.5).floor() as i64);
-    if ((i1 - i0 + 1) as u64).saturating_mul((j1 - j0 + 1) as u64) > MAX_CELLS_PER_FACE {
+    let cells = ((i1 - i0 + 1) as u64).saturating_mul((j1 - j0 + 1) as u64);
+    if cells > MAX_CELLS_PER_FACE || cells > *budget {
         return None;
     }
+    *budget -= cells;
     let area = (uv[1] - uv[0]).perp_dot(uv[2] - uv[0]);
     if !(area.abs() > 0.0) {
         return Some(Vec::new());
@@ -748,16 +799,26 @@ mod tests {
         assert!(matches!(AlphaMask::new(1, 1, vec![0], 1.0, f32::NAN), Err(CutoutError::Cutoff(_))));
         assert_eq!(AlphaMask::new(1, 1, vec![0], 1.0, 7.0).unwrap().cutoff(), 1.0);
         // A big mask is box-filtered to MAX_MASK_SIDE, its alpha kept.
-        let big = AlphaMask::new(1024, 512, (0..1024 * 512).map(|i| if i % 1024 < 512 { 0 } else { 255 }).collect(), 1.0, 0.5)
-            .unwrap();
+        let big = AlphaMask::new(
+            1024,
+            512,
+            (0..1024 * 512).map(|i| if i % 1024 < 512 { 0 } else { 255 }).collect(),
+            1.0,
+            0.5,
+        )
+        .unwrap();
         assert_eq!((big.width(), big.height()), (256, 128));
         assert!(!big.opaque(Vec2::new(0.2, 0.5)) && big.opaque(Vec2::new(0.8, 0.5)));
     }
 
-    fn card_cutout(mask: AlphaMask, uv_turn: f32) -> (Topology, Cutout) {
+    /// A 0.6 × 0.9 card with its UVs turned by `uv_turn` about the
+    /// texture's centre, and mirrored in u when `mirror` (the UV triangles
+    /// then turn the way the faces wind; unmirrored, against it).
+    fn card_cutout(mask: AlphaMask, uv_turn: f32, mirror: bool) -> (Topology, Cutout) {
         let (mesh, uvs) = crate::shapes::card(0.6, 0.9);
         let rot = glam::Mat2::from_angle(uv_turn);
-        let uvs: Vec<Vec2> = uvs.iter().map(|&uv| rot * (uv - 0.5) + 0.5).collect();
+        let flip = |uv: Vec2| if mirror { Vec2::new(1.0 - uv.x, uv.y) } else { uv };
+        let uvs: Vec<Vec2> = uvs.iter().map(|&uv| rot * (flip(uv) - 0.5) + 0.5).collect();
         let topology = Topology::build(&mesh);
         let cutout = Cutout::new(Arc::new(mask), &uvs, &mesh, &topology).unwrap();
         (topology, cutout)
@@ -780,7 +841,12 @@ mod tests {
                     .edges
                     .iter()
                     .filter(|e| e.vertices.contains(&(i as u32)))
-                    .map(|e| format!("{:?}: {} → {}", e, o.positions[e.vertices[0] as usize], o.positions[e.vertices[1] as usize]))
+                    .map(|e| {
+                        format!(
+                            "{:?}: {} → {}",
+                            e, o.positions[e.vertices[0] as usize], o.positions[e.vertices[1] as usize]
+                        )
+                    })
                     .collect();
                 format!("{} at {}: {}", degree[i], o.positions[i], at.join("; "))
             })
@@ -802,7 +868,7 @@ mod tests {
 
     #[test]
     fn an_opaque_card_is_outlined_by_its_border_and_a_clear_one_by_nothing() {
-        let (_, solid) = card_cutout(AlphaMask::new(4, 4, vec![255; 16], 1.0, 0.5).unwrap(), 0.0);
+        let (_, solid) = card_cutout(AlphaMask::new(4, 4, vec![255; 16], 1.0, 0.5).unwrap(), 0.0, false);
         let o = &solid.outline;
         let border: f32 = o
             .edges
@@ -815,7 +881,7 @@ mod tests {
         // The diagonal, both faces opaque: one two-face edge.
         assert_eq!(o.edges.iter().filter(|e| e.faces[1] != NO_FACE).count(), 1);
         assert!(unbalanced_vertices(o).is_empty());
-        let (_, clear) = card_cutout(AlphaMask::new(4, 4, vec![0; 16], 1.0, 0.5).unwrap(), 0.0);
+        let (_, clear) = card_cutout(AlphaMask::new(4, 4, vec![0; 16], 1.0, 0.5).unwrap(), 0.0, false);
         assert!(clear.outline.edges.is_empty());
     }
 
@@ -824,24 +890,29 @@ mod tests {
         let alpha = crate::shapes::leaf_alpha(128);
         // The opaque area by the bilinear test on a fine grid, against the
         // area the outline encloses.
-        for turn in [0.0, 0.3, 1.9] {
-            let (_, c) = card_cutout(AlphaMask::new(128, 128, alpha.clone(), 1.0, 0.5).unwrap(), turn);
+        for (turn, mirror) in [(0.0, false), (0.3, false), (1.9, false), (0.0, true), (0.7, true)] {
+            let (_, c) = card_cutout(AlphaMask::new(128, 128, alpha.clone(), 1.0, 0.5).unwrap(), turn, mirror);
             let o = &c.outline;
             let open = unbalanced_vertices(o);
-            assert!(open.is_empty(), "turn {turn}: open outline: {open:#?}");
+            assert!(open.is_empty(), "turn {turn}, mirror {mirror}: open outline: {open:#?}");
+            assert_eq!(o.joined_ends, 0, "turn {turn}, mirror {mirror}: closed without joining ends");
             let n = 600;
             let mut opaque = 0;
             for y in 0..n {
                 for x in 0..n {
                     let q = Vec2::new((x as f32 + 0.5) / n as f32, (y as f32 + 0.5) / n as f32);
-                    // The card's UV at its point (u, 1 − y) turned like its corners'.
+                    // The card's UV at its point (u, 1 − y) mirrored and turned like its corners'.
+                    let q = if mirror { Vec2::new(1.0 - q.x, q.y) } else { q };
                     let uv = glam::Mat2::from_angle(turn) * (q - 0.5) + 0.5;
                     opaque += c.mask.opaque(uv) as u32;
                 }
             }
             let sampled = opaque as f32 / (n * n) as f32 * 0.54;
             let area = enclosed_area(o);
-            assert!((area - sampled).abs() < 0.01 * 0.54, "turn {turn}: outline encloses {area}, opaque {sampled}");
+            assert!(
+                (area - sampled).abs() < 0.01 * 0.54,
+                "turn {turn}, mirror {mirror}: outline encloses {area}, opaque {sampled}"
+            );
             // Holes and blade: many more edges than the card's four.
             assert!(o.edges.len() > 100, "{}", o.edges.len());
         }
@@ -858,6 +929,7 @@ mod tests {
             seed ^= seed << 5;
             seed
         };
+        let mut joined = 0;
         for _ in 0..1000 {
             let alpha: Vec<u8> = (0..64).map(|_| (rnd() % 256) as u8).collect();
             let cutoff = (rnd() % 100) as f32 / 100.0;
@@ -879,10 +951,13 @@ mod tests {
             let c = Cutout::new(Arc::new(mask), &uvs, &mesh, &topology).unwrap();
             let open = unbalanced_vertices(&c.outline);
             assert!(open.is_empty(), "open outline: {open:#?}");
+            joined += c.outline.joined_ends;
             for e in &c.outline.edges {
                 let (a, b) = (c.outline.positions[e.vertices[0] as usize], c.outline.positions[e.vertices[1] as usize]);
                 assert!(a.is_finite() && b.is_finite() && a != b);
             }
         }
+        // Joins mend the rare corner case only (a few in 8000 faces).
+        assert!(joined <= 20, "{joined} dangling ends joined");
     }
 }

@@ -57,6 +57,12 @@ impl SceneObject {
         })
     }
 
+    /// Its cut-out, when it was built for this object's topology (one UV
+    /// triangle per face); a cut-out of another mesh is ignored: solid.
+    pub fn fitting_cutout(&self) -> Option<&crate::cutout::Cutout> {
+        self.cutout.as_ref().filter(|c| c.face_uvs.len() == self.topology.faces.len())
+    }
+
     /// The object → world transform in f64.
     pub fn transform_f64(&self) -> DAffine3 {
         DAffine3::from_mat3_translation(
@@ -243,7 +249,7 @@ impl LightSpaceScene {
         let object_frames: Vec<ObjectToFrame> = scene.objects.iter().map(|o| ObjectToFrame::new(o, &frame)).collect();
         let mut casters = Vec::with_capacity(scene.triangle_count());
         let mut deepest = f32::NEG_INFINITY;
-        let cut = scene.objects.iter().any(|o| o.casts_shadows && o.cutout.is_some());
+        let cut = scene.objects.iter().any(|o| o.casts_shadows && o.fitting_cutout().is_some());
         let (mut caster_cutouts, mut masks) = (Vec::new(), Vec::new());
         for (o, to_frame) in scene.objects.iter().zip(&object_frames) {
             let pts: Vec<Vec3> = o.topology.positions.iter().map(|&p| to_frame.point(p)).collect();
@@ -253,10 +259,16 @@ impl LightSpaceScene {
             if o.casts_shadows {
                 casters.extend(o.topology.faces.iter().map(|f| f.map(|i| pts[i as usize])));
                 if cut {
-                    match &o.cutout {
+                    match o.fitting_cutout() {
                         Some(c) => {
-                            masks.push(c.mask.clone());
-                            let mask = masks.len() as u32 - 1;
+                            // One copy of a mask its instances share.
+                            let mask = match masks.iter().position(|m| std::sync::Arc::ptr_eq(m, &c.mask)) {
+                                Some(i) => i as u32,
+                                None => {
+                                    masks.push(c.mask.clone());
+                                    masks.len() as u32 - 1
+                                }
+                            };
                             caster_cutouts.extend(
                                 c.face_uvs.iter().map(|uvs| Some(crate::cutout::CasterCutout { mask, uvs: *uvs })),
                             );

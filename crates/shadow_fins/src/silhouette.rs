@@ -101,7 +101,9 @@ pub fn extract_object_silhouettes(
     }
 
     // Patches: flood fill over map faces across non-silhouette edges.
-    let closed = to_frame.culls_back_faces(topology);
+    // An alpha-masked closed mesh keeps its back faces: light through a hole
+    // in its front meets them.
+    let closed = to_frame.culls_back_faces(topology) && outline.is_none();
     let first = face_patches.len();
     face_patches.resize(first + facing.len(), NO_PATCH);
     let labels = &mut face_patches[first..];

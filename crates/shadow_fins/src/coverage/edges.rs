@@ -107,7 +107,7 @@ pub fn potential_silhouette_edges(scene: &Scene, light_space: &LightSpaceScene, 
             let v = f.into_iter().find(|&v| v != v0 && v != v1).unwrap_or(f[0]);
             pts[v as usize]
         };
-        if let Some(cutout) = &object.cutout {
+        if let Some(cutout) = object.fitting_cutout() {
             // An alpha-masked object: its outline's edges ([`crate::cutout`]).
             let o = &cutout.outline;
             for e in &o.edges {
@@ -134,7 +134,13 @@ pub fn potential_silhouette_edges(scene: &Scene, light_space: &LightSpaceScene, 
                     let [x, y, z] = f.map(|i| pts[i as usize]);
                     // The corner farthest from the stretch's line.
                     let d = |p: Vec3| (p - a).cross(b - a).length_squared();
-                    if d(x) >= d(y) && d(x) >= d(z) { x } else if d(y) >= d(z) { y } else { z }
+                    if d(x) >= d(y) && d(x) >= d(z) {
+                        x
+                    } else if d(y) >= d(z) {
+                        y
+                    } else {
+                        z
+                    }
                 };
                 out.push(CoverageEdge { a, b, third: [third_of(e.faces[0]), third_of(e.faces[1])], faces: 2 });
             }
@@ -154,7 +160,7 @@ pub fn potential_silhouette_edges(scene: &Scene, light_space: &LightSpaceScene, 
                 out.push(CoverageEdge { a, b, third, faces: 2 });
             }
         }
-        for e in t.non_manifold_edges.iter().filter(|_| object.cutout.is_none()) {
+        for e in t.non_manifold_edges.iter().filter(|_| object.fitting_cutout().is_none()) {
             let [v0, v1] = e.vertices;
             let (a, b) = (pts[v0 as usize], pts[v1 as usize]);
             for &(face, _) in &e.faces {

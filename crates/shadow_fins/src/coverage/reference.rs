@@ -183,8 +183,8 @@ fn insert_sorted(list: &mut [f32], d: f32) {
 
 #[cfg(test)]
 mod tests {
-    use glam::Vec3;
     use super::*;
+    use glam::Vec3;
 
     #[test]
     fn a_point_on_a_shared_edge_or_vertex_belongs_to_exactly_one_triangle() {

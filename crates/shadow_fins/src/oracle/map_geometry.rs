@@ -71,7 +71,11 @@ impl MapTriangle {
                 min_depth,
                 max_depth,
                 perspective,
-                cutout: cutout.map(|c| MapCutout { mask: c.mask, uvs: p.map(|v| uv_at(&c, v)), depths: p.map(|v| v.z) }),
+                cutout: cutout.map(|c| MapCutout {
+                    mask: c.mask,
+                    uvs: p.map(|v| uv_at(&c, v)),
+                    depths: p.map(|v| v.z),
+                }),
             })
         };
         let window = frame.face_window_planes();

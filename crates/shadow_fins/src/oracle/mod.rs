@@ -345,11 +345,11 @@ impl FinExtractor {
                     &mut self.scratch,
                     &mut self.face_patches,
                     &mut self.silhouettes,
-                    object.cutout.as_ref().map(|c| &*c.outline),
+                    object.fitting_cutout().map(|c| &*c.outline),
                 );
             }
             vertex_base += object.topology.positions.len() as u32
-                + object.cutout.as_ref().map_or(0, |c| c.outline.positions.len() as u32);
+                + object.fitting_cutout().map_or(0, |c| c.outline.positions.len() as u32);
         }
         self.patch_count = patches;
         // A sphere light's face keeps the silhouettes that can shade it.

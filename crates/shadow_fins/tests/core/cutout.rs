@@ -39,7 +39,11 @@ fn card_scene(mask: Option<AlphaMask>, flipped: bool) -> Scene {
     let (mesh, uvs) = shapes::card(2.0, 2.0);
     let topology = Topology::build(&mesh);
     // Stand the card's XY plane on the ground's XZ plane, centred at the origin.
-    let turn = if flipped { Quat::from_rotation_x(std::f32::consts::FRAC_PI_2) } else { Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2) };
+    let turn = if flipped {
+        Quat::from_rotation_x(std::f32::consts::FRAC_PI_2)
+    } else {
+        Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2)
+    };
     let z = if flipped { -1.0 } else { 1.0 };
     let t = Affine3A::from_rotation_translation(turn, Vec3::new(0.0, 1.0, z));
     let mut card = SceneObject::new("card", mesh.clone(), t).unwrap();
@@ -144,9 +148,94 @@ fn bad_masks_and_uvs_are_typed_errors() {
     let (mesh, uvs) = shapes::card(1.0, 1.0);
     let topology = Topology::build(&mesh);
     let mask = Arc::new(AlphaMask::new(1, 1, vec![255], 1.0, 0.5).unwrap());
-    assert!(matches!(Cutout::new(mask.clone(), &uvs[..3], &mesh, &topology), Err(CutoutError::Uvs { uvs: 3, vertices: 4 })));
+    assert!(matches!(
+        Cutout::new(mask.clone(), &uvs[..3], &mesh, &topology),
+        Err(CutoutError::Uvs { uvs: 3, vertices: 4 })
+    ));
     let mut nan = uvs.clone();
     nan[2] = Vec2::new(f32::NAN, 0.0);
     assert!(matches!(Cutout::new(mask, &nan, &mesh, &topology), Err(CutoutError::BadUv(_))));
     assert!(matches!(AlphaMask::new(4, 4, vec![0; 15], 1.0, 0.5), Err(CutoutError::Size { .. })));
+}
+
+/// A 64² mask, opaque but for its top-left quarter (u < 0.5, v < 0.5): where
+/// it lands in the world pins the mask's row order and axes.
+fn quarter_hole_mask() -> AlphaMask {
+    let alpha = (0..64 * 64).map(|i| if i % 64 < 32 && i / 64 < 32 { 0 } else { 255 }).collect();
+    AlphaMask::new(64, 64, alpha, 1.0, 0.5).unwrap()
+}
+
+#[test]
+fn the_hole_lands_where_its_texels_are() {
+    // `card_scene` lays the card flat: u along +x (x = 2u − 1), v along +z
+    // (z = 2v − 1). The hole (u, v < 0.5) is over x, z < 0.
+    let scene = card_scene(Some(quarter_hole_mask()), false);
+    let light = down_light(Vec3::new(0.0, 6.0, 0.0), 0.02);
+    let ls = LightSpaceScene::new(&scene, light);
+    let points =
+        [Vec3::new(-0.5, 0.0, -0.5), Vec3::new(0.5, 0.0, -0.5), Vec3::new(-0.5, 0.0, 0.5), Vec3::new(0.5, 0.0, 0.5)];
+    let receivers = ground_receivers(&ls, &points);
+    let truth = GroundTruth::new(&ls, 256);
+    let coverage = CoverageModel::new(&scene, &ls, CoverageSettings::default());
+    let maps = FinShadowModel::new(&scene, &ls, Method::MultiLayer, FinSettings::default());
+    let maps = maps.raster(256);
+    for (r, want) in receivers.iter().zip([1.0, 0.0, 0.0, 0.0]) {
+        for (what, v) in
+            [("truth", truth.visibility(*r)), ("coverage", coverage.visibility(*r)), ("maps", maps.visibility(*r))]
+        {
+            assert!((v - want).abs() < 0.02, "{what} at {:?}: {v}, wanted {want}", ls.frame.to_world(r.position));
+        }
+    }
+}
+
+#[test]
+fn a_closed_masked_mesh_keeps_its_back_faces_in_the_maps() {
+    // A closed box whose top is cut by a hole and whose bottom is opaque (its
+    // vertices' UVs sit in the mask's opaque corner): light through the hole
+    // meets the bottom, which a closed mesh's culled back faces would miss.
+    let (lo, hi) = (Vec3::new(-1.0, 1.0, -1.0), Vec3::new(1.0, 1.5, 1.0));
+    let p = |x: f32, y: f32, z: f32| {
+        Vec3::new(
+            if x > 0.0 { hi.x } else { lo.x },
+            if y > 0.0 { hi.y } else { lo.y },
+            if z > 0.0 { hi.z } else { lo.z },
+        )
+    };
+    let positions = vec![
+        p(-1., -1., -1.),
+        p(1., -1., -1.),
+        p(1., -1., 1.),
+        p(-1., -1., 1.),
+        p(-1., 1., -1.),
+        p(1., 1., -1.),
+        p(1., 1., 1.),
+        p(-1., 1., 1.),
+    ];
+    // Top corners over the whole texture (hole in its middle), bottom ones at an opaque texel.
+    let uvs = vec![Vec2::splat(0.95); 4]
+        .into_iter()
+        .chain([Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 1.0), Vec2::new(0.0, 1.0)])
+        .collect::<Vec<_>>();
+    let indices = vec![
+        0, 1, 2, 0, 2, 3, // bottom, facing down
+        4, 6, 5, 4, 7, 6, // top, facing up
+        0, 4, 5, 0, 5, 1, 1, 5, 6, 1, 6, 2, 2, 6, 7, 2, 7, 3, 3, 7, 4, 3, 4, 0,
+    ];
+    let mesh = shadow_fins::mesh::Mesh::new(positions, indices).unwrap();
+    let topology = Topology::build(&mesh);
+    assert!(topology.is_closed_manifold());
+    let mut boxed = SceneObject::new("box", mesh.clone(), Affine3A::IDENTITY).unwrap();
+    boxed.cutout = Some(Cutout::new(Arc::new(holed_mask()), &uvs, &mesh, &topology).unwrap());
+    let scene = Scene::new(vec![ground(), boxed]);
+    let light = down_light(Vec3::new(0.0, 6.0, 0.0), 0.02);
+    let ls = LightSpaceScene::new(&scene, light);
+    let under = ground_receivers(&ls, &[Vec3::ZERO])[0];
+    let truth = GroundTruth::new(&ls, 256).visibility(under);
+    let coverage = CoverageModel::new(&scene, &ls, CoverageSettings::default()).visibility(under);
+    let model = FinShadowModel::new(&scene, &ls, Method::MultiLayer, FinSettings::default());
+    let (exact, maps) = (model.analytic().visibility(under), model.raster(256).visibility(under));
+    assert!(truth < 0.02, "the truth sees the bottom: {truth}");
+    for (what, v) in [("coverage", coverage), ("fins", exact), ("fins maps", maps)] {
+        assert!(v < 0.02, "{what}: {v} under the hole, the bottom blocks it");
+    }
 }
