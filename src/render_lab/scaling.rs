@@ -17,7 +17,7 @@
 use std::time::Instant;
 
 use bevy::prelude::*;
-use bevy_shadow_fins::{FinCasterScans, FinShadowSettings, FinShadows};
+use bevy_shadow_fins::{FinCasterScans, FinCasterUpdates, FinShadowSettings, FinShadows};
 use shadow_fins::scenes::SceneId;
 use shadow_fins_lab::results::Spread;
 
@@ -45,6 +45,10 @@ pub struct ScalingRow {
     pub moving_main_ms: f64,
     pub moving_render_ms: f64,
     pub moving_frame_ms: f64,
+    /// Mesh walks and caster records rebuilt in place while one cube moved
+    /// (walks should be 0, records one per frame).
+    pub moving_scans: u64,
+    pub moving_records: u64,
     /// The same app static with `FinShadows` removed (Bevy's own spot shadow
     /// map back): what Bevy alone costs at this object count.
     pub bevy_main_ms: f64,
@@ -131,7 +135,11 @@ pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
         let before = scans(&session);
         let (static_main_ms, static_render_ms, static_frame_ms) = time(&mut session, run.frames, false);
         let static_scans = scans(&session) - before;
+        let (scans_before, records_before) =
+            (scans(&session), session.app.world().resource::<FinCasterUpdates>().records);
         let (moving_main_ms, moving_render_ms, moving_frame_ms) = time(&mut session, run.frames, true);
+        let moving_scans = scans(&session) - scans_before;
+        let moving_records = session.app.world().resource::<FinCasterUpdates>().records - records_before;
         let world = session.app.world_mut();
         let fin_lights: Vec<Entity> = world.query_filtered::<Entity, With<FinShadows>>().iter(world).collect();
         for e in fin_lights {
@@ -148,6 +156,8 @@ pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
             moving_main_ms,
             moving_render_ms,
             moving_frame_ms,
+            moving_scans,
+            moving_records,
             bevy_main_ms,
             bevy_render_ms,
         });
@@ -159,12 +169,13 @@ pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
 pub fn markdown(rows: &[ScalingRow]) -> String {
     let mut out = String::from(
         "| objects | static main ms | static render ms | static frame ms | mesh walks while static | \
-         one moving: main ms | render ms | frame ms | FinShadows removed (Bevy's map), static: main ms | render ms |\n\
-         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+         one moving: main ms | render ms | frame ms | mesh walks | records rebuilt | \
+         FinShadows removed (Bevy's map), static: main ms | render ms |\n\
+         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         out += &format!(
-            "| {} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |\n",
+            "| {} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {} | {} | {:.1} | {:.1} |\n",
             r.objects,
             r.static_main_ms,
             r.static_render_ms,
@@ -173,6 +184,8 @@ pub fn markdown(rows: &[ScalingRow]) -> String {
             r.moving_main_ms,
             r.moving_render_ms,
             r.moving_frame_ms,
+            r.moving_scans,
+            r.moving_records,
             r.bevy_main_ms,
             r.bevy_render_ms,
         );

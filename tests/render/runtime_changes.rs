@@ -252,29 +252,49 @@ fn parent_move_mesh_edit_and_despawn(settings: FinShadowSettings) {
 #[test]
 fn a_still_scene_is_not_walked_again_and_a_moved_caster_moves_its_shadow() {
     // Change detection: once settled, frames in which nothing changed do not
-    // walk the meshes (`FinCasterScans` stays), and moving the box is seen:
-    // its shadow is then the one a fresh app renders with the box there.
+    // walk the meshes (`FinCasterScans` stays), and moving the box is seen
+    // without a walk either: its record alone is rebuilt in place
+    // (`FinCasterUpdates`, `casters.rs`), and its shadow is then the one a
+    // fresh app renders with the box there. Moved behind the light, it
+    // stops casting (every later record renumbered): no shadow, as fresh.
     let setup = setup(SceneId::BoxOverPlane, settings());
     let offset = Vec3::new(0.4, 0.0, -0.3);
-    let moved = with_box_moved(&setup, offset);
-    let expected = render(&moved).visibility;
+    // Above the light's plane: behind its disk, out of its reach.
+    let far = Vec3::new(0.0, 10.0, 0.0);
+    let expected = render(&with_box_moved(&setup, offset)).visibility;
+    let expected_far = render(&with_box_moved(&setup, offset + far)).visibility;
     let mut session = harness::Session::new(&setup);
     let before = session.settle(6).expect("render").visibility;
     assert_visibility_not_trivial(&before);
     let scans = |session: &harness::Session| session.app.world().resource::<bevy_shadow_fins::FinCasterScans>().0;
+    let updates = |session: &harness::Session| *session.app.world().resource::<bevy_shadow_fins::FinCasterUpdates>();
     let settled = scans(&session);
+    let updated = updates(&session);
     for _ in 0..5 {
         session.update();
     }
     assert_eq!(scans(&session), settled, "a still scene was walked again");
+    assert_eq!(updates(&session), updated, "a still scene was updated");
     let world = session.app.world_mut();
     let the_box = the_box(world);
     world.get_mut::<Transform>(the_box).expect("a transform").translation += offset;
     let after = session.settle(6).expect("render").visibility;
-    assert!(scans(&session) > settled, "the move was not seen");
+    assert_eq!(scans(&session), settled, "moving one caster walked every mesh");
+    let now = updates(&session);
+    assert_eq!((now.frames - updated.frames, now.records - updated.records), (1, 1), "the move was not one record");
     let (mad, _) = compare(&after, &expected);
     let (changed, _) = compare(&after, &before);
     println!("moved box: |V − V fresh| = {mad:.2e}, |V − V before| = {changed:.3}");
     assert!(changed > 0.005, "the shadow did not move ({changed})");
     assert!(mad <= 1e-3, "the moved shadow differs from a fresh render ({mad})");
+
+    let world = session.app.world_mut();
+    world.get_mut::<Transform>(the_box).expect("a transform").translation += far;
+    let gone = session.settle(6).expect("render").visibility;
+    assert_eq!(scans(&session), settled, "moving one caster walked every mesh");
+    let (mad, _) = compare(&gone, &expected_far);
+    let (changed, _) = compare(&gone, &after);
+    println!("box moved behind the light: |V − V fresh| = {mad:.2e}, |V − V before| = {changed:.3}");
+    assert!(changed > 0.005, "the shadow stayed ({changed})");
+    assert!(mad <= 1e-3, "the box out of reach shadows otherwise than in a fresh render ({mad})");
 }

@@ -9,7 +9,7 @@
 //! holds the map-space casters and fins.
 
 use std::{
-    collections::HashMap,
+    collections::{HashMap, HashSet},
     f32::consts::FRAC_PI_2,
     hash::{Hash, Hasher},
     sync::Arc,
@@ -34,6 +34,7 @@ use shadow_fins::{
 
 use crate::{
     budget::{FinDegradation, FinDeviceLimits, FinShadowBudget, FinShadowsUnsupported, allocate_maps},
+    casters::{CasterScene, CasterSignature, FinCasterUpdates, SlotSources},
     coverage_frame::{CoverageFrame, coverage_frame},
     gpu_scene::{GpuCapacity, GpuMeshGeometry, GpuScene, GpuSceneBuilder},
     light::{FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster},
@@ -369,6 +370,33 @@ pub(crate) struct LightState {
     window: Option<[f32; 4]>,
     /// What this frame models now (a light's stats combine its frames').
     pub(crate) stats: FinFrameStats,
+    /// The objects as this light saw them in its last frame.
+    built: Option<LightBuild>,
+}
+
+/// The objects one light's last frame was built from, kept so that the next
+/// frame recomputes only the slots the scene's update changed.
+struct LightBuild {
+    /// The [`CasterScene::version`] they were seen from.
+    scene_version: u64,
+    /// The light's own part of the signature they were seen with.
+    light_part: u64,
+    /// The frame they were culled in, and the one the GPU records were made
+    /// in (a sun fitted to the views moves it; `None`: not on the GPU).
+    seen_frame: LightFrame,
+    gpu_frame: Option<LightFrame>,
+    objects: Vec<SceneObject>,
+}
+
+/// What one light's frame is asked for.
+struct FrameAsked<'a> {
+    light: Light,
+    face: Option<CubeFace>,
+    window: Option<[f32; 4]>,
+    sees: LightSees<'a>,
+    settings: FinShadowSettings,
+    /// The light's own part of its frame's signature (not the casters').
+    light_part: u64,
 }
 
 /// How many times the frame builder has walked every mesh to sign the
@@ -380,20 +408,6 @@ pub(crate) struct LightState {
 #[derive(Resource, Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct FinCasterScans(pub u64);
 
-/// The casters' signature and world box, kept between frames in which no
-/// caster changed.
-#[derive(Default)]
-struct CasterSignature {
-    /// `None` before the first walk.
-    signature: Option<u64>,
-    scene_box: (Vec3, Vec3),
-    every_mesh_boxed: bool,
-    /// Whether the walk gathered the boxes (only when a sun is fitted to views).
-    fitting: bool,
-    /// Bumped when a mesh asset's content changes (same id, new triangles).
-    mesh_epoch: u64,
-}
-
 /// What tells the frame builder that a caster changed since the last frame.
 #[derive(bevy::ecs::system::SystemParam)]
 struct CasterChanges<'w, 's> {
@@ -401,7 +415,7 @@ struct CasterChanges<'w, 's> {
     changed: Query<
         'w,
         's,
-        (),
+        Entity,
         (
             With<Mesh3d>,
             Or<(
@@ -425,24 +439,29 @@ struct CasterChanges<'w, 's> {
     removed_transforms: RemovedComponents<'w, 's, GlobalTransform>,
     removed_visibility: RemovedComponents<'w, 's, InheritedVisibility>,
     scans: ResMut<'w, FinCasterScans>,
+    updates: ResMut<'w, FinCasterUpdates>,
     kept: Local<'s, CasterSignature>,
     /// Skinned and morphed casters, posed as Bevy draws them.
     poses: crate::pose::Poses<'w, 's>,
 }
 
 impl CasterChanges<'_, '_> {
-    /// True when some caster changed since the last call (the removal
-    /// readers are drained either way).
-    fn any(&mut self) -> bool {
-        let mut removed = false;
-        removed |= self.removed_meshes.read().count() > 0;
-        removed |= self.removed_not_shadow.read().count() > 0;
-        removed |= self.removed_not_fin.read().count() > 0;
-        removed |= self.removed_layers.read().count() > 0;
-        removed |= self.removed_boxes.read().count() > 0;
-        removed |= self.removed_transforms.read().count() > 0;
-        removed |= self.removed_visibility.read().count() > 0;
-        removed || !self.changed.is_empty() || self.poses.any_changed()
+    /// The mesh entities that changed since the last call: changed or
+    /// removed components, and every posed caster when a pose may have
+    /// changed (the removal readers are drained either way).
+    fn take_changed(&mut self) -> HashSet<Entity> {
+        let mut changed: HashSet<Entity> = self.changed.iter().collect();
+        changed.extend(self.removed_meshes.read());
+        changed.extend(self.removed_not_shadow.read());
+        changed.extend(self.removed_not_fin.read());
+        changed.extend(self.removed_layers.read());
+        changed.extend(self.removed_boxes.read());
+        changed.extend(self.removed_transforms.read());
+        changed.extend(self.removed_visibility.read());
+        if self.poses.any_changed() {
+            changed.extend(self.poses.posed_entities());
+        }
+        changed
     }
 }
 
@@ -458,6 +477,9 @@ pub(crate) struct MeshCache {
     pub(crate) lights: HashMap<FrameKey, LightState>,
     /// The `CutoutCache` generation the frames were built with.
     cutout_generation: u64,
+    /// The casters as the last frames were built from (`casters.rs`):
+    /// updated in place when only some casters changed.
+    scene: Option<CasterScene>,
 }
 
 pub(crate) fn build(app: &mut App) {
@@ -466,6 +488,7 @@ pub(crate) fn build(app: &mut App) {
         .init_resource::<crate::cutout::CutoutCache>()
         .init_resource::<FinShadowStats>()
         .init_resource::<FinCasterScans>()
+        .init_resource::<FinCasterUpdates>()
         .add_systems(
             PostUpdate,
             (update_fin_frames, mirror_first_light_stats)
@@ -642,7 +665,7 @@ pub(crate) struct CasterFlags {
     not_fin_caster: Has<NotFinShadowCaster>,
     not_bevy_caster: Has<bevy::light::NotShadowCaster>,
     visibility: Option<&'static InheritedVisibility>,
-    aabb: Option<&'static Aabb>,
+    pub(crate) aabb: Option<&'static Aabb>,
     layers: Option<&'static RenderLayers>,
 }
 
@@ -656,13 +679,13 @@ impl CasterFlagsItem<'_, '_> {
     }
 
     /// The mesh's `RenderLayers` (layer 0 without the component, as in Bevy).
-    fn layers(&self) -> RenderLayers {
+    pub(crate) fn layers(&self) -> RenderLayers {
         self.layers.cloned().unwrap_or_default()
     }
 }
 
 /// Hashes a `RenderLayers` (it has no `Hash`) by its layers.
-fn hash_layers(layers: &RenderLayers, hasher: &mut impl Hasher) {
+pub(crate) fn hash_layers(layers: &RenderLayers, hasher: &mut impl Hasher) {
     layers.iter().count().hash(hasher);
     for layer in layers.iter() {
         layer.hash(hasher);
@@ -670,7 +693,7 @@ fn hash_layers(layers: &RenderLayers, hasher: &mut impl Hasher) {
 }
 
 /// Every mesh that may cast or receive.
-type Casters<'w, 's> = Query<'w, 's, (Entity, &'static Mesh3d, &'static GlobalTransform, CasterFlags)>;
+pub(crate) type Casters<'w, 's> = Query<'w, 's, (Entity, &'static Mesh3d, &'static GlobalTransform, CasterFlags)>;
 
 /// Every `SpotLight`, fin-shadowed (`FinShadows`) or not: mutable, so that
 /// one that stops being fin-shadowed can be marked changed.
@@ -790,7 +813,7 @@ fn update_fin_frames(
             meshes_changed = true;
         }
     }
-    let casters_changed = changes.any() || mesh_event;
+    let changed_casters = changes.take_changed();
     let (mut sources, invalid) = light_sources(&fin_lights, &spot_lights, &directional_lights, &lights);
     for source in &mut sources {
         if let Ok(layers) = light_layers.get(source.entity) {
@@ -827,61 +850,18 @@ fn update_fin_frames(
     if meshes_changed {
         kept.mesh_epoch += 1;
     }
-    // The casters' part of every frame's signature: walked only when a
-    // caster changed (change detection), not every frame.
-    if casters_changed || kept.signature.is_none() || kept.fitting != fitting {
-        changes.scans.0 += 1;
-        let mut hasher = std::collections::hash_map::DefaultHasher::new();
-        kept.mesh_epoch.hash(&mut hasher);
-        let mut scene_box = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-        // A mesh without an `Aabb` (`NoFrustumCulling`, `NoAutoAabb`) has no box
-        // here: then no sun is fitted to the views, which could cut it out.
-        let mut every_mesh_boxed = true;
-        for (entity, mesh, transform, caster) in &casters {
-            entity.hash(&mut hasher);
-            let casting = caster.casts();
-            (caster.drawn(), casting).hash(&mut hasher);
-            hash_layers(&caster.layers(), &mut hasher);
-            if !caster.drawn() {
-                continue;
-            }
-            // The box culls casters by a light's range and cone, fitted or not.
-            if let Some(b) = caster.aabb {
-                hash_floats(&mut hasher, &[b.center.x, b.center.y, b.center.z]);
-                hash_floats(&mut hasher, &[b.half_extents.x, b.half_extents.y, b.half_extents.z]);
-            }
-            match caster.aabb.filter(|_| fitting) {
-                Some(aabb) => {
-                    for c in world_corners(aabb, transform).into_iter().filter(|c| c.is_finite()) {
-                        scene_box = (scene_box.0.min(c), scene_box.1.max(c));
-                    }
-                }
-                None => every_mesh_boxed &= !fitting,
-            }
-            mesh.id().hash(&mut hasher);
-            // A mesh that finishes loading changes the frame too.
-            meshes.contains(mesh.id()).hash(&mut hasher);
-            // What it casts with (an alpha-masked material cuts it out).
-            assets.materials.material_of(entity).hash(&mut hasher);
-            hash_floats(&mut hasher, &transform.to_matrix().to_cols_array());
-            changes.poses.hash_pose(entity, &mut hasher);
+    // The casters' part of every frame's signature: the changed casters
+    // signed again (change detection), every caster only when something
+    // changed them all (`casters.rs`).
+    if mesh_event || kept.signature.is_none() || kept.fitting != fitting || !changed_casters.is_empty() {
+        let some = if mesh_event { None } else { Some(&changed_casters) };
+        let materials = &assets.materials;
+        if kept.update(some, &casters, meshes, |e| materials.material_of(e), &changes.poses, fitting) {
+            changes.scans.0 += 1;
         }
-        *kept = CasterSignature {
-            signature: Some(hasher.finish()),
-            scene_box,
-            every_mesh_boxed,
-            fitting,
-            mesh_epoch: kept.mesh_epoch,
-        };
     }
     let (scene_box, every_mesh_boxed) = (kept.scene_box, kept.every_mesh_boxed);
-    // What every light's frame depends on: the casters, the budget and how
-    // many lights share it. Hashed once; each light adds its own part.
-    let mut hasher = std::collections::hash_map::DefaultHasher::new();
-    budget.hash(&mut hasher);
-    sources.len().hash(&mut hasher);
-    kept.signature.hash(&mut hasher);
-    let scene_signature = hasher.finish();
+    let casters_signature = kept.signature;
     // Suns fit their maps to the cameras' view of the scene's box.
     if fitting && every_mesh_boxed && scene_box.0.x <= scene_box.1.x {
         let volumes = sun_fit::view_volumes(views.iter(), scene_box);
@@ -901,13 +881,16 @@ fn update_fin_frames(
         .collect();
     cache.lights.retain(|key, _| sources.iter().any(|(_, s, face)| (s.entity, *face) == *key));
 
-    let mut scene: Option<CasterScene> = None;
+    let mut scene_caught_up = false;
     let mut next = Vec::with_capacity(sources.len());
     let mut changed = frames.0.len() != sources.len();
     for &(layer, source, face) in &sources {
         let key = (source.entity, face);
+        // The light's own part of its frame's signature: it, its settings,
+        // the budget and how many lights share it.
         let mut hasher = std::collections::hash_map::DefaultHasher::new();
-        scene_signature.hash(&mut hasher);
+        budget.hash(&mut hasher);
+        sources.len().hash(&mut hasher);
         let state = cache.lights.entry(key).or_default();
         state.window = source.window;
         state.capacity_epoch.hash(&mut hasher);
@@ -916,7 +899,12 @@ fn update_fin_frames(
         hash_floats(&mut hasher, &source.window.unwrap_or([f32::NAN; 4]));
         hash_floats(&mut hasher, &[source.reach.range, source.reach.cone.unwrap_or(-1.0)]);
         hash_layers(&source.layers, &mut hasher);
-        let signature = hasher.finish();
+        let light_part = hasher.finish();
+        let signature = {
+            let mut hasher = std::collections::hash_map::DefaultHasher::new();
+            (light_part, casters_signature).hash(&mut hasher);
+            hasher.finish()
+        };
         let previous = frames.0.iter().find(|f| f.key() == key);
         if let Some(previous) = previous
             && state.signature == signature
@@ -929,19 +917,30 @@ fn update_fin_frames(
         state.signature = signature;
         changed = true;
         let light = source.light;
-        let scene = scene.get_or_insert_with(|| {
-            let MeshCache { meshes: cached, posed, .. } = &mut *cache;
-            CasterScene::collect(&casters, &assets.meshes, cached, posed, &changes.poses, &mut assets.materials)
-        });
+        if !scene_caught_up {
+            let MeshCache { meshes: cached, posed, scene, .. } = &mut *cache;
+            let mut sources = SlotSources {
+                casters: &casters,
+                meshes: &assets.meshes,
+                cache: cached,
+                posed,
+                poses: &changes.poses,
+                materials: &mut assets.materials,
+            };
+            catch_up(scene, &mut changes.kept.pending, &mut sources, &mut changes.updates);
+            scene_caught_up = true;
+        }
         let max_buffer = device.max_buffer(&budget);
         // The maps' budget is shared equally between the frames.
         let map_bytes = (budget.map_bytes / sources.len().max(1) as u64).min(max_buffer);
         let limits = FrameLimits { max_buffer, map_bytes };
         cache.generation += 1;
         let generation = cache.generation;
-        let state = cache.lights.get_mut(&key).expect("inserted above");
+        let MeshCache { scene, lights: states, .. } = &mut *cache;
+        let (scene, state) = (scene.as_ref().expect("caught up above"), states.get_mut(&key).expect("inserted above"));
         let sees = LightSees { reach: source.reach, layers: &source.layers };
-        let data = light_frame(scene, light, face, source.window, sees, source.settings, generation, limits, state);
+        let asked = FrameAsked { light, face, window: source.window, sees, settings: source.settings, light_part };
+        let data = light_frame(scene, asked, generation, limits, state);
         state.stats = data.stats;
         next.push(FinLightFrame {
             light: source.entity,
@@ -975,6 +974,34 @@ fn update_fin_frames(
         set_stats(&mut light_stats, gone.light, FinFrameStats::default());
     }
     frames.0 = next;
+}
+
+/// Brings the kept scene up to the casters: the `pending` changed entities
+/// rebuilt in place, or the scene collected anew (first frame, after a walk,
+/// or a change no slot can take).
+fn catch_up(
+    scene: &mut Option<CasterScene>,
+    pending: &mut Option<HashSet<Entity>>,
+    sources: &mut SlotSources<'_, '_, '_, '_, '_, '_, '_>,
+    updates: &mut FinCasterUpdates,
+) {
+    let version = scene.as_ref().map_or(0, |s| s.version) + 1;
+    let updated = match (scene.as_mut(), pending.take()) {
+        (Some(_), Some(changed)) if changed.is_empty() => true,
+        (Some(kept), Some(changed)) => {
+            let updated = kept.update(&changed, sources);
+            if updated {
+                updates.frames += 1;
+                updates.records += kept.dirty.as_ref().map_or(0, |d| d.len() as u64);
+            }
+            updated
+        }
+        _ => false,
+    };
+    if !updated {
+        *scene = Some(CasterScene::collect(sources, version));
+    }
+    *pending = Some(HashSet::new());
 }
 
 /// The cube faces a light's frames are made for: one frame (`None`) for a
@@ -1057,182 +1084,19 @@ pub(crate) fn set_stats(light_stats: &mut Query<&mut FinLightStats>, light: Enti
 
 /// Every mesh that casts or receives, as the core's scene objects, once per
 /// frame in which some light needs a new frame.
-struct CasterScene {
-    objects: Vec<SceneObject>,
-    gpu_meshes: Vec<Arc<GpuMeshGeometry>>,
-    /// Each object's world bounding box corners (from Bevy's `Aabb`), for
-    /// the lights' range culling; `None` is never culled.
-    bounds: Vec<Option<[Vec3; 8]>>,
-    /// Each object's `RenderLayers`.
-    layers: Vec<RenderLayers>,
-    /// World bounds of meshes drawn but unreadable here (render-world only,
-    /// invalid): receivers all the same, so the reference plane must cover them.
-    unread_bounds: Vec<[Vec3; 8]>,
-    /// The nearest caster's distance from each point light's centre, found
-    /// once for its six faces.
-    nearest: std::cell::RefCell<HashMap<[u32; 3], f32>>,
-}
-
-impl CasterScene {
-    fn collect(
-        casters: &Casters,
-        meshes: &Assets<Mesh>,
-        cache: &mut HashMap<AssetId<Mesh>, CachedMesh>,
-        posed: &mut HashMap<Entity, (u64, CachedMesh, bool)>,
-        poses: &crate::pose::Poses,
-        materials: &mut crate::cutout::CasterMaterials,
-    ) -> Self {
-        let mut scene = Self {
-            objects: vec![],
-            gpu_meshes: vec![],
-            bounds: vec![],
-            layers: vec![],
-            unread_bounds: vec![],
-            nearest: Default::default(),
-        };
-        posed.retain(|e, _| casters.contains(*e));
-        // A hidden mesh is not drawn: it neither casts nor receives.
-        for (entity, mesh3d, transform, caster) in casters.iter().filter(|c| c.3.drawn()) {
-            let not_caster = !caster.casts();
-            let mut corners = caster.aabb.map(|b| world_corners(b, transform));
-            let Some(mesh) = meshes.get(mesh3d.id()) else {
-                scene.unread_bounds.extend(corners);
-                continue;
-            };
-            // A skinned or morphed mesh in its current pose (`pose.rs`); any
-            // other mesh as stored, converted once per asset.
-            let (entry, world) = match posed_mesh(entity, mesh, posed, poses) {
-                Some((entry, world)) => (entry, world),
-                None => {
-                    let entry = cache.entry(mesh3d.id()).or_insert_with(|| {
-                        let converted = core_mesh(mesh);
-                        if let Err(e) = &converted {
-                            warn!("fin shadows: mesh {:?} casts no fin shadow: {e:?}", mesh3d.id());
-                        }
-                        converted
-                    });
-                    (&*entry, false)
-                }
-            };
-            let Ok((core, topology, geometry)) = entry else {
-                scene.unread_bounds.extend(corners);
-                continue;
-            };
-            let placed = if world { bevy::math::Affine3A::IDENTITY } else { transform.affine() };
-            if world {
-                // Its box is where the pose put it, not Bevy's (which may lag a frame).
-                let (lo, hi) = topology.bounds;
-                corners = Some(sun_fit::corners((lo, hi)));
-            }
-            match SceneObject::shared("mesh", core.clone(), topology.clone(), placed) {
-                Ok(mut o) => {
-                    // Meshes that do not cast still receive: they count for the reference plane.
-                    o.casts_shadows = !not_caster;
-                    if o.casts_shadows {
-                        o.cutout = materials.cutout(entity, mesh3d.id(), mesh, core, topology, world);
-                    }
-                    scene.objects.push(o);
-                    scene.gpu_meshes.push(geometry.clone());
-                    scene.bounds.push(corners);
-                    scene.layers.push(caster.layers());
-                }
-                // A degenerate transform: Bevy may still draw it; it receives.
-                Err(_) => scene.unread_bounds.extend(corners),
-            }
-        }
-        scene
-    }
-
-    /// The distance from `point` to the nearest casting triangle, as the
-    /// core's `nearest_caster_distance` finds it; objects whose box lies
-    /// farther than the nearest triangle found yet are not scanned.
-    fn nearest_caster(&self, point: Vec3) -> f32 {
-        let mut order: Vec<(f32, usize)> = (self.objects.iter().zip(&self.bounds).enumerate())
-            .filter(|(_, (o, _))| o.casts_shadows)
-            .map(|(i, (_, b))| (b.map_or(0.0, |b| nearest_distance(&b, point)), i))
-            .collect();
-        order.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let mut nearest = f32::INFINITY;
-        for (lower_bound, i) in order {
-            if lower_bound >= nearest {
-                break;
-            }
-            nearest = nearest.min(shadow_fins::scene::nearest_triangle_distance(&self.objects[i], point));
-        }
-        nearest
-    }
-
-    /// The objects as one light sees them: casters on no layer of the
-    /// light's, or out of its reach (beyond its range, outside its cone,
-    /// wholly behind its disk, or — for a point light's cube face — wholly
-    /// outside the face's window frustum) cast nothing for it, but still receive.
-    fn seen_by(&self, light: &Light, frame: &LightFrame, sees: LightSees) -> Vec<SceneObject> {
-        self.objects
-            .iter()
-            .zip(&self.bounds)
-            .zip(&self.layers)
-            .map(|((o, bounds), layers)| {
-                let mut o = o.clone();
-                // The sun lights everything in front of it: no caster is out of its reach.
-                let out = match light {
-                    Light::Disk(disk) => bounds.is_some_and(|b| out_of_reach(&b, disk, sees.reach)),
-                    // A rectangle reaches what its bounding disk reaches.
-                    Light::Rect(r) => bounds.is_some_and(|b| out_of_reach(&b, &r.bounding_disk(), sees.reach)),
-                    Light::Sun(_) => false,
-                    Light::Sphere(s) => bounds.is_some_and(|b| {
-                        let beyond =
-                            sees.reach.range > 0.0 && nearest_distance(&b, s.center) > sees.reach.range + s.radius;
-                        beyond || outside_face(&b, frame)
-                    }),
-                };
-                if o.casts_shadows && (out || !layers.intersects(sees.layers)) {
-                    o.casts_shadows = false;
-                }
-                o
-            })
-            .collect()
-    }
-
-    /// The light's frame. A disk's is its own; the sun's origin is put in
-    /// front of everything drawn (every mesh's world box, readable or not),
-    /// so that every depth is positive (`LightFrame::sun`); a point light's
-    /// cube face covers a margin for the caster nearest to the light
-    /// (`SphereLight::face_window`, the core's `nearest_caster_distance`,
-    /// triangles scanned only in boxes nearer than the nearest found yet).
-    fn frame_for(&self, light: &Light, face: Option<CubeFace>) -> (LightFrame, (Vec3, Vec3)) {
-        let boxes = self
-            .objects
-            .iter()
-            .zip(&self.gpu_meshes)
-            .map(|(o, m)| sun_fit::corners(m.bounds).map(|c| o.transform.transform_point3(c)));
-        let (lo, hi) = boxes
-            .chain(self.unread_bounds.iter().copied())
-            .flatten()
-            .filter(|p| p.is_finite())
-            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));
-        let (lo, hi) = if lo.x <= hi.x { (lo, hi) } else { (Vec3::ZERO, Vec3::ONE) };
-        if let (Light::Sphere(sphere), Some(face)) = (light, face) {
-            let key = sphere.center.to_array().map(f32::to_bits);
-            let nearest = *self.nearest.borrow_mut().entry(key).or_insert_with(|| self.nearest_caster(sphere.center));
-            return (sphere.face_frame(face, sphere.face_window(nearest)), (lo, hi));
-        }
-        (LightFrame::new(light, lo, hi), (lo, hi))
-    }
-}
-
 /// What a light's shadow sees of the scene: where it lights and its layers.
 #[derive(Debug, Clone, Copy)]
-struct LightSees<'a> {
-    reach: Reach,
-    layers: &'a RenderLayers,
+pub(crate) struct LightSees<'a> {
+    pub reach: Reach,
+    pub layers: &'a RenderLayers,
 }
 
 /// Where a light can light: its range (0: unbounded) and, for a spot, the
 /// outer half-angle of its cone around the disk's normal.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Reach {
-    range: f32,
-    cone: Option<f32>,
+pub(crate) struct Reach {
+    pub range: f32,
+    pub cone: Option<f32>,
 }
 
 /// True when a box (its world corners) cannot shadow anything this light
@@ -1241,7 +1105,7 @@ struct Reach {
 /// box subtend (a blocker of a lit receiver lies on a segment from a disk
 /// point to the receiver, within `asin(R / d)` of the cone seen from the
 /// centre).
-fn out_of_reach(corners: &[Vec3; 8], disk: &DiskLight, reach: Reach) -> bool {
+pub(crate) fn out_of_reach(corners: &[Vec3; 8], disk: &DiskLight, reach: Reach) -> bool {
     let behind = corners.iter().all(|p| (*p - disk.center).dot(disk.normal) < 0.0);
     let (lo, hi) = corners.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
     let nearest = disk.center.clamp(lo, hi);
@@ -1260,7 +1124,7 @@ fn out_of_reach(corners: &[Vec3; 8], disk: &DiskLight, reach: Reach) -> bool {
 }
 
 /// The distance from `point` to a box given by its corners (0 inside it).
-fn nearest_distance(corners: &[Vec3; 8], point: Vec3) -> f32 {
+pub(crate) fn nearest_distance(corners: &[Vec3; 8], point: Vec3) -> f32 {
     let (lo, hi) = corners.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
     point.clamp(lo, hi).distance(point)
 }
@@ -1268,7 +1132,7 @@ fn nearest_distance(corners: &[Vec3; 8], point: Vec3) -> f32 {
 /// True when a box (its world corners) lies wholly outside a point light's
 /// cube-face window frustum (`LightFrame::outside_face_window`); false for
 /// any other frame.
-fn outside_face(corners: &[Vec3; 8], frame: &LightFrame) -> bool {
+pub(crate) fn outside_face(corners: &[Vec3; 8], frame: &LightFrame) -> bool {
     frame.outside_face_window(&corners.map(|c| frame.to_frame(c)))
 }
 
@@ -1276,22 +1140,49 @@ fn outside_face(corners: &[Vec3; 8], frame: &LightFrame) -> bool {
 #[allow(clippy::too_many_arguments)]
 fn light_frame(
     scene: &CasterScene,
-    light: Light,
-    face: Option<CubeFace>,
-    window: Option<[f32; 4]>,
-    sees: LightSees,
-    settings: FinShadowSettings,
+    asked: FrameAsked,
     generation: u64,
     limits: FrameLimits,
     state: &mut LightState,
 ) -> FinFrameData {
+    let FrameAsked { light, face, window, sees, settings, light_part } = asked;
     let start = std::time::Instant::now();
     // A light of no size casts no fins: one layer's slab is the exact hard
     // shadow (the min over layers of slabs is the nearest slab), and the
     // memory of the other layers goes to resolution instead.
     let settings = if light.is_zero_size() { FinShadowSettings { layers: 1, ..settings } } else { settings };
     let (frame, scene_box) = scene.frame_for(&light, face);
-    let objects = scene.seen_by(&light, &frame, sees);
+    // The objects as this light sees them: after an in-place update of the
+    // scene, only its dirty slots again, when nothing of the light changed.
+    let mut built = state.built.take().filter(|b| {
+        b.scene_version + 1 == scene.version
+            && b.light_part == light_part
+            && b.seen_frame == frame
+            && b.objects.len() == scene.objects.len()
+    });
+    let dirty = scene.dirty.as_deref().filter(|_| built.is_some());
+    match (&mut built, dirty) {
+        (Some(b), Some(dirty)) => {
+            for &i in dirty {
+                b.objects[i] = scene.seen_by_one(i, &light, &frame, sees);
+            }
+            b.scene_version = scene.version;
+        }
+        _ => {
+            let objects = scene.seen_by(&light, &frame, sees);
+            built = Some(LightBuild {
+                scene_version: scene.version,
+                light_part,
+                seen_frame: frame,
+                gpu_frame: None,
+                objects,
+            });
+        }
+    }
+    let built = state.built.insert(built.expect("set above"));
+    let gpu_frame = built.gpu_frame.take();
+    let objects_of =
+        |state: &LightState| -> Vec<SceneObject> { state.built.as_ref().expect("built above").objects.clone() };
     let unread_bounds = scene.unread_bounds.clone();
     // A sun fitted to the views works in a frame placed at its window.
     let fitted = match (light, window) {
@@ -1304,21 +1195,27 @@ fn light_frame(
     let in_frame = InFrame { light, frame, extent, scene_box, map_window, reference_depth };
     let penumbra_texels = in_frame.widest_penumbra_texels(settings.map_resolution);
     if settings.method == FinMethod::Coverage {
-        let data = coverage_data(&objects, in_frame, settings, generation, start, unread_bounds, limits);
+        let objects = &state.built.as_ref().expect("built above").objects;
+        let data = coverage_data(objects, in_frame, settings, generation, start, unread_bounds, limits);
         warn_degradation(&mut state.warned, data.stats.degraded);
         return data;
     }
     let mut extraction = settings.extraction;
     // The GPU extraction has no UVs and no outlines: a frame with an
     // alpha-masked caster extracts on the CPU (the maps still run on the GPU).
-    if objects.iter().any(|o| o.casts_shadows && o.cutout.is_some()) {
+    if state.built.as_ref().expect("built above").objects.iter().any(|o| o.casts_shadows && o.cutout.is_some()) {
         extraction = FinExtraction::Cpu;
     }
     let mut gpu_scene = None;
     let max_buffer = limits.max_buffer;
     if extraction == FinExtraction::Gpu {
-        let LightState { gpu, capacity, .. } = &mut *state;
-        let scene = gpu.build(&objects, &scene.gpu_meshes, &frame, capacity, GpuCapacity::max_for(max_buffer));
+        let LightState { gpu, capacity, built, .. } = &mut *state;
+        let built = built.as_mut().expect("built above");
+        // Records of unchanged objects are kept only in the frame they were made in.
+        let dirty = dirty.filter(|_| gpu_frame == Some(frame));
+        built.gpu_frame = Some(frame);
+        let max = GpuCapacity::max_for(max_buffer);
+        let scene = gpu.build(&built.objects, &scene.gpu_meshes, &frame, scene.objects_box(), dirty, capacity, max);
         // Buffers sized by the scene itself cannot shrink: past the limit the
         // core crate extracts on the CPU instead.
         match scene.input_bytes().into_iter().find(|(_, bytes)| *bytes > max_buffer) {
@@ -1354,6 +1251,7 @@ fn light_frame(
                 None => receiver_bound.map(|p| frame.to_frame(p).z).fold(0.0, f32::max),
             };
             scene.fixed_reference_depth = in_frame.reference_depth.is_some();
+            let objects = &state.built.as_ref().expect("built above").objects;
             let stats = FinFrameStats {
                 casters: objects.iter().filter(|o| o.casts_shadows).count(),
                 triangles: objects.iter().map(|o| o.mesh.triangle_count()).sum(),
@@ -1390,7 +1288,7 @@ fn light_frame(
         }
         (_, fallback) => {
             let mut data =
-                cpu_frame(Scene::new(objects), in_frame, settings, generation, start, receiver_bound, limits);
+                cpu_frame(Scene::new(objects_of(state)), in_frame, settings, generation, start, receiver_bound, limits);
             if let Some(Err(why)) = fallback {
                 // What the CPU path had to cut (maps, dropped casters) shows first.
                 data.stats.degraded = data.stats.degraded.or(Some(why));
@@ -1549,7 +1447,7 @@ struct FrameLimits {
 }
 
 /// The eight world-space corners of an entity's bounding box.
-fn world_corners(aabb: &Aabb, transform: &GlobalTransform) -> [Vec3; 8] {
+pub(crate) fn world_corners(aabb: &Aabb, transform: &GlobalTransform) -> [Vec3; 8] {
     let (c, h) = (Vec3::from(aabb.center), Vec3::from(aabb.half_extents));
     std::array::from_fn(|k| {
         let s = Vec3::new(
@@ -1674,7 +1572,7 @@ fn light_key(light: &Light) -> [f32; 12] {
     }
 }
 
-fn hash_floats(h: &mut impl Hasher, v: &[f32]) {
+pub(crate) fn hash_floats(h: &mut impl Hasher, v: &[f32]) {
     for x in v {
         x.to_bits().hash(h);
     }

@@ -252,24 +252,63 @@ pub(crate) struct GpuScene {
     pub extent: f32,
 }
 
-/// Builds [`GpuScene`]s, keeping the concatenated geometry between frames.
+/// Builds [`GpuScene`]s, keeping the concatenated geometry and the instance
+/// records between frames.
 #[derive(Debug, Default)]
 pub(crate) struct GpuSceneBuilder {
     geometry: Arc<Vec<u32>>,
     geometry_key: u64,
     /// Word offset of each packing in `geometry`.
     offsets: HashMap<u64, u32>,
+    /// The records of the last build, one per object.
+    instances: Vec<GpuInstance>,
+    totals: [u32; 3],
 }
 
 impl GpuSceneBuilder {
+    /// The scene of `objects` (with `meshes`, one per object) in `frame`;
+    /// `extent_box` is the objects' world box. With `dirty`, only those
+    /// objects changed since the last build, which had the same objects,
+    /// meshes and frame: only their records are made again (and every
+    /// record's first ids when a changed one casts more or fewer faces).
+    #[allow(clippy::too_many_arguments)]
     pub fn build(
         &mut self,
         objects: &[SceneObject],
         meshes: &[Arc<GpuMeshGeometry>],
         frame: &LightFrame,
+        extent_box: (Vec3, Vec3),
+        dirty: Option<&[usize]>,
         capacity_slot: &mut Option<GpuCapacity>,
         max_capacity: GpuCapacity,
     ) -> GpuScene {
+        match dirty.filter(|_| self.instances.len() == objects.len() && !self.geometry.is_empty()) {
+            Some(dirty) => self.update_records(objects, meshes, frame, dirty),
+            None => self.build_records(objects, meshes, frame),
+        }
+        let (lo, hi) = extent_box;
+        let extent = if lo.x <= hi.x { (hi - lo).length().max(1e-30) } else { 1.0 };
+        let [_, faces, edges] = self.totals;
+        let needed = GpuCapacity::initial(faces, edges);
+        let capacity = capacity_slot.map_or(needed, |c| c.max(GpuCapacity { layers: 1, ..needed })).min(max_capacity);
+        let capacity = *capacity_slot.insert(capacity);
+        GpuScene {
+            geometry: self.geometry.clone(),
+            geometry_key: self.geometry_key,
+            instances: self.instances.clone(),
+            totals: self.totals,
+            capacity,
+            max_capacity,
+            axes: frame.axes_f64(),
+            receiver_depth: 0.0,
+            map_window: None,
+            fixed_reference_depth: false,
+            extent,
+        }
+    }
+
+    /// Every record anew, and the geometry when the set of meshes changed.
+    fn build_records(&mut self, objects: &[SceneObject], meshes: &[Arc<GpuMeshGeometry>], frame: &LightFrame) {
         // The distinct meshes in first-use order; re-pack only when that list changes.
         let mut distinct: Vec<&Arc<GpuMeshGeometry>> = Vec::new();
         let mut seen = std::collections::HashSet::new();
@@ -293,67 +332,68 @@ impl GpuSceneBuilder {
             self.geometry = Arc::new(words);
             self.geometry_key = key;
         }
+        self.instances = objects.iter().zip(meshes).map(|(o, m)| self.record(o, m, frame)).collect();
+        self.number_records();
+    }
 
-        let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-        let mut instances = Vec::with_capacity(objects.len());
-        let (mut vertices, mut faces, mut edges) = (0u32, 0u32, 0u32);
-        for (object, mesh) in objects.iter().zip(meshes) {
-            let to_frame = ObjectToFrame::new(object, frame);
-            // The light as a homogeneous point for the facing test n·c > d·w:
-            // the disk's centre (w = 1), or the sun at infinity against its
-            // travel direction (w = 0: n·(−dir) > 0).
-            let light = match to_frame.light_in_object(frame) {
-                LightInObject::Point(c) => c.extend(1.0),
-                LightInObject::Direction(d) => (-d).extend(0.0),
-            };
-            let c = to_frame.linear;
-            let sign = if to_frame.mirrors { -1.0 } else { 1.0 };
-            let cofactor = [c.y_axis.cross(c.z_axis), c.z_axis.cross(c.x_axis), c.x_axis.cross(c.y_axis)];
-            let v4 = |v: Vec3| [v.x, v.y, v.z, 0.0];
-            let casts = object.casts_shadows;
-            let (f, e) = if casts { (mesh.faces, mesh.edges) } else { (0, 0) };
-            // A closed mesh with the light inside is drawn both sides, like an open one.
-            let closed = mesh.closed && !to_frame.light_inside;
-            let flags = casts as u32 | (closed as u32) << 1 | (to_frame.mirrors as u32) << 2;
-            instances.push(GpuInstance {
-                linear: [v4(c.x_axis), v4(c.y_axis), v4(c.z_axis)],
-                translation: v4(to_frame.translation),
-                normal: cofactor.map(|n| v4(n * sign)),
-                light: light.to_array(),
-                ids: [self.offsets[&mesh.packing], vertices, faces, edges],
-                info: [flags, mesh.vertices, f, e],
-            });
-            vertices += mesh.vertices;
-            faces += f;
-            edges += e;
-            let (a, b) = mesh.bounds;
-            for k in 0..8 {
-                let corner = Vec3::new(
-                    if k & 1 == 0 { a.x } else { b.x },
-                    if k & 2 == 0 { a.y } else { b.y },
-                    if k & 4 == 0 { a.z } else { b.z },
-                );
-                let w = object.transform.transform_point3(corner);
-                lo = lo.min(w);
-                hi = hi.max(w);
+    /// The `dirty` records anew; the first ids again only when a count moved.
+    fn update_records(
+        &mut self,
+        objects: &[SceneObject],
+        meshes: &[Arc<GpuMeshGeometry>],
+        frame: &LightFrame,
+        dirty: &[usize],
+    ) {
+        let mut counts_moved = false;
+        for &i in dirty {
+            let record = self.record(&objects[i], &meshes[i], frame);
+            let old = &mut self.instances[i];
+            counts_moved |= record.info[1..] != old.info[1..];
+            *old = GpuInstance { ids: old.ids, ..record };
+        }
+        if counts_moved {
+            self.number_records();
+        }
+    }
+
+    /// Each record's first vertex, face and edge: the counts before it.
+    fn number_records(&mut self) {
+        let mut totals = [0u32; 3];
+        for instance in &mut self.instances {
+            instance.ids[1..].copy_from_slice(&totals);
+            for (total, count) in totals.iter_mut().zip(&instance.info[1..]) {
+                *total += count;
             }
         }
-        let extent = if lo.x <= hi.x { (hi - lo).length().max(1e-30) } else { 1.0 };
-        let needed = GpuCapacity::initial(faces, edges);
-        let capacity = capacity_slot.map_or(needed, |c| c.max(GpuCapacity { layers: 1, ..needed })).min(max_capacity);
-        let capacity = *capacity_slot.insert(capacity);
-        GpuScene {
-            geometry: self.geometry.clone(),
-            geometry_key: self.geometry_key,
-            instances,
-            totals: [vertices, faces, edges],
-            capacity,
-            max_capacity,
-            axes: frame.axes_f64(),
-            receiver_depth: 0.0,
-            map_window: None,
-            fixed_reference_depth: false,
-            extent,
+        self.totals = totals;
+    }
+
+    /// One object's record, its first ids left at 0 (`number_records`).
+    fn record(&self, object: &SceneObject, mesh: &GpuMeshGeometry, frame: &LightFrame) -> GpuInstance {
+        let to_frame = ObjectToFrame::new(object, frame);
+        // The light as a homogeneous point for the facing test n·c > d·w:
+        // the disk's centre (w = 1), or the sun at infinity against its
+        // travel direction (w = 0: n·(−dir) > 0).
+        let light = match to_frame.light_in_object(frame) {
+            LightInObject::Point(c) => c.extend(1.0),
+            LightInObject::Direction(d) => (-d).extend(0.0),
+        };
+        let c = to_frame.linear;
+        let sign = if to_frame.mirrors { -1.0 } else { 1.0 };
+        let cofactor = [c.y_axis.cross(c.z_axis), c.z_axis.cross(c.x_axis), c.x_axis.cross(c.y_axis)];
+        let v4 = |v: Vec3| [v.x, v.y, v.z, 0.0];
+        let casts = object.casts_shadows;
+        let (f, e) = if casts { (mesh.faces, mesh.edges) } else { (0, 0) };
+        // A closed mesh with the light inside is drawn both sides, like an open one.
+        let closed = mesh.closed && !to_frame.light_inside;
+        let flags = casts as u32 | (closed as u32) << 1 | (to_frame.mirrors as u32) << 2;
+        GpuInstance {
+            linear: [v4(c.x_axis), v4(c.y_axis), v4(c.z_axis)],
+            translation: v4(to_frame.translation),
+            normal: cofactor.map(|n| v4(n * sign)),
+            light: light.to_array(),
+            ids: [self.offsets[&mesh.packing], 0, 0, 0],
+            info: [flags, mesh.vertices, f, e],
         }
     }
 }
@@ -419,8 +459,9 @@ mod tests {
         let objects = [SceneObject::new("box", shapes::cuboid(Vec3::ONE), bevy::math::Affine3A::IDENTITY).unwrap()];
         let mut builder = GpuSceneBuilder::default();
         let max = GpuCapacity::max_for(1 << 30);
-        let first = builder.build(&objects, &[Arc::new(a)], &frame, &mut None, max).geometry_key;
-        let second = builder.build(&objects, &[Arc::new(b)], &frame, &mut None, max).geometry_key;
+        let world = (Vec3::splat(-0.5), Vec3::splat(0.5));
+        let first = builder.build(&objects, &[Arc::new(a)], &frame, world, None, &mut None, max).geometry_key;
+        let second = builder.build(&objects, &[Arc::new(b)], &frame, world, None, &mut None, max).geometry_key;
         assert_ne!(first, second, "a new packing of the same mesh kept the old geometry key");
     }
 

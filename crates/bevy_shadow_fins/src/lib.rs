@@ -37,7 +37,10 @@
 //! its own [`FinShadowSettings`] (method, layers, maps), its own frame
 //! rebuilt only when it, a caster, the budget or the set of lights changed
 //! (casters by Bevy's change detection: a still scene's meshes are not
-//! walked and hashed, [`FinCasterScans`]),
+//! walked and hashed, [`FinCasterScans`]; a caster that moved is rebuilt in
+//! its slot and only its instance record goes up to the GPU,
+//! [`FinCasterUpdates`], while the GPU's extraction and maps are redone for
+//! the whole light),
 //! its own visibility layer per camera and its own [`FinLightStats`]. A light
 //! only sees the casters in its range and in front of its disk: a light that
 //! sees none runs no extraction or map pass (its visibility pass writes 1). The
@@ -167,6 +170,7 @@
 
 mod bevy_shadow_maps;
 mod budget;
+mod casters;
 mod coverage_frame;
 mod cutout;
 mod extract;
@@ -181,6 +185,7 @@ mod sun_fit;
 
 pub use bevy_shadow_maps::BevyShadowMapsKept;
 pub use budget::{FinDegradation, FinShadowBudget};
+pub use casters::FinCasterUpdates;
 pub use cutout::{image_of_mask, mask_of_image};
 pub use extract::{
     FinCasterScans, FinFrameStats, FinFrames, FinLightFrame, FinLightStats, FinSceneError, FinShadowStats,

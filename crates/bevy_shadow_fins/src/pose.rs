@@ -34,6 +34,7 @@ pub(crate) struct Poses<'w, 's> {
     weights: Query<'w, 's, Ref<'static, MorphWeights>>,
     joints: Query<'w, 's, Ref<'static, GlobalTransform>>,
     bindposes: Res<'w, Assets<SkinnedMeshInverseBindposes>>,
+    posed: Query<'w, 's, Entity, Or<(With<SkinnedMesh>, With<MeshMorphWeights>)>>,
 }
 
 /// A posed mesh's vertex positions.
@@ -48,6 +49,11 @@ impl Poses<'_, '_> {
     /// True when `entity` is drawn posed (skinned or with morph weights).
     pub(crate) fn is_posed(&self, entity: Entity) -> bool {
         self.skins.contains(entity) || self.morphs.contains(entity)
+    }
+
+    /// Every entity drawn posed.
+    pub(crate) fn posed_entities(&self) -> impl Iterator<Item = Entity> + '_ {
+        self.posed.iter()
     }
 
     /// True when some posed mesh's pose may have changed since the last

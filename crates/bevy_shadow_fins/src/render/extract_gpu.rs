@@ -23,7 +23,7 @@ use bevy::{
 use crate::{
     budget::FinDegradation,
     extract::{FinFrameData, FinFrameStats, FinFrames, FinLightStats, MAX_FIN_FRAMES, MeshCache},
-    gpu_scene::{GpuCapacity, GpuScene},
+    gpu_scene::{GpuCapacity, GpuInstance, GpuScene},
     light::FinMethod,
 };
 use shadow_fins::light::Aperture;
@@ -225,6 +225,8 @@ impl ExtractPipelines {
 pub(super) struct ExtractBuffers {
     params: Option<Buffer>,
     instances: Option<Buffer>,
+    /// What `instances` holds (a copy, to write only the records that differ).
+    uploaded_instances: Vec<u8>,
     geometry: Option<Buffer>,
     geometry_key: u64,
     control: Option<Buffer>,
@@ -263,7 +265,24 @@ pub(super) fn ensure(
     }
 }
 
-/// Uploads what changed (instances always, geometry when its key changed) and
+/// The byte ranges of `new` to write over a buffer holding `old`: runs of
+/// whole `record`-sized records that differ, and everything past `old`.
+fn changed_runs(old: &[u8], new: &[u8], record: usize) -> Vec<std::ops::Range<usize>> {
+    let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
+    for (k, chunk) in new.chunks(record).enumerate() {
+        let at = k * record;
+        if old.get(at..at + chunk.len()) == Some(chunk) {
+            continue;
+        }
+        match runs.last_mut() {
+            Some(run) if run.end == at => run.end = at + chunk.len(),
+            _ => runs.push(at..at + chunk.len()),
+        }
+    }
+    runs
+}
+
+/// Uploads what changed (the instance records that differ, geometry when its key changed) and
 /// binds the work buffers; `fins` and `casters` are the maps' input buffers.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn prepare(
@@ -320,8 +339,16 @@ pub(super) fn prepare(
     ensure(&mut buffers.params, device, "fin_extract_params", size_of::<ExtractParams>() as u64, uniform, cap);
     queue.write_buffer(buffers.params.as_ref().unwrap(), 0, bytemuck::bytes_of(&params));
     let instance_bytes: &[u8] = bytemuck::cast_slice(&scene.instances);
+    let old_instances = buffers.instances.as_ref().map(|b| b.id());
     ensure(&mut buffers.instances, device, "fin_extract_instances", instance_bytes.len() as u64, storage, cap);
-    queue.write_buffer(buffers.instances.as_ref().unwrap(), 0, instance_bytes);
+    // One caster of many moved: only its record goes up.
+    let kept = old_instances == buffers.instances.as_ref().map(|b| b.id());
+    let old = if kept { buffers.uploaded_instances.as_slice() } else { &[] };
+    for run in changed_runs(old, instance_bytes, size_of::<GpuInstance>()) {
+        queue.write_buffer(buffers.instances.as_ref().unwrap(), run.start as u64, &instance_bytes[run]);
+    }
+    buffers.uploaded_instances.clear();
+    buffers.uploaded_instances.extend_from_slice(instance_bytes);
     let geometry_bytes: &[u8] = bytemuck::cast_slice(scene.geometry.as_slice());
     let old_geometry = buffers.geometry.as_ref().map(|b| b.id());
     ensure(&mut buffers.geometry, device, "fin_extract_geometry", geometry_bytes.len() as u64, storage, cap);
@@ -455,4 +482,26 @@ pub(super) fn stats_buffer<'a>(
     buffers: &'a RenderAssets<GpuShaderBuffer>,
 ) -> Option<&'a Buffer> {
     handle.and_then(|h| buffers.get(&h.0)).map(|b| &b.buffer)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::changed_runs;
+
+    #[test]
+    fn only_the_records_that_differ_are_written() {
+        let old: Vec<u8> = (0..40).collect();
+        let mut new = old.clone();
+        new[9] = 200; // record 2 (bytes 8..12)
+        new[13] = 200; // record 3: joins the run
+        new[30] = 200; // record 7
+        assert_eq!(changed_runs(&old, &new, 4), vec![8..16, 28..32]);
+        assert_eq!(changed_runs(&old, &old, 4), Vec::<std::ops::Range<usize>>::new());
+        // Nothing kept (a new buffer): everything goes up, as one run.
+        assert_eq!(changed_runs(&[], &new, 4), vec![0..40]);
+        // More records than before: the new ones go up.
+        let mut longer = old.clone();
+        longer.extend([1, 2, 3, 4]);
+        assert_eq!(changed_runs(&old, &longer, 4), vec![40..44]);
+    }
 }

@@ -1,0 +1,449 @@
+//! The casters every light's frame is built from, kept between frames and
+//! updated per entity (issue 16, "big scenes that move").
+//!
+//! Three things scale with the number of mesh entities, and each is kept so
+//! that a frame in which a few casters changed costs what those few cost:
+//!
+//! - [`CasterSignature`]: the casters' part of every light's signature, a sum
+//!   of one hash per entity. A frame with changes rehashes only the changed
+//!   entities (Bevy's change detection names them); the walk over every mesh
+//!   ([`FinCasterScans`](crate::FinCasterScans)) is left for what changes
+//!   every caster at once (a mesh asset loading or edited, a material's
+//!   cut-out, a sun starting to fit its views).
+//! - [`CasterScene`]: the casters as core `SceneObject`s with their packed GPU
+//!   geometry, boxes and layers. A caster that moved, was posed again or
+//!   changed its layers or shadow flags is rebuilt in its slot
+//!   ([`CasterScene::update`]); one that appears, goes, is hidden or shown or
+//!   changes its mesh re-collects the scene (the GPU's geometry changes then).
+//! - each light's objects and GPU instance records (`extract.rs`,
+//!   `gpu_scene.rs`): after an in-place update of the scene, only the slots
+//!   it names ([`CasterScene::dirty`]) are recomputed for a light whose own
+//!   part did not change, and the render world writes only the instance
+//!   records that differ (`render/extract_gpu.rs`).
+//!
+//! What still scales with the scene when one caster moves is the GPU's work:
+//! the extraction passes and the maps are redone for every caster (a moved
+//! caster can change `L0`, the depth histogram and so every layer), and a
+//! few flat loops here (the scene's box, a copy of the instance records).
+
+use std::{
+    collections::{HashMap, HashSet},
+    hash::{Hash, Hasher},
+    sync::Arc,
+};
+
+use bevy::{asset::AssetId, camera::visibility::RenderLayers, prelude::*};
+use shadow_fins::{
+    light::{CubeFace, Light, LightFrame},
+    scene::SceneObject,
+};
+
+use crate::{
+    extract::{
+        CachedMesh, Casters, LightSees, core_mesh, hash_floats, hash_layers, nearest_distance, out_of_reach,
+        outside_face, posed_mesh, world_corners,
+    },
+    gpu_scene::GpuMeshGeometry,
+    sun_fit,
+};
+
+/// How many caster records were rebuilt in place, without a walk over every
+/// mesh: `frames` in which it happened, `records` in all (a diagnostic of
+/// the incremental path, beside [`FinCasterScans`](crate::FinCasterScans)).
+#[derive(Resource, Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FinCasterUpdates {
+    pub frames: u64,
+    pub records: u64,
+}
+
+/// One entity's part of the casters' signature, and its world box when it
+/// is drawn (for a sun fitted to the views).
+#[derive(Debug, Clone, Copy)]
+struct SignedCaster {
+    hash: u64,
+    /// `None`: not drawn; `Some(None)`: drawn without an `Aabb`.
+    drawn_box: Option<Option<(Vec3, Vec3)>>,
+}
+
+/// The casters' signature, kept between frames: the wrapping sum of one hash
+/// per entity (order-free, so one entity's change is one subtraction and one
+/// addition), and what changed since the scene last caught up.
+#[derive(Default)]
+pub(crate) struct CasterSignature {
+    /// `None` before the first walk.
+    pub signature: Option<u64>,
+    per_entity: HashMap<Entity, SignedCaster>,
+    sum: u64,
+    pub scene_box: (Vec3, Vec3),
+    pub every_mesh_boxed: bool,
+    /// Whether the boxes are gathered (only when a sun is fitted to views).
+    pub fitting: bool,
+    /// Bumped when a mesh asset's content changes (same id, new triangles)
+    /// or a material's cut-out does: every caster's frame changes.
+    pub mesh_epoch: u64,
+    /// Entities changed since the [`CasterScene`] last caught up; `None`
+    /// after a walk (the scene is collected anew).
+    pub pending: Option<HashSet<Entity>>,
+}
+
+/// What one entity contributes, read from its components.
+#[allow(clippy::too_many_arguments)]
+fn sign_caster(
+    entity: Entity,
+    casters: &Casters,
+    meshes: &Assets<Mesh>,
+    material_of: impl Fn(Entity) -> Option<AssetId<StandardMaterial>>,
+    poses: &crate::pose::Poses,
+    fitting: bool,
+) -> Option<SignedCaster> {
+    let (entity, mesh, transform, caster) = casters.get(entity).ok()?;
+    let mut hasher = std::collections::hash_map::DefaultHasher::new();
+    entity.hash(&mut hasher);
+    (caster.drawn(), caster.casts()).hash(&mut hasher);
+    hash_layers(&caster.layers(), &mut hasher);
+    if !caster.drawn() {
+        return Some(SignedCaster { hash: hasher.finish(), drawn_box: None });
+    }
+    // The box culls casters by a light's range and cone, fitted or not.
+    if let Some(b) = caster.aabb {
+        hash_floats(&mut hasher, &[b.center.x, b.center.y, b.center.z]);
+        hash_floats(&mut hasher, &[b.half_extents.x, b.half_extents.y, b.half_extents.z]);
+    }
+    let drawn_box = caster.aabb.filter(|_| fitting).map(|aabb| {
+        world_corners(aabb, transform)
+            .into_iter()
+            .filter(|c| c.is_finite())
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), c| (lo.min(c), hi.max(c)))
+    });
+    mesh.id().hash(&mut hasher);
+    // A mesh that finishes loading changes the frame too.
+    meshes.contains(mesh.id()).hash(&mut hasher);
+    // What it casts with (an alpha-masked material cuts it out).
+    material_of(entity).hash(&mut hasher);
+    hash_floats(&mut hasher, &transform.to_matrix().to_cols_array());
+    poses.hash_pose(entity, &mut hasher);
+    Some(SignedCaster { hash: hasher.finish(), drawn_box: Some(drawn_box) })
+}
+
+impl CasterSignature {
+    /// Signs every caster anew (`changed`: `None`), or only `changed` ones.
+    /// Returns whether it walked every mesh.
+    pub fn update(
+        &mut self,
+        changed: Option<&HashSet<Entity>>,
+        casters: &Casters,
+        meshes: &Assets<Mesh>,
+        material_of: impl Fn(Entity) -> Option<AssetId<StandardMaterial>>,
+        poses: &crate::pose::Poses,
+        fitting: bool,
+    ) -> bool {
+        let walk = changed.is_none() || self.signature.is_none() || self.fitting != fitting;
+        if walk {
+            self.per_entity.clear();
+            self.sum = 0;
+            for (entity, ..) in casters {
+                if let Some(signed) = sign_caster(entity, casters, meshes, &material_of, poses, fitting) {
+                    self.sum = self.sum.wrapping_add(signed.hash);
+                    self.per_entity.insert(entity, signed);
+                }
+            }
+            self.pending = None;
+        } else if let Some(changed) = changed {
+            for &entity in changed {
+                if let Some(old) = self.per_entity.remove(&entity) {
+                    self.sum = self.sum.wrapping_sub(old.hash);
+                }
+                if let Some(signed) = sign_caster(entity, casters, meshes, &material_of, poses, fitting) {
+                    self.sum = self.sum.wrapping_add(signed.hash);
+                    self.per_entity.insert(entity, signed);
+                }
+            }
+            if let Some(pending) = &mut self.pending {
+                pending.extend(changed.iter().copied());
+            }
+        }
+        self.fitting = fitting;
+        // A mesh without an `Aabb` (`NoFrustumCulling`, `NoAutoAabb`) has no box
+        // here: then no sun is fitted to the views, which could cut it out.
+        let (mut scene_box, mut every_mesh_boxed) = ((Vec3::INFINITY, Vec3::NEG_INFINITY), true);
+        if fitting {
+            for drawn in self.per_entity.values().filter_map(|s| s.drawn_box) {
+                match drawn {
+                    Some((lo, hi)) => scene_box = (scene_box.0.min(lo), scene_box.1.max(hi)),
+                    None => every_mesh_boxed = false,
+                }
+            }
+        }
+        (self.scene_box, self.every_mesh_boxed) = (scene_box, every_mesh_boxed);
+        let mut hasher = std::collections::hash_map::DefaultHasher::new();
+        (self.mesh_epoch, self.sum, self.per_entity.len()).hash(&mut hasher);
+        self.signature = Some(hasher.finish());
+        walk
+    }
+}
+
+/// A caster entity as the scene holds it.
+enum Slot {
+    /// Hidden, or not a mesh entity (any more): neither casts nor receives.
+    NotDrawn,
+    /// Drawn but unreadable here (a mesh not loaded, render-world only, or
+    /// invalid): it receives all the same, within these bounds.
+    Unread(Option<[Vec3; 8]>),
+    Object(Box<ObjectSlot>),
+}
+
+struct ObjectSlot {
+    object: SceneObject,
+    gpu_mesh: Arc<GpuMeshGeometry>,
+    bounds: Option<[Vec3; 8]>,
+    world_box: (Vec3, Vec3),
+    layers: RenderLayers,
+}
+
+/// What builds a caster's slot: the meshes, their converted and posed
+/// copies, the poses and the materials.
+/// (Each system parameter keeps its own lifetimes: a `&mut` to one fixes them.)
+pub(crate) struct SlotSources<'a, 'cw, 'cs, 'pw, 'ps, 'mw, 'ms> {
+    pub casters: &'a Casters<'cw, 'cs>,
+    pub meshes: &'a Assets<Mesh>,
+    pub cache: &'a mut HashMap<AssetId<Mesh>, CachedMesh>,
+    pub posed: &'a mut HashMap<Entity, (u64, CachedMesh, bool)>,
+    pub poses: &'a crate::pose::Poses<'pw, 'ps>,
+    pub materials: &'a mut crate::cutout::CasterMaterials<'mw, 'ms>,
+}
+
+impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
+    fn slot(&mut self, entity: Entity) -> Slot {
+        let Ok((entity, mesh3d, transform, caster)) = self.casters.get(entity) else {
+            return Slot::NotDrawn;
+        };
+        // A hidden mesh is not drawn: it neither casts nor receives.
+        if !caster.drawn() {
+            return Slot::NotDrawn;
+        }
+        let mut corners = caster.aabb.map(|b| world_corners(b, transform));
+        let Some(mesh) = self.meshes.get(mesh3d.id()) else {
+            return Slot::Unread(corners);
+        };
+        // A skinned or morphed mesh in its current pose (`pose.rs`); any
+        // other mesh as stored, converted once per asset.
+        let (entry, world) = match posed_mesh(entity, mesh, self.posed, self.poses) {
+            Some((entry, world)) => (entry, world),
+            None => {
+                let entry = self.cache.entry(mesh3d.id()).or_insert_with(|| {
+                    let converted = core_mesh(mesh);
+                    if let Err(e) = &converted {
+                        warn!("fin shadows: mesh {:?} casts no fin shadow: {e:?}", mesh3d.id());
+                    }
+                    converted
+                });
+                (&*entry, false)
+            }
+        };
+        let Ok((core, topology, geometry)) = entry else {
+            return Slot::Unread(corners);
+        };
+        let placed = if world { bevy::math::Affine3A::IDENTITY } else { transform.affine() };
+        if world {
+            // Its box is where the pose put it, not Bevy's (which may lag a frame).
+            corners = Some(sun_fit::corners(topology.bounds));
+        }
+        match SceneObject::shared("mesh", core.clone(), topology.clone(), placed) {
+            Ok(mut object) => {
+                // Meshes that do not cast still receive: they count for the reference plane.
+                object.casts_shadows = caster.casts();
+                if object.casts_shadows {
+                    object.cutout = self.materials.cutout(entity, mesh3d.id(), mesh, core, topology, world);
+                }
+                let world_box = sun_fit::corners(geometry.bounds)
+                    .map(|c| object.transform.transform_point3(c))
+                    .into_iter()
+                    .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));
+                Slot::Object(Box::new(ObjectSlot {
+                    object,
+                    gpu_mesh: geometry.clone(),
+                    bounds: corners,
+                    world_box,
+                    layers: caster.layers(),
+                }))
+            }
+            // A degenerate transform: Bevy may still draw it; it receives.
+            Err(_) => Slot::Unread(corners),
+        }
+    }
+}
+
+/// The drawn casters, one slot per object, kept between frames.
+pub(crate) struct CasterScene {
+    pub objects: Vec<SceneObject>,
+    pub gpu_meshes: Vec<Arc<GpuMeshGeometry>>,
+    /// Each object's world bounding box corners (from Bevy's `Aabb`), for
+    /// the lights' range culling; `None` is never culled.
+    bounds: Vec<Option<[Vec3; 8]>>,
+    /// Each object's mesh box in the world (its vertices' box carried by its
+    /// transform: what the frames' extents are made of).
+    world_boxes: Vec<(Vec3, Vec3)>,
+    /// Each object's `RenderLayers`.
+    layers: Vec<RenderLayers>,
+    /// The entity of each object.
+    entities: Vec<Entity>,
+    index: HashMap<Entity, usize>,
+    /// World bounds of meshes drawn but unreadable here (render-world only,
+    /// invalid): receivers all the same, so the reference plane must cover them.
+    pub unread_bounds: Vec<[Vec3; 8]>,
+    unread: HashSet<Entity>,
+    /// Bumped by every collect and update.
+    pub version: u64,
+    /// The slots the latest update rebuilt in place; `None` when the latest
+    /// change re-collected the scene.
+    pub dirty: Option<Vec<usize>>,
+    /// The nearest caster's distance from each point light's centre, found
+    /// once for its six faces.
+    nearest: std::sync::Mutex<HashMap<[u32; 3], f32>>,
+}
+
+impl CasterScene {
+    /// Every drawn mesh entity, in the query's order.
+    pub fn collect(sources: &mut SlotSources<'_, '_, '_, '_, '_, '_, '_>, version: u64) -> Self {
+        let mut scene = Self {
+            objects: vec![],
+            gpu_meshes: vec![],
+            bounds: vec![],
+            world_boxes: vec![],
+            layers: vec![],
+            entities: vec![],
+            index: HashMap::new(),
+            unread_bounds: vec![],
+            unread: HashSet::new(),
+            version,
+            dirty: None,
+            nearest: Default::default(),
+        };
+        let casters = sources.casters;
+        sources.posed.retain(|e, _| casters.contains(*e));
+        for (entity, ..) in casters.iter() {
+            match sources.slot(entity) {
+                Slot::NotDrawn => {}
+                Slot::Unread(corners) => {
+                    scene.unread.insert(entity);
+                    scene.unread_bounds.extend(corners);
+                }
+                Slot::Object(slot) => {
+                    scene.index.insert(entity, scene.objects.len());
+                    scene.entities.push(entity);
+                    scene.objects.push(slot.object);
+                    scene.gpu_meshes.push(slot.gpu_mesh);
+                    scene.bounds.push(slot.bounds);
+                    scene.world_boxes.push(slot.world_box);
+                    scene.layers.push(slot.layers);
+                }
+            }
+        }
+        scene
+    }
+
+    /// Rebuilds the slots of `changed` entities in place and names them in
+    /// [`Self::dirty`]. Returns false, changing nothing, when a change is not
+    /// one of a slot's content (an object appearing or going, turning
+    /// unreadable or back, or drawn with other geometry): then the scene
+    /// must be collected anew.
+    pub fn update(&mut self, changed: &HashSet<Entity>, sources: &mut SlotSources<'_, '_, '_, '_, '_, '_, '_>) -> bool {
+        let mut rebuilt = Vec::with_capacity(changed.len());
+        for &entity in changed {
+            let slot = sources.slot(entity);
+            match (self.index.get(&entity), slot) {
+                (None, Slot::NotDrawn) if !self.unread.contains(&entity) => {}
+                (Some(&i), Slot::Object(slot)) if slot.gpu_mesh.packing == self.gpu_meshes[i].packing => {
+                    rebuilt.push((i, slot));
+                }
+                _ => return false,
+            }
+        }
+        let mut dirty = Vec::with_capacity(rebuilt.len());
+        for (i, slot) in rebuilt {
+            let ObjectSlot { object, gpu_mesh, bounds, world_box, layers } = *slot;
+            (self.objects[i], self.gpu_meshes[i], self.bounds[i]) = (object, gpu_mesh, bounds);
+            (self.world_boxes[i], self.layers[i]) = (world_box, layers);
+            dirty.push(i);
+        }
+        self.version += 1;
+        self.dirty = Some(dirty);
+        self.nearest.lock().unwrap_or_else(|e| e.into_inner()).clear();
+        true
+    }
+
+    /// The distance from `point` to the nearest casting triangle, as the
+    /// core's `nearest_caster_distance` finds it; objects whose box lies
+    /// farther than the nearest triangle found yet are not scanned.
+    fn nearest_caster(&self, point: Vec3) -> f32 {
+        let mut order: Vec<(f32, usize)> = (self.objects.iter().zip(&self.bounds).enumerate())
+            .filter(|(_, (o, _))| o.casts_shadows)
+            .map(|(i, (_, b))| (b.map_or(0.0, |b| nearest_distance(&b, point)), i))
+            .collect();
+        order.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut nearest = f32::INFINITY;
+        for (lower_bound, i) in order {
+            if lower_bound >= nearest {
+                break;
+            }
+            nearest = nearest.min(shadow_fins::scene::nearest_triangle_distance(&self.objects[i], point));
+        }
+        nearest
+    }
+
+    /// Object `i` as one light sees it: a caster on no layer of the light's,
+    /// or out of its reach (beyond its range, outside its cone, wholly behind
+    /// its disk, or — for a point light's cube face — wholly outside the
+    /// face's window frustum) casts nothing for it, but still receives.
+    pub fn seen_by_one(&self, i: usize, light: &Light, frame: &LightFrame, sees: LightSees) -> SceneObject {
+        let (mut o, bounds, layers) = (self.objects[i].clone(), &self.bounds[i], &self.layers[i]);
+        // The sun lights everything in front of it: no caster is out of its reach.
+        let out = match light {
+            Light::Disk(disk) => bounds.is_some_and(|b| out_of_reach(&b, disk, sees.reach)),
+            // A rectangle reaches what its bounding disk reaches.
+            Light::Rect(r) => bounds.is_some_and(|b| out_of_reach(&b, &r.bounding_disk(), sees.reach)),
+            Light::Sun(_) => false,
+            Light::Sphere(s) => bounds.is_some_and(|b| {
+                let beyond = sees.reach.range > 0.0 && nearest_distance(&b, s.center) > sees.reach.range + s.radius;
+                beyond || outside_face(&b, frame)
+            }),
+        };
+        if o.casts_shadows && (out || !layers.intersects(sees.layers)) {
+            o.casts_shadows = false;
+        }
+        o
+    }
+
+    /// Every object as one light sees it ([`Self::seen_by_one`]).
+    pub fn seen_by(&self, light: &Light, frame: &LightFrame, sees: LightSees) -> Vec<SceneObject> {
+        (0..self.objects.len()).map(|i| self.seen_by_one(i, light, frame, sees)).collect()
+    }
+
+    /// The readable objects' world box.
+    pub fn objects_box(&self) -> (Vec3, Vec3) {
+        self.world_boxes.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), b| (lo.min(b.0), hi.max(b.1)))
+    }
+
+    /// The light's frame. A disk's is its own; the sun's origin is put in
+    /// front of everything drawn (every mesh's world box, readable or not),
+    /// so that every depth is positive (`LightFrame::sun`); a point light's
+    /// cube face covers a margin for the caster nearest to the light
+    /// (`SphereLight::face_window`, the core's `nearest_caster_distance`,
+    /// triangles scanned only in boxes nearer than the nearest found yet).
+    pub fn frame_for(&self, light: &Light, face: Option<CubeFace>) -> (LightFrame, (Vec3, Vec3)) {
+        let (lo, hi) = self
+            .unread_bounds
+            .iter()
+            .flatten()
+            .filter(|p| p.is_finite())
+            .fold(self.objects_box(), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let (lo, hi) = if lo.x <= hi.x { (lo, hi) } else { (Vec3::ZERO, Vec3::ONE) };
+        if let (Light::Sphere(sphere), Some(face)) = (light, face) {
+            let key = sphere.center.to_array().map(f32::to_bits);
+            let mut known = self.nearest.lock().unwrap_or_else(|e| e.into_inner());
+            let nearest = *known.entry(key).or_insert_with(|| self.nearest_caster(sphere.center));
+            return (sphere.face_frame(face, sphere.face_window(nearest)), (lo, hi));
+        }
+        (LightFrame::new(light, lo, hi), (lo, hi))
+    }
+}
