@@ -141,7 +141,9 @@ struct MeasureArgs {
     /// Instead of scenes: the bumpy blob over a plane at these triangle counts (GPU scaling run).
     #[arg(long)]
     blob_triangles: Option<String>,
-    /// Techniques: fins, coverage, single-layer, outer-fins, hard, bevy-hard, bevy-pcss, cpu-oracle.
+    /// Techniques: fins, coverage, single-layer, outer-fins, hard, bevy-hard, bevy-pcss, cpu-oracle;
+    /// the other papers' methods on the CPU at the same pixels: single-sample, plateaus,
+    /// penumbra-wedges, wedge-blending, convolution, convolution-mipmap.
     #[arg(long, default_value = "fins,coverage,single-layer,outer-fins,hard,bevy-hard,bevy-pcss,cpu-oracle")]
     methods: String,
     /// Layer counts swept for multi-layer fins (1..=32; more is clamped).
@@ -431,22 +433,26 @@ fn run_measure(args: MeasureArgs) -> Result<(), LabError> {
         );
         println!("{}", results::markdown(&result.rows));
         targets.extend(results::targets(&input.name, &result.rows));
+        // Every method: the GPU's frame times, and the CPU-only methods' CPU
+        // times, marked as such (not a ratio with the GPU's).
         let points: Vec<Point> = result
             .rows
             .iter()
-            .filter(|r| r.config.technique.is_rendered())
             .filter_map(|r| {
-                r.metrics.map(|m| Point {
-                    series: r.config.technique.name().into(),
-                    time_ms: r.frame_ms.median,
-                    error: m.mae as f64,
-                })
+                let t = r.config.technique;
+                let series = if t.is_rendered() { t.name().to_string() } else { format!("{} (CPU)", t.name()) };
+                r.metrics.map(|m| Point { series, time_ms: r.frame_ms.median, error: m.mae as f64 })
             })
             .collect();
         if !points.is_empty() {
             let path = args.out.join(format!("{}-pareto.png", input.name));
-            pareto_plot(&format!("{}: MAE vs frame time", input.name), "frame ms (log)", "MAE", &points)
-                .save_png(&path)?;
+            pareto_plot(
+                &format!("{}: MAE vs time", input.name),
+                "ms (log): GPU frame, or CPU for (CPU)",
+                "MAE",
+                &points,
+            )
+            .save_png(&path)?;
             eprintln!("wrote {}", path.display());
         }
         if let Some(strip) = &result.strip {

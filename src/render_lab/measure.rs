@@ -8,7 +8,10 @@
 //!   the same Bevy point light, read back as linear floats with ambient light,
 //!   tonemapping and dithering off — Bevy multiplies its light's whole
 //!   contribution by the shadow factor, so the ratio *is* its visibility;
-//! - the CPU oracle: the core crate's raster maps at the same resolution.
+//! - the CPU oracle: the core crate's raster maps at the same resolution;
+//! - the other papers' methods (`single-sample`, `plateaus`, …): the core
+//!   crate's `peers` on the CPU at the same pixels, timed on the CPU (their
+//!   "frame ms" is CPU prepare + evaluate, not a GPU frame).
 //!
 //! Pixels scored: the camera sees a surface there, the light's centre faces
 //! it, and the unshadowed light reaches it (≥ 1e-3 of the brightest pixel),
@@ -211,6 +214,29 @@ pub fn measure(
                     values = e.values;
                 }
                 row.frame_ms = Spread::of(&times);
+                values
+            } else if let Technique::Peer(peer) = config.technique {
+                // Another paper's method on the CPU, at the same pixels, timed
+                // as prepare + evaluate (a few runs: single sample is slow).
+                let runs = (options.frames / 10).clamp(1, 3);
+                let mut times = vec![];
+                let mut values = vec![];
+                for _ in 0..runs {
+                    let e = evaluate(
+                        &input.scene,
+                        &ls,
+                        Measured::Peer(peer),
+                        FinSettings::default(),
+                        None,
+                        0,
+                        &hit_receivers,
+                    );
+                    times.push(e.total_ms());
+                    values = e.values;
+                }
+                row.frame_ms = Spread::of(&times);
+                row.non_finite = values.iter().filter(|v| !v.is_finite()).count();
+                row.out_of_range = values.iter().filter(|v| **v < -1e-3 || **v > 1.0 + 1e-3).count();
                 values
             } else {
                 let setup = setup_for(&base, Some(config), radius);

@@ -98,6 +98,25 @@ fn the_editor_starts_draws_panels_and_scene_and_writes_a_screenshot() {
 }
 
 #[test]
+fn the_editor_shows_another_papers_method_over_the_viewport() {
+    // `--view peer`: the chosen peer evaluated on the CPU at the ground
+    // truth's grid, drawn over the viewport in grey. Wedge blending and the
+    // outer-only plateaus shade the demo differently (BENCHMARKS.md: 0.03
+    // against 0.3 MAE), and neither view is the final image.
+    let blending = screenshot("peer-wedge-blending", &["--view", "peer", "--peer", "wedge-blending"], 12);
+    let plateaus = screenshot("peer-plateaus", &["--view", "peer", "--peer", "plateaus"], 12);
+    let final_image = screenshot("peer-final", &[], 12);
+    let (w, h) = (blending.width(), blending.height());
+    let middle = (w / 2 - 150, w / 2 + 150, h / 2 - 150, h / 2 + 150);
+    let shades = distinct_colours(&blending, middle);
+    assert!(shades >= 6, "the peer view looks flat ({shades} colours)");
+    let (between, from_final) = (changed_pixels(&blending, &plateaus), changed_pixels(&blending, &final_image));
+    println!("peer views: {between} sampled pixels differ between two peers, {from_final} from the final image");
+    assert!(between > 5000, "wedge blending and plateaus look alike ({between} pixels differ)");
+    assert!(from_final > 20000, "the peer view is not drawn over the final image ({from_final} pixels differ)");
+}
+
+#[test]
 fn the_editors_settings_change_what_the_plugin_renders() {
     let dir = out_dir();
     let write = |name: &str, radius: f32, method: &str| {

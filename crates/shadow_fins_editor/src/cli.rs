@@ -25,6 +25,10 @@ pub struct EditorOptions {
     pub frames: u32,
     /// Where settings are autosaved (see `autosave.rs`).
     pub autosave: crate::autosave::AutosaveOption,
+    /// The buffer shown over the viewport at start (`--view`).
+    pub view: Option<crate::ViewKind>,
+    /// The other paper's method the peer views show at start (`--peer`).
+    pub peer: Option<shadow_fins::peers::PeerMethod>,
 }
 
 /// A command line that could not be understood.
@@ -35,14 +39,30 @@ pub enum CliError {
     #[error("--frames must be a whole number ≥ 1, got {0:?}")]
     BadFrames(String),
     #[error(
-        "unknown option {0:?} (options: [scene.gltf] --settings FILE --screenshot PATH --frames N --autosave FILE --no-autosave)"
+        "--view: unknown view {0:?} (final, visibility, layer-index, slab-depth, inner-map, outer-map, error, peer, peer-error)"
+    )]
+    BadView(String),
+    #[error(
+        "--peer: unknown method {0:?} (single-sample, plateaus, penumbra-wedges, wedge-blending, convolution, convolution-mipmap)"
+    )]
+    BadPeer(String),
+    #[error(
+        "unknown option {0:?} (options: [scene.gltf] --settings FILE --screenshot PATH --frames N --autosave FILE --no-autosave --view NAME --peer METHOD)"
     )]
     Unknown(String),
 }
 
 impl Default for EditorOptions {
     fn default() -> Self {
-        Self { scene: None, settings: None, screenshot: None, frames: 30, autosave: Default::default() }
+        Self {
+            scene: None,
+            settings: None,
+            screenshot: None,
+            frames: 30,
+            autosave: Default::default(),
+            view: None,
+            peer: None,
+        }
     }
 }
 
@@ -67,6 +87,14 @@ impl EditorOptions {
                     let v = value("--frames")?;
                     options.frames = v.parse().ok().filter(|n| *n >= 1).ok_or(CliError::BadFrames(v))?;
                 }
+                "--view" => {
+                    let v = value("--view")?;
+                    options.view = Some(crate::ViewKind::parse(&v).ok_or(CliError::BadView(v))?);
+                }
+                "--peer" => {
+                    let v = value("--peer")?;
+                    options.peer = Some(shadow_fins::peers::PeerMethod::parse(&v).ok_or(CliError::BadPeer(v))?);
+                }
                 a if a.starts_with("--") => return Err(CliError::Unknown(arg)),
                 _ => options.scene = Some(arg.into()),
             }
@@ -76,7 +104,21 @@ impl EditorOptions {
 }
 
 pub(crate) fn build(app: &mut App) {
-    app.add_systems(Last, (count_frames, take_screenshot_when_due).chain());
+    app.add_systems(Startup, apply_view_options).add_systems(Last, (count_frames, take_screenshot_when_due).chain());
+}
+
+/// `--view` and `--peer`: what the viewport shows at start.
+fn apply_view_options(
+    options: Res<EditorOptions>,
+    mut state: ResMut<EditorState>,
+    mut peer: ResMut<crate::peers::PeerJob>,
+) {
+    if let Some(view) = options.view {
+        state.view = view;
+    }
+    if let Some(method) = options.peer {
+        peer.method = method;
+    }
 }
 
 fn count_frames(mut state: ResMut<EditorState>) {
@@ -97,7 +139,8 @@ fn take_screenshot_when_due(
     main_light: Query<&bevy_shadow_fins::FinLightStats, With<crate::scene::EditorLight>>,
     frames: Res<bevy_shadow_fins::FinFrames>,
     loading: Query<(), With<crate::gltf_scene::PendingGltf>>,
-    mut requested_at: Local<Option<u32>>,
+    peer: Res<crate::peers::PeerJob>,
+    (mut requested_at, mut peer_shown_for): (Local<Option<u32>>, Local<u32>),
     mut exit: MessageWriter<AppExit>,
 ) {
     let Some(path) = options.screenshot.clone() else { return };
@@ -112,6 +155,10 @@ fn take_screenshot_when_due(
     // Every light's counts, the main light's and those of "More lights"; a
     // glTF still loading is not the scene asked for.
     let settled = (main_light.iter().all(|s| s.0.up_to_date) || frames.0.is_empty()) && loading.is_empty();
+    // The peer view shows its method once the CPU has evaluated it and egui
+    // has had a few frames to upload its texture.
+    *peer_shown_for = if peer.grid.is_some() { *peer_shown_for + 1 } else { 0 };
+    let settled = settled && (state.view != crate::ViewKind::Peer || *peer_shown_for >= 3);
     if state.frames < due || (!settled && state.frames < due + SETTLE_LIMIT_FRAMES) {
         return;
     }
@@ -170,5 +217,9 @@ mod tests {
         assert_eq!(parse(&["--frames", "x"]), Err(CliError::BadFrames("x".into())));
         assert_eq!(parse(&["--screenshot"]), Err(CliError::MissingValue("--screenshot")));
         assert_eq!(parse(&["--fast"]), Err(CliError::Unknown("--fast".into())));
+        let o = parse(&["--view", "peer", "--peer", "plateaus"]).unwrap();
+        assert_eq!((o.view, o.peer), (Some(crate::ViewKind::Peer), Some(shadow_fins::peers::PeerMethod::Plateaus)));
+        assert_eq!(parse(&["--view", "shadows"]), Err(CliError::BadView("shadows".into())));
+        assert_eq!(parse(&["--peer", "fins"]), Err(CliError::BadPeer("fins".into())));
     }
 }

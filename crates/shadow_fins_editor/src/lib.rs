@@ -4,7 +4,8 @@
 //! intensity, colour), the fins (layers, sub-layers, map resolution,
 //! refinement, falloff), the method (hard, outer fins, single-layer,
 //! multi-layer, Bevy's PCSS), every intermediate buffer, and the error against
-//! a progressively computed ground truth.
+//! a progressively computed ground truth — the other papers' methods too
+//! (`peers.rs`: on the CPU, on the ground truth's grid, scored the same way).
 //!
 //! UI code is plain systems over resources (`ui.rs`); the UI edits the
 //! [`LightParams`] and the light's `FinShadowSettings`, `scene.rs` turns them
@@ -18,6 +19,7 @@ mod cli;
 mod gltf_scene;
 mod lights;
 mod orbit;
+mod peers;
 mod picking;
 mod scene;
 mod settings_file;
@@ -71,6 +73,7 @@ impl Plugin for EditorPlugin {
         orbit::build(app);
         views::build(app);
         truth::build(app);
+        peers::build(app);
         ui::build(app);
         lights::build(app);
         picking::build(app);

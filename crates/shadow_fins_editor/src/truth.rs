@@ -65,12 +65,12 @@ impl GroundTruthStatus {
 }
 
 /// One background job: its inputs' key, progress, result and cancel flag.
-struct Job<T> {
-    key: u64,
-    progress: Arc<AtomicU32>,
-    cancel: Arc<AtomicBool>,
-    result: Arc<Mutex<Option<T>>>,
-    _task: Task<()>,
+pub(crate) struct Job<T> {
+    pub key: u64,
+    pub progress: Arc<AtomicU32>,
+    pub cancel: Arc<AtomicBool>,
+    pub result: Arc<Mutex<Option<T>>>,
+    pub _task: Task<()>,
 }
 
 impl<T> Drop for Job<T> {
@@ -112,7 +112,7 @@ pub(crate) fn build(app: &mut App) {
 }
 
 /// The core crate's camera for the editor camera and a grid of `size`'s aspect.
-fn core_camera(transform: &GlobalTransform, projection: &Projection) -> CoreCamera {
+pub(crate) fn core_camera(transform: &GlobalTransform, projection: &Projection) -> CoreCamera {
     let fov = match projection {
         Projection::Perspective(p) => p.fov.to_degrees(),
         _ => 45.0,
@@ -126,12 +126,12 @@ fn core_camera(transform: &GlobalTransform, projection: &Projection) -> CoreCame
     }
 }
 
-fn grid_size(window: UVec2) -> UVec2 {
+pub(crate) fn grid_size(window: UVec2) -> UVec2 {
     let height = (GRID_WIDTH as f32 * window.y as f32 / window.x as f32).round().max(1.0) as u32;
     UVec2::new(GRID_WIDTH, height)
 }
 
-fn hash_of(values: &[f32], extra: u64) -> u64 {
+pub(crate) fn hash_of(values: &[f32], extra: u64) -> u64 {
     use std::hash::{Hash, Hasher};
     let mut h = std::collections::hash_map::DefaultHasher::new();
     for v in values {
@@ -141,12 +141,12 @@ fn hash_of(values: &[f32], extra: u64) -> u64 {
     h.finish()
 }
 
-fn light_key(params: &LightParams) -> [f32; 7] {
+pub(crate) fn light_key(params: &LightParams) -> [f32; 7] {
     let (p, d) = (params.position, params.direction);
     [p.x, p.y, p.z, d.x, d.y, d.z, params.radius]
 }
 
-fn camera_key(c: &CoreCamera) -> [f32; 10] {
+pub(crate) fn camera_key(c: &CoreCamera) -> [f32; 10] {
     [
         c.position.x,
         c.position.y,

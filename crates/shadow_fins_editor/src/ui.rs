@@ -11,10 +11,11 @@ use bevy::{
 };
 use bevy_egui::{EguiContexts, EguiPrimaryContextPass, egui};
 use bevy_shadow_fins::{FinFrames, FinLightStats, FinShadowSettings};
-use shadow_fins::{oracle::Overlap, refine::Falloff};
+use shadow_fins::{oracle::Overlap, peers::PeerMethod, refine::Falloff};
 
 use crate::{
     EditorState,
+    peers::PeerJob,
     scene::{EditorLight, EditorMethod, LightKind, LightParams, LoadScene, LoadedScene, SceneSource},
     settings_file::EditorSettings,
     truth::{AnalysisJob, GroundTruthJob},
@@ -95,6 +96,7 @@ fn panels(
         Res<History>,
         Option<Res<LoadedScene>>,
     ),
+    mut peer: ResMut<PeerJob>,
     mut texture: Local<ViewTexture>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?.clone();
@@ -217,6 +219,19 @@ fn panels(
             for v in ViewKind::ALL {
                 ui.radio_value(&mut state.view, v, v.label());
             }
+            // The other papers' methods, on the CPU at the ground truth's pixels.
+            let mut method = peer.method;
+            egui::ComboBox::from_label("other paper").selected_text(method.name()).show_ui(ui, |ui| {
+                for m in PeerMethod::ALL {
+                    ui.selectable_value(&mut method, m, format!("{} ({})", m.name(), m.paper()));
+                }
+            });
+            if method != peer.method {
+                peer.method = method;
+                if !matches!(state.view, ViewKind::Peer | ViewKind::PeerError) {
+                    state.view = ViewKind::Peer;
+                }
+            }
             let layers = fin_stats.layers.max(1) as u32;
             ui.add(egui::Slider::new(&mut state.layer, 0..=layers - 1).text("map layer"));
         });
@@ -265,6 +280,25 @@ fn panels(
                 }
                 None => {
                     ui.label("error: waiting for ground truth");
+                }
+            }
+            if matches!(state.view, ViewKind::Peer | ViewKind::PeerError) {
+                match (&peer.grid, peer.metrics) {
+                    (Some(_), Some(m)) => {
+                        ui.label(format!("{}: MAE {:.4} · p99 {:.3}", peer.method.name(), m.mae, m.p99));
+                        ui.label(format!(
+                            "umbra over {:.2}% · leaks {:.2}% · CPU {:.0} ms",
+                            m.umbra_over * 100.0,
+                            m.leak * 100.0,
+                            peer.cpu_ms
+                        ));
+                    }
+                    (Some(_), None) => {
+                        ui.label(format!("{}: waiting for ground truth", peer.method.name()));
+                    }
+                    (None, _) => {
+                        ui.label(format!("{}: computing on the CPU…", peer.method.name()));
+                    }
                 }
             }
             plot(ui, &history);
@@ -328,13 +362,17 @@ fn panels(
     let analysis = analysis.latest.as_deref();
     let key = (
         Some(state.view),
-        latest.serial / 3,
-        analysis.map_or(0, |a| a as *const _ as usize) ^ error.signed.as_ref().map_or(0, |g| g.values.len()),
+        // Only the GPU's views follow its read-backs (a texture set anew
+        // every few frames can miss a screenshot's frame).
+        if matches!(state.view, ViewKind::Visibility | ViewKind::Error) { latest.serial / 3 } else { 0 },
+        analysis.map_or(0, |a| a as *const _ as usize)
+            ^ error.signed.as_ref().map_or(0, |g| g.values.len())
+            ^ (peer.serial as usize).rotate_left(20),
         truth.status.rows_done,
     );
     if texture.key != key {
         texture.key = key;
-        if let Some((w, h, px)) = view_pixels(state.view, &latest, analysis, &error) {
+        if let Some((w, h, px)) = view_pixels(state.view, &latest, analysis, &error, &peer) {
             let image = egui::ColorImage::from_rgba_unmultiplied([w as usize, h as usize], px.as_flattened());
             match texture.handle.as_mut() {
                 Some(t) => t.set(image, egui::TextureOptions::NEAREST),

@@ -39,10 +39,14 @@ pub enum ViewKind {
     OuterMap,
     /// Signed error of the GPU visibility against the ground truth.
     Error,
+    /// Another paper's method (`peers.rs`, the CPU), its visibility.
+    Peer,
+    /// That method's signed error against the ground truth.
+    PeerError,
 }
 
 impl ViewKind {
-    pub const ALL: [ViewKind; 7] = [
+    pub const ALL: [ViewKind; 9] = [
         ViewKind::Final,
         ViewKind::Visibility,
         ViewKind::LayerIndex,
@@ -50,7 +54,28 @@ impl ViewKind {
         ViewKind::InnerMap,
         ViewKind::OuterMap,
         ViewKind::Error,
+        ViewKind::Peer,
+        ViewKind::PeerError,
     ];
+
+    /// Its name on the command line (`--view`).
+    pub fn cli_name(self) -> &'static str {
+        match self {
+            ViewKind::Final => "final",
+            ViewKind::Visibility => "visibility",
+            ViewKind::LayerIndex => "layer-index",
+            ViewKind::SlabDepth => "slab-depth",
+            ViewKind::InnerMap => "inner-map",
+            ViewKind::OuterMap => "outer-map",
+            ViewKind::Error => "error",
+            ViewKind::Peer => "peer",
+            ViewKind::PeerError => "peer-error",
+        }
+    }
+
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|v| v.cli_name() == name)
+    }
 
     pub fn label(self) -> &'static str {
         match self {
@@ -61,6 +86,8 @@ impl ViewKind {
             ViewKind::InnerMap => "inner penumbra map",
             ViewKind::OuterMap => "outer penumbra map",
             ViewKind::Error => "error vs ground truth",
+            ViewKind::Peer => "other paper's method (CPU)",
+            ViewKind::PeerError => "its error vs ground truth",
         }
     }
 }
@@ -197,6 +224,7 @@ pub fn view_pixels(
     latest: &LatestVisibility,
     analysis: Option<&Analysis>,
     error: &CurrentError,
+    peer: &crate::peers::PeerJob,
 ) -> Option<(u32, u32, Vec<[u8; 4]>)> {
     let gray = |v: f32| {
         let g = (v.clamp(0.0, 1.0) * 255.0) as u8;
@@ -229,9 +257,14 @@ pub fn view_pixels(
                 .collect();
             Some((a.map_resolution, a.map_resolution, px))
         }
-        ViewKind::Error => {
-            let g = error.signed.as_ref()?;
+        ViewKind::Error | ViewKind::PeerError => {
+            let g = if kind == ViewKind::Error { error.signed.as_ref()? } else { peer.signed.as_ref()? };
             let px = g.values.iter().map(|e| if e.is_nan() { none } else { diverging(*e) }).collect();
+            Some((g.width, g.height, px))
+        }
+        ViewKind::Peer => {
+            let g = peer.grid.as_ref()?;
+            let px = g.values.iter().map(|v| if v.is_nan() { none } else { gray(*v) }).collect();
             Some((g.width, g.height, px))
         }
     }

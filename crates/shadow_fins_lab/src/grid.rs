@@ -2,7 +2,7 @@
 //! settings, at which light radius. Settings a method ignores are dropped
 //! before deduplication, so no configuration is rendered twice.
 
-use shadow_fins::{oracle::Method, refine::Falloff};
+use shadow_fins::{oracle::Method, peers::PeerMethod, refine::Falloff};
 
 /// What renders a configuration's shadows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -17,10 +17,13 @@ pub enum Technique {
     CpuOracle,
     /// The plugin's coverage method (`FinMethod::Coverage`, 256 light samples).
     Coverage,
+    /// Another paper's method, on the CPU with the core crate
+    /// (`shadow_fins::peers`), at the pixels the GPU shaded.
+    Peer(PeerMethod),
 }
 
 impl Technique {
-    pub const ALL: [Technique; 8] = [
+    pub const ALL: [Technique; 14] = [
         Technique::Fins(Method::MultiLayer),
         Technique::Fins(Method::SingleLayer),
         Technique::Fins(Method::OuterFins),
@@ -29,6 +32,12 @@ impl Technique {
         Technique::BevyPcss,
         Technique::CpuOracle,
         Technique::Coverage,
+        Technique::Peer(PeerMethod::SingleSample),
+        Technique::Peer(PeerMethod::Plateaus),
+        Technique::Peer(PeerMethod::PenumbraWedges),
+        Technique::Peer(PeerMethod::WedgeBlending),
+        Technique::Peer(PeerMethod::Convolution),
+        Technique::Peer(PeerMethod::ConvolutionMipmap),
     ];
 
     /// The name on the command line, in tables and in plots.
@@ -42,6 +51,7 @@ impl Technique {
             Technique::BevyPcss => "bevy-pcss",
             Technique::CpuOracle => "cpu-oracle",
             Technique::Coverage => "coverage",
+            Technique::Peer(p) => p.name(),
         }
     }
 
@@ -58,9 +68,10 @@ impl Technique {
         matches!(self, Technique::Fins(m) if m != Method::Hard) || self == Technique::CpuOracle
     }
 
-    /// Whether it is drawn by the GPU (and so has a frame time).
+    /// Whether it is drawn by the GPU (and so has a frame time); the others
+    /// are timed on the CPU.
     pub fn is_rendered(self) -> bool {
-        self != Technique::CpuOracle
+        !matches!(self, Technique::CpuOracle | Technique::Peer(_))
     }
 }
 

@@ -3,7 +3,7 @@
 
 use std::fmt::Write;
 
-use shadow_fins::metrics::ErrorMetrics;
+use shadow_fins::{metrics::ErrorMetrics, peers::PeerMethod};
 
 use crate::grid::{Config, Technique};
 
@@ -201,11 +201,17 @@ pub fn markdown(rows: &[Row]) -> String {
         } else {
             format!("{:.1} CPU", r.frame_ms.median)
         };
+        // The peers keep their own resolutions (convolution: 512² basis maps).
+        let map = match r.config.technique {
+            Technique::Peer(PeerMethod::Convolution | PeerMethod::ConvolutionMipmap) => "512 (own)".to_string(),
+            Technique::Peer(_) => "–".to_string(),
+            _ => r.config.map_resolution.to_string(),
+        };
         let _ = writeln!(
             s,
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.config.label(),
-            r.config.map_resolution,
+            map,
             r.config.radius,
             cell(m.map(|m| m.mae), 4),
             cell(m.map(|m| m.rmse), 4),
