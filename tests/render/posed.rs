@@ -8,7 +8,10 @@
 //! most 3% of pixels off by more than 0.1).
 
 use bevy::{
-    mesh::morph::{MeshMorphWeights, MorphWeights},
+    mesh::{
+        morph::{MeshMorphWeights, MorphWeights},
+        skinning::{SkinnedMesh, SkinnedMeshInverseBindposes},
+    },
     prelude::*,
 };
 use bevy_shadow_fins::FinSnapshotApproximation;
@@ -98,6 +101,35 @@ fn a_skinned_arm_casts_the_shadow_of_its_current_pose() {
     let (apart, far) = compare(&straight.visibility, &bent.visibility);
     println!("straight vs bent arm's shadow: {apart:.4} mean, {:.1}% of pixels by > 0.1", far * 100.0);
     assert!(far > 0.01, "bending the arm hardly moved its shadow ({apart}, {far}): the bind pose is cast");
+}
+
+#[test]
+fn a_skins_bind_poses_changing_poses_its_caster_again() {
+    // No joint moves: only the skin's inverse bind poses change (an asset
+    // arriving late, or edited). The caster is posed again from them — every
+    // bind pose turned by 0.4 rad about z turns the whole arm — and its
+    // shadow is the oracle's of the new pose.
+    let setup = posed_setup("skinned-arm.gltf");
+    let mut session = Session::new(&setup);
+    session.wait_for_gltf().expect("Bevy loads it");
+    let before = session.settle(16).expect("render");
+    assert_not_trivial(&before);
+    let world = session.app.world_mut();
+    let ids: Vec<_> = world.query::<&SkinnedMesh>().iter(world).map(|s| s.inverse_bindposes.id()).collect();
+    assert!(!ids.is_empty(), "the arm is skinned");
+    let mut poses = world.resource_mut::<Assets<SkinnedMeshInverseBindposes>>();
+    for id in ids {
+        let turned: Vec<Mat4> =
+            poses.get(id).expect("loaded").iter().map(|m| *m * Mat4::from_rotation_z(0.4)).collect();
+        poses.insert(id, SkinnedMeshInverseBindposes::from(turned)).expect("the same asset");
+    }
+    let after = session.settle(16).expect("render");
+    save(&after, "posed_arm_bindposes_turned");
+    assert_not_trivial(&after);
+    matches_its_oracle(&mut session, &setup, &after, "arm, bind poses turned");
+    let (apart, far) = compare(&before.visibility, &after.visibility);
+    println!("bind poses turned: {apart:.4} mean, {:.1}% of pixels by > 0.1", far * 100.0);
+    assert!(far > 0.01, "new bind poses hardly moved the shadow ({apart}, {far}): the old pose is cast");
 }
 
 #[test]

@@ -7,14 +7,15 @@
 //! - [`CasterSignature`]: the casters' part of every light's signature, a sum
 //!   of one hash per entity. A frame with changes rehashes only the changed
 //!   entities (Bevy's change detection names them); the walk over every mesh
-//!   ([`FinCasterScans`](crate::FinCasterScans)) is left for what changes
-//!   every caster at once (a mesh asset loading or edited, a material's
-//!   cut-out, a sun starting to fit its views).
+//!   ([`FinCasterScans`](crate::FinCasterScans)) is left for what may change
+//!   every caster at once (a mesh asset loading or edited, any material
+//!   swapped or its cut-out changed, a skin's bind poses loading, a sun
+//!   starting to fit its views).
 //! - [`CasterScene`]: the casters as core `SceneObject`s with their packed GPU
-//!   geometry, boxes and layers. A caster that moved, was posed again or
-//!   changed its layers or shadow flags is rebuilt in its slot
-//!   ([`CasterScene::update`]); one that appears, goes, is hidden or shown or
-//!   changes its mesh re-collects the scene (the GPU's geometry changes then).
+//!   geometry, boxes and layers. A caster that moved or changed its layers or
+//!   shadow flags is rebuilt in its slot ([`CasterScene::update`]); one that
+//!   appears, goes, is hidden or shown, changes its mesh or is posed again (a
+//!   new pose is new geometry) re-collects the scene and its GPU geometry.
 //! - each light's objects and GPU instance records (`extract.rs`,
 //!   `gpu_scene.rs`): after an in-place update of the scene, only the slots
 //!   it names ([`CasterScene::dirty`]) are recomputed for a light whose own

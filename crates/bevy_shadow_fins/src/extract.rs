@@ -400,11 +400,15 @@ struct FrameAsked<'a> {
 }
 
 /// How many times the frame builder has walked every mesh to sign the
-/// casters. It walks only in frames where a caster changed — moved, appeared,
-/// went, was hidden or shown, changed its layers or shadow flags or its box,
-/// or a mesh asset changed —, so a still scene costs no hashing walk however
-/// many entities it holds (Bevy's change ticks are still checked per
-/// entity; issue 16's "big scenes that move"; a diagnostic).
+/// casters. Only what may change every caster at once walks: a mesh asset
+/// loading, edited or removed, a material swapped or its cut-out changed, a
+/// skin's bind poses loading, a sun starting or stopping to fit the views.
+/// A caster that moved, appeared, went, was hidden or shown, or changed its
+/// layers or shadow flags is signed alone ([`FinCasterUpdates`](crate::FinCasterUpdates)
+/// counts the ones rebuilt in place), so a still scene — or one where a few
+/// casters move — costs no walk however many entities it holds (Bevy's change
+/// ticks are still checked per entity; issue 16's "big scenes that move"; a
+/// diagnostic).
 #[derive(Resource, Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct FinCasterScans(pub u64);
 
@@ -428,6 +432,9 @@ struct CasterChanges<'w, 's> {
                 (Changed<Aabb>, Without<bevy::camera::visibility::DynamicSkinnedMeshBounds>),
                 Added<bevy::light::NotShadowCaster>,
                 Added<NotFinShadowCaster>,
+                // What poses it (a skin or morph weights arriving or swapped).
+                Changed<bevy::mesh::skinning::SkinnedMesh>,
+                Changed<bevy::mesh::morph::MeshMorphWeights>,
             )>,
         ),
     >,
@@ -765,6 +772,9 @@ struct OtherLights<'w, 's> {
 struct CasterAssets<'w, 's> {
     meshes: Res<'w, Assets<Mesh>>,
     mesh_events: MessageReader<'w, 's, AssetEvent<Mesh>>,
+    /// A skin's inverse bind poses loading or changing re-poses its casters
+    /// (optional: a world without Bevy's skinning has none).
+    bindpose_events: Option<MessageReader<'w, 's, AssetEvent<bevy::mesh::skinning::SkinnedMeshInverseBindposes>>>,
     materials: crate::cutout::CasterMaterials<'w, 's>,
 }
 
@@ -802,6 +812,13 @@ fn update_fin_frames(
         cache.cutout_generation = cutouts;
         kept_material_epoch(&mut changes);
         mesh_event = true;
+    }
+    if let Some(events) = assets.bindpose_events.as_mut()
+        && events.read().count() > 0
+    {
+        // Rare (a skin loading): every posed caster is posed again.
+        mesh_event = true;
+        cache.posed.clear();
     }
     for event in assets.mesh_events.read() {
         mesh_event = true;

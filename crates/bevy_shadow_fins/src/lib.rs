@@ -37,8 +37,8 @@
 //! its own [`FinShadowSettings`] (method, layers, maps), its own frame
 //! rebuilt only when it, a caster, the budget or the set of lights changed
 //! (casters by Bevy's change detection: a still scene's meshes are not
-//! walked and hashed, [`FinCasterScans`]; a caster that moved is rebuilt in
-//! its slot and only its instance record goes up to the GPU,
+//! walked and hashed, [`FinCasterScans`]; a rigid caster that moved is
+//! rebuilt in its slot and only its instance record goes up to the GPU,
 //! [`FinCasterUpdates`], while the GPU's extraction and maps are redone for
 //! the whole light),
 //! its own visibility layer per camera and its own [`FinLightStats`]. A light

@@ -158,7 +158,13 @@ fn take_screenshot_when_due(
     // The peer view shows its method once the CPU has evaluated it and egui
     // has had a few frames to upload its texture.
     *peer_shown_for = if peer.grid.is_some() { *peer_shown_for + 1 } else { 0 };
-    let settled = settled && (state.view != crate::ViewKind::Peer || *peer_shown_for >= 3);
+    let peer_ready = match state.view {
+        crate::ViewKind::Peer => *peer_shown_for >= 3,
+        // Its error needs the ground truth's rows too (it fills in as they come).
+        crate::ViewKind::PeerError => *peer_shown_for >= 3 && peer.signed.is_some(),
+        _ => true,
+    };
+    let settled = settled && peer_ready;
     if state.frames < due || (!settled && state.frames < due + SETTLE_LIMIT_FRAMES) {
         return;
     }

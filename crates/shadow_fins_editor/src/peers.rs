@@ -12,7 +12,7 @@
 
 use std::sync::{
     Arc, Mutex,
-    atomic::{AtomicBool, AtomicU32},
+    atomic::{AtomicBool, AtomicU32, Ordering},
 };
 
 use bevy::{prelude::*, tasks::AsyncComputeTaskPool, window::PrimaryWindow};
@@ -70,17 +70,32 @@ pub(crate) fn build(app: &mut App) {
     app.init_resource::<PeerJob>().add_systems(Update, (update_peer, score_peer).chain());
 }
 
+/// Receivers evaluated between two looks at the cancel flag.
+const CANCEL_CHUNK: usize = 512;
+
 /// The peer's visibility at `receivers` (in `light_space`'s frame); a sphere
-/// light routed face by face.
+/// light routed face by face. `None` when `cancel` was raised meanwhile (a
+/// newer view asked for another job).
 pub fn peer_visibility(
     method: PeerMethod,
     scene: &Scene,
     light_space: &LightSpaceScene,
     receivers: &[Receiver],
-) -> Vec<f32> {
+    cancel: &AtomicBool,
+) -> Option<Vec<f32>> {
+    let evaluate = |model: &PeerModel, receivers: &[Receiver]| -> Option<Vec<f32>> {
+        let mut out = Vec::with_capacity(receivers.len());
+        for chunk in receivers.chunks(CANCEL_CHUNK) {
+            if cancel.load(Ordering::Relaxed) {
+                return None;
+            }
+            out.extend(chunk.iter().map(|r| model.visibility(*r)));
+        }
+        Some(out)
+    };
     if !matches!(light_space.light, Light::Sphere(_)) {
         let model = PeerModel::for_receivers(method, scene, light_space, receivers);
-        return receivers.iter().map(|r| model.visibility(*r)).collect();
+        return evaluate(&model, receivers);
     }
     let faces = LightSpaceScene::faces(scene, light_space.light);
     let frame = &light_space.frame;
@@ -96,12 +111,15 @@ pub fn peer_visibility(
         }
         let in_face: Vec<Receiver> = mine.iter().map(|&i| routed[i].1).collect();
         face.cover_receivers(in_face.iter().map(|r| r.position));
+        if cancel.load(Ordering::Relaxed) {
+            return None;
+        }
         let model = PeerModel::for_receivers(method, scene, &face, &in_face);
-        for (&i, r) in mine.iter().zip(&in_face) {
-            values[i] = model.visibility(*r);
+        for (&i, v) in mine.iter().zip(evaluate(&model, &in_face)?) {
+            values[i] = v;
         }
     }
-    values
+    Some(values)
 }
 
 /// Starts the peer's job when the peer views are shown and the light, the
@@ -127,17 +145,18 @@ fn update_peer(
     let extra = scene.generation ^ ((grid.x as u64) << 32 | grid.y as u64) ^ (job.method as u64).rotate_left(48);
     let key = hash_of(&key_values, extra);
     if job.job.as_ref().is_none_or(|j| j.key != key) {
-        job.grid = None;
-        job.metrics = None;
-        job.signed = None;
-        job.serial += 1;
         let Some(light) = params.core_light() else {
-            job.job = None;
+            if job.job.take().is_some() || job.grid.is_some() {
+                (job.grid, job.metrics, job.signed) = (None, None, None);
+                job.serial += 1;
+            }
             return;
         };
+        (job.grid, job.metrics, job.signed) = (None, None, None);
+        job.serial += 1;
         let result: Arc<Mutex<Option<(Grid, f32)>>> = Arc::default();
         let (progress, cancel) = (Arc::new(AtomicU32::new(0)), Arc::new(AtomicBool::new(false)));
-        let (r, scene, method) = (Arc::clone(&result), scene.scene.clone(), job.method);
+        let (r, c, scene, method) = (Arc::clone(&result), cancel.clone(), scene.scene.clone(), job.method);
         let task = AsyncComputeTaskPool::get().spawn(async move {
             let start = std::time::Instant::now();
             let ls = LightSpaceScene::new(&scene, light);
@@ -154,8 +173,9 @@ fn update_peer(
                     }
                 }
             }
+            let Some(visibility) = peer_visibility(method, &scene, &ls, &receivers, &c) else { return };
             let mut values = vec![f32::NAN; (grid.x * grid.y) as usize];
-            for (i, v) in at.into_iter().zip(peer_visibility(method, &scene, &ls, &receivers)) {
+            for (i, v) in at.into_iter().zip(visibility) {
                 values[i] = v;
             }
             let ms = start.elapsed().as_secs_f32() * 1e3;
@@ -238,7 +258,8 @@ mod tests {
             let receivers = ground_receivers(&ls);
             let truth = GroundTruth::new(&ls, 1024);
             let reference: Vec<f32> = receivers.iter().map(|r| truth.visibility(*r)).collect();
-            let blended = peer_visibility(PeerMethod::WedgeBlending, &built.scene, &ls, &receivers);
+            let go = AtomicBool::new(false);
+            let blended = peer_visibility(PeerMethod::WedgeBlending, &built.scene, &ls, &receivers, &go).unwrap();
             let grid = |values: Vec<f32>| Grid { width: 24, height: 24, values };
             let (metrics, signed) = score(&grid(blended.clone()), &grid(reference.clone()));
             let metrics = metrics.expect("measured");
@@ -248,7 +269,10 @@ mod tests {
             assert!(blended.iter().all(|v| (0.0..=1.0).contains(v)));
             assert_eq!(signed.values.iter().filter(|v| v.is_finite()).count(), 24 * 24);
             // And the outer-only plateaus are far worse (their umbra is the hard one).
-            let plateaus = peer_visibility(PeerMethod::Plateaus, &built.scene, &ls, &receivers);
+            let plateaus = peer_visibility(PeerMethod::Plateaus, &built.scene, &ls, &receivers, &go).unwrap();
+            // A raised cancel flag stops the job with nothing.
+            let stop = AtomicBool::new(true);
+            assert!(peer_visibility(PeerMethod::Plateaus, &built.scene, &ls, &receivers, &stop).is_none());
             let (plateau_metrics, _) = score(&grid(plateaus), &grid(reference));
             assert!(plateau_metrics.unwrap().mae > 2.0 * metrics.mae, "{light:?}");
         }

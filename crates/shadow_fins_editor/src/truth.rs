@@ -141,9 +141,12 @@ pub(crate) fn hash_of(values: &[f32], extra: u64) -> u64 {
     h.finish()
 }
 
-pub(crate) fn light_key(params: &LightParams) -> [f32; 7] {
+/// Everything of the light the core's light is made of (`LightParams::core_light`):
+/// its kind (disk, sun, rectangle, sphere), place and sizes.
+pub(crate) fn light_key(params: &LightParams) -> [f32; 10] {
     let (p, d) = (params.position, params.direction);
-    [p.x, p.y, p.z, d.x, d.y, d.z, params.radius]
+    let kind = params.kind as u32 as f32;
+    [p.x, p.y, p.z, d.x, d.y, d.z, params.radius, kind, params.rect_aspect, params.sun_angle]
 }
 
 pub(crate) fn camera_key(c: &CoreCamera) -> [f32; 10] {

@@ -105,7 +105,8 @@ impl Config {
             layers: technique.uses_layers().then_some(layers.clamp(1, 32)),
             refinement: technique.uses_fins().then_some(refinement),
             falloff: technique.uses_fins().then_some(falloff),
-            map_resolution: map_resolution.clamp(16, 4096),
+            // The peers keep their own resolutions: one configuration each, whatever the sweep.
+            map_resolution: if matches!(technique, Technique::Peer(_)) { 512 } else { map_resolution.clamp(16, 4096) },
             radius,
             baseline: false,
         }
