@@ -194,50 +194,33 @@ pub fn measure(
                 out_of_range: 0,
                 modelled: None,
             };
+            // A method on the CPU at the same pixels, timed as prepare + evaluate
+            // over `runs` runs; its last values.
+            let mut on_cpu = |measured: Measured, settings: FinSettings, map: Option<u32>, runs: u32| {
+                let mut times = vec![];
+                let mut last = None;
+                for _ in 0..runs {
+                    let e = evaluate(&input.scene, &ls, measured, settings, map, 0, &hit_receivers);
+                    times.push(e.total_ms());
+                    last = Some(e);
+                }
+                (Spread::of(&times), last.expect("at least one run"))
+            };
             let values: Vec<f32> = if config.technique == Technique::CpuOracle {
+                let measured = Measured::Method(Method::MultiLayer);
                 let settings = fin_settings(config).core();
-                let runs = (options.frames / 10).max(3);
-                let mut times = vec![];
-                let mut values = vec![];
-                for _ in 0..runs {
-                    let e = evaluate(
-                        &input.scene,
-                        &ls,
-                        Measured::Method(Method::MultiLayer),
-                        settings,
-                        Some(config.map_resolution),
-                        0,
-                        &hit_receivers,
-                    );
-                    times.push(e.total_ms());
-                    row.modelled = Some((e.silhouettes, e.fins, e.layers));
-                    values = e.values;
-                }
-                row.frame_ms = Spread::of(&times);
-                values
+                let (time, e) = on_cpu(measured, settings, Some(config.map_resolution), (options.frames / 10).max(3));
+                row.frame_ms = time;
+                row.modelled = Some((e.silhouettes, e.fins, e.layers));
+                e.values
             } else if let Technique::Peer(peer) = config.technique {
-                // Another paper's method on the CPU, at the same pixels, timed
-                // as prepare + evaluate (a few runs: single sample is slow).
+                // Another paper's method (a few runs: single sample is slow).
                 let runs = (options.frames / 10).clamp(1, 3);
-                let mut times = vec![];
-                let mut values = vec![];
-                for _ in 0..runs {
-                    let e = evaluate(
-                        &input.scene,
-                        &ls,
-                        Measured::Peer(peer),
-                        FinSettings::default(),
-                        None,
-                        0,
-                        &hit_receivers,
-                    );
-                    times.push(e.total_ms());
-                    values = e.values;
-                }
-                row.frame_ms = Spread::of(&times);
-                row.non_finite = values.iter().filter(|v| !v.is_finite()).count();
-                row.out_of_range = values.iter().filter(|v| **v < -1e-3 || **v > 1.0 + 1e-3).count();
-                values
+                let (time, e) = on_cpu(Measured::Peer(peer), FinSettings::default(), None, runs);
+                row.frame_ms = time;
+                row.non_finite = e.values.iter().filter(|v| !v.is_finite()).count();
+                row.out_of_range = e.values.iter().filter(|v| **v < -1e-3 || **v > 1.0 + 1e-3).count();
+                e.values
             } else {
                 let setup = setup_for(&base, Some(config), radius);
                 let shot = session_shot(&mut session, &setup)?;

@@ -313,6 +313,37 @@ impl LightSpaceScene {
         (k, crate::oracle::Receiver { position: frame.to_frame(p), normal: frame.dir_to_frame(n) })
     }
 
+    /// `receivers` (in this scene's frame) grouped by the light's frame
+    /// that shadows them: for a sphere light, one group per cube face of
+    /// [`Self::faces`] (empty ones too, in face order), each face's reference
+    /// plane covering its receivers; for any other light, one group, this
+    /// frame's. What every evaluation of a sphere light does first.
+    pub fn group_by_face(&self, scene: &Scene, receivers: &[crate::oracle::Receiver]) -> Vec<FaceGroup> {
+        if !matches!(self.light, Light::Sphere(_)) {
+            return vec![FaceGroup {
+                light_space: self.clone(),
+                indices: (0..receivers.len()).collect(),
+                receivers: receivers.to_vec(),
+            }];
+        }
+        let faces = Self::faces(scene, self.light);
+        let frame = &self.frame;
+        let routed: Vec<(usize, crate::oracle::Receiver)> = receivers
+            .iter()
+            .map(|r| Self::receiver_in_face(&faces, frame.to_world(r.position), frame.dir_to_world(r.normal)))
+            .collect();
+        faces
+            .into_iter()
+            .enumerate()
+            .map(|(k, mut light_space)| {
+                let indices: Vec<usize> = (0..receivers.len()).filter(|&i| routed[i].0 == k).collect();
+                let receivers: Vec<_> = indices.iter().map(|&i| routed[i].1).collect();
+                light_space.cover_receivers(receivers.iter().map(|r| r.position));
+                FaceGroup { light_space, indices, receivers }
+            })
+            .collect()
+    }
+
     /// The cut-out of caster `k`, if it has one.
     #[inline]
     pub fn cutout(&self, k: usize) -> Option<crate::cutout::CasterCutout> {
@@ -346,6 +377,17 @@ impl LightSpaceScene {
             }
         }
     }
+}
+
+/// Receivers shadowed through one light frame ([`LightSpaceScene::group_by_face`]).
+#[derive(Debug, Clone)]
+pub struct FaceGroup {
+    /// The scene in that frame, its reference plane covering the receivers.
+    pub light_space: LightSpaceScene,
+    /// Where the receivers were in the list grouped.
+    pub indices: Vec<usize>,
+    /// The receivers in that frame.
+    pub receivers: Vec<crate::oracle::Receiver>,
 }
 
 /// The distance from `point` to the nearest shadow-casting triangle (world

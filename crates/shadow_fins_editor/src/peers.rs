@@ -97,25 +97,13 @@ pub fn peer_visibility(
         let model = PeerModel::for_receivers(method, scene, light_space, receivers);
         return evaluate(&model, receivers);
     }
-    let faces = LightSpaceScene::faces(scene, light_space.light);
-    let frame = &light_space.frame;
-    let routed: Vec<(usize, Receiver)> = receivers
-        .iter()
-        .map(|r| LightSpaceScene::receiver_in_face(&faces, frame.to_world(r.position), frame.dir_to_world(r.normal)))
-        .collect();
     let mut values = vec![1.0; receivers.len()];
-    for (k, mut face) in faces.into_iter().enumerate() {
-        let mine: Vec<usize> = (0..receivers.len()).filter(|&i| routed[i].0 == k).collect();
-        if mine.is_empty() {
-            continue;
-        }
-        let in_face: Vec<Receiver> = mine.iter().map(|&i| routed[i].1).collect();
-        face.cover_receivers(in_face.iter().map(|r| r.position));
+    for group in light_space.group_by_face(scene, receivers).into_iter().filter(|g| !g.indices.is_empty()) {
         if cancel.load(Ordering::Relaxed) {
             return None;
         }
-        let model = PeerModel::for_receivers(method, scene, &face, &in_face);
-        for (&i, v) in mine.iter().zip(evaluate(&model, &in_face)?) {
+        let model = PeerModel::for_receivers(method, scene, &group.light_space, &group.receivers);
+        for (&i, v) in group.indices.iter().zip(evaluate(&model, &group.receivers)?) {
             values[i] = v;
         }
     }

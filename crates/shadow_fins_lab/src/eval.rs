@@ -92,12 +92,7 @@ pub fn evaluate(
         return evaluate_in_frame(scene, light_space, measured, settings, map_resolution, samples, receivers);
     }
     let start = Instant::now();
-    let faces = LightSpaceScene::faces(scene, light_space.light);
-    let frame = &light_space.frame;
-    let routed: Vec<(usize, Receiver)> = receivers
-        .iter()
-        .map(|r| LightSpaceScene::receiver_in_face(&faces, frame.to_world(r.position), frame.dir_to_world(r.normal)))
-        .collect();
+    let groups = light_space.group_by_face(scene, receivers);
     let faces_ms = ms(start);
     let mut total = Evaluation {
         values: vec![0.0; receivers.len()],
@@ -108,12 +103,10 @@ pub fn evaluate(
         layers: 0,
         work: None,
     };
-    for (k, mut face) in faces.into_iter().enumerate() {
-        let mine: Vec<usize> = (0..receivers.len()).filter(|&i| routed[i].0 == k).collect();
-        let in_face: Vec<Receiver> = mine.iter().map(|&i| routed[i].1).collect();
-        face.cover_receivers(in_face.iter().map(|r| r.position));
-        let ev = evaluate_in_frame(scene, &face, measured, settings, map_resolution, samples, &in_face);
-        for (&i, v) in mine.iter().zip(ev.values) {
+    for group in groups {
+        let ev =
+            evaluate_in_frame(scene, &group.light_space, measured, settings, map_resolution, samples, &group.receivers);
+        for (&i, v) in group.indices.iter().zip(ev.values) {
             total.values[i] = v;
         }
         total.prepare_ms += ev.prepare_ms;

@@ -24,20 +24,54 @@ type World = (Vec3, Vec3);
 /// How a method is evaluated in one face frame.
 type InFace<'a> = dyn Fn(&Scene, &LightSpaceScene, &[Receiver]) -> Vec<f32> + 'a;
 
-/// Each receiver evaluated in the face that shades it, back in order.
+/// Each receiver evaluated in the face that shades it, back in order
+/// (`LightSpaceScene::group_by_face`, as the lab and the editor route them).
 fn routed(scene: &Scene, light: Light, receivers: &[World], evaluate: &InFace) -> Vec<f32> {
-    let faces = LightSpaceScene::faces(scene, light);
-    let routed: Vec<(usize, Receiver)> =
-        receivers.iter().map(|(p, n)| LightSpaceScene::receiver_in_face(&faces, *p, *n)).collect();
+    let ls = LightSpaceScene::new(scene, light);
+    let in_frame: Vec<Receiver> = receivers
+        .iter()
+        .map(|(p, n)| Receiver { position: ls.frame.to_frame(*p), normal: ls.frame.dir_to_frame(*n) })
+        .collect();
     let mut out = vec![f32::NAN; receivers.len()];
-    for (k, face) in faces.iter().enumerate() {
-        let mine: Vec<usize> = (0..receivers.len()).filter(|&i| routed[i].0 == k).collect();
-        let in_face: Vec<Receiver> = mine.iter().map(|&i| routed[i].1).collect();
-        for (&i, v) in mine.iter().zip(evaluate(scene, face, &in_face)) {
+    for group in ls.group_by_face(scene, &in_frame) {
+        for (&i, v) in group.indices.iter().zip(evaluate(scene, &group.light_space, &group.receivers)) {
             out[i] = v;
         }
     }
     out
+}
+
+#[test]
+fn every_receiver_is_grouped_once_in_the_face_whose_frustum_holds_it() {
+    let (scene, light, receivers) = lamp_room();
+    let ls = LightSpaceScene::new(&scene, light);
+    let in_frame: Vec<Receiver> = receivers
+        .iter()
+        .map(|(p, n)| Receiver { position: ls.frame.to_frame(*p), normal: ls.frame.dir_to_frame(*n) })
+        .collect();
+    let groups = ls.group_by_face(&scene, &in_frame);
+    assert_eq!(groups.len(), 6, "a sphere light's six faces");
+    let mut seen = vec![0u32; receivers.len()];
+    for (k, group) in groups.iter().enumerate() {
+        assert_eq!(group.indices.len(), group.receivers.len());
+        for (&i, r) in group.indices.iter().zip(&group.receivers) {
+            seen[i] += 1;
+            let (p, _) = receivers[i];
+            let back = group.light_space.frame.to_world(r.position);
+            assert!((back - p).length() < 1e-3 * (1.0 + p.length()), "receiver {i} moved: {p} → {back}");
+            assert_eq!(LightSpaceScene::face_of(&LightSpaceScene::faces(&scene, light), p), k);
+            // Its face's reference plane lies at or past it.
+            assert!(r.position.z <= group.light_space.reference_depth);
+        }
+    }
+    assert!(seen.iter().all(|&n| n == 1), "a receiver in no face or in two");
+    assert!(groups.iter().filter(|g| !g.indices.is_empty()).count() >= 3, "the room's walls face several ways");
+    // Any other light: one group, in its own frame.
+    let disk = Light::Disk(shadow_fins::light::DiskLight::new(Vec3::new(0.0, 2.0, 0.0), Vec3::NEG_Y, 0.2).unwrap());
+    let ls = LightSpaceScene::new(&scene, disk);
+    let groups = ls.group_by_face(&scene, &in_frame);
+    assert_eq!(groups.len(), 1);
+    assert_eq!(groups[0].indices, (0..receivers.len()).collect::<Vec<_>>());
 }
 
 fn fins(method: Method, settings: FinSettings) -> impl Fn(&Scene, &LightSpaceScene, &[Receiver]) -> Vec<f32> {
