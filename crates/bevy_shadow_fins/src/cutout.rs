@@ -124,6 +124,17 @@ pub(crate) struct CasterMaterials<'w, 's> {
     pub(crate) cache: ResMut<'w, CutoutCache>,
 }
 
+/// The asset an event says arrived, changed or went (not one merely unused).
+fn changed_asset<A: Asset>(event: &AssetEvent<A>) -> Option<AssetId<A>> {
+    match event {
+        AssetEvent::Added { id }
+        | AssetEvent::Modified { id }
+        | AssetEvent::Removed { id }
+        | AssetEvent::LoadedWithDependencies { id } => Some(*id),
+        AssetEvent::Unused { .. } => None,
+    }
+}
+
 impl CasterMaterials<'_, '_> {
     /// Reads this frame's material and texture events. Forgets (and bumps
     /// the cache's generation for) what they make stale: a material whose
@@ -136,14 +147,8 @@ impl CasterMaterials<'_, '_> {
         let CutoutCache { masks, cutouts, generation } = &mut *self.cache;
         let mut stale = false;
         if let Some(events) = self.material_events.as_mut() {
-            for event in events.read() {
-                let (AssetEvent::Added { id }
-                | AssetEvent::Modified { id }
-                | AssetEvent::Removed { id }
-                | AssetEvent::LoadedWithDependencies { id }) = event
-                else {
-                    continue;
-                };
+            for id in events.read().filter_map(changed_asset) {
+                let id = &id;
                 let now = self.materials.as_ref().and_then(|m| m.get(*id)).map(key_of);
                 let was = masks.get(id).map(|m| &m.key);
                 let is_mask = |k: Option<&MaskKey>| k.is_some_and(|k| k.cutoff.is_some());
@@ -160,17 +165,10 @@ impl CasterMaterials<'_, '_> {
             }
         }
         if let Some(events) = self.image_events.as_mut() {
-            for event in events.read() {
-                let (AssetEvent::Added { id }
-                | AssetEvent::Modified { id }
-                | AssetEvent::Removed { id }
-                | AssetEvent::LoadedWithDependencies { id }) = event
-                else {
-                    continue;
-                };
+            for id in events.read().filter_map(changed_asset) {
                 let reading: Vec<AssetId<StandardMaterial>> = masks
                     .iter()
-                    .filter(|(_, m)| m.key.texture == Some(*id) || m.waiting_for == Some(*id))
+                    .filter(|(_, m)| m.key.texture == Some(id) || m.waiting_for == Some(id))
                     .map(|(k, _)| *k)
                     .collect();
                 for material in reading {

@@ -29,7 +29,7 @@ use shadow_fins::{
 use crate::{
     EditorState,
     scene::{EditorCamera, LightParams, LoadedScene, window_size},
-    truth::{Grid, GroundTruthJob, Job, camera_key, core_camera, grid_size, hash_of, light_key},
+    truth::{Grid, GroundTruthJob, Job, core_camera, grid_size, view_key},
     views::ViewKind,
 };
 
@@ -128,10 +128,7 @@ fn update_peer(
     };
     let camera = core_camera(transform, projection);
     let grid = grid_size(size);
-    let mut key_values = light_key(&params).to_vec();
-    key_values.extend(camera_key(&camera));
-    let extra = scene.generation ^ ((grid.x as u64) << 32 | grid.y as u64) ^ (job.method as u64).rotate_left(48);
-    let key = hash_of(&key_values, extra);
+    let key = view_key(&params, &camera, grid, scene.generation, job.method as u64);
     if job.job.as_ref().is_none_or(|j| j.key != key) {
         let Some(light) = params.core_light() else {
             if job.job.take().is_some() || job.grid.is_some() {

@@ -131,25 +131,28 @@ pub(crate) fn grid_size(window: UVec2) -> UVec2 {
     UVec2::new(GRID_WIDTH, height)
 }
 
-pub(crate) fn hash_of(values: &[f32], extra: u64) -> u64 {
+/// What a background job over the view's grid depends on: the light, the
+/// camera, the scene's generation, the grid's size, and `extra` (the job's
+/// own inputs), hashed together (no XOR of parts that could cancel).
+pub(crate) fn view_key(params: &LightParams, camera: &CoreCamera, grid: UVec2, generation: u64, extra: u64) -> u64 {
     use std::hash::{Hash, Hasher};
     let mut h = std::collections::hash_map::DefaultHasher::new();
-    for v in values {
+    for v in light_key(params).into_iter().chain(camera_key(camera)) {
         v.to_bits().hash(&mut h);
     }
-    extra.hash(&mut h);
+    (generation, grid.x, grid.y, extra).hash(&mut h);
     h.finish()
 }
 
 /// Everything of the light the core's light is made of (`LightParams::core_light`):
 /// its kind (disk, sun, rectangle, sphere), place and sizes.
-pub(crate) fn light_key(params: &LightParams) -> [f32; 10] {
+fn light_key(params: &LightParams) -> [f32; 10] {
     let (p, d) = (params.position, params.direction);
     let kind = params.kind as u32 as f32;
     [p.x, p.y, p.z, d.x, d.y, d.z, params.radius, kind, params.rect_aspect, params.sun_angle]
 }
 
-pub(crate) fn camera_key(c: &CoreCamera) -> [f32; 10] {
+fn camera_key(c: &CoreCamera) -> [f32; 10] {
     [
         c.position.x,
         c.position.y,
@@ -177,9 +180,7 @@ fn update_ground_truth(
     };
     let camera = core_camera(transform, projection);
     let grid = grid_size(size);
-    let mut key_values = light_key(&params).to_vec();
-    key_values.extend(camera_key(&camera));
-    let key = hash_of(&key_values, scene.generation ^ ((grid.x as u64) << 32 | grid.y as u64));
+    let key = view_key(&params, &camera, grid, scene.generation, 0);
     if job.job.as_ref().is_none_or(|j| j.key != key) {
         job.grid = None;
         job.status = GroundTruthStatus { rows_done: 0, rows: grid.y, samples: SAMPLES };
@@ -243,17 +244,14 @@ fn update_analysis(
     let settings = settings.clamped();
     let camera = core_camera(transform, projection);
     let grid = grid_size(size);
-    let mut key_values = light_key(&params).to_vec();
-    key_values.extend(camera_key(&camera));
     let settings_hash = {
         use std::hash::{Hash, Hasher};
         let mut h = std::collections::hash_map::DefaultHasher::new();
         settings.hash(&mut h);
         state.layer.hash(&mut h);
-        grid.hash(&mut h);
         h.finish()
     };
-    let key = hash_of(&key_values, scene.generation ^ settings_hash.rotate_left(17));
+    let key = view_key(&params, &camera, grid, scene.generation, settings_hash);
     if job.job.as_ref().is_none_or(|j| j.key != key) {
         let Some(light) = params.core_light() else { return };
         let result: Arc<Mutex<Option<Analysis>>> = Arc::default();
