@@ -68,17 +68,11 @@ impl Bvh {
         t_max: f32,
         blocks: impl Fn(u32, f32, f32) -> bool,
     ) -> bool {
-        let inv = dir.recip();
         let mut hit = false;
-        self.traverse(
-            |node| slab_hit(node, origin, inv, t_min, t_max),
-            |k| {
-                let found = intersect_uv(&self.triangles[k], origin, dir)
-                    .is_some_and(|(t, u, v)| t > t_min && t < t_max && blocks(self.original[k], u, v));
-                hit |= found;
-                found
-            },
-        );
+        self.for_each_blocking_hit(origin, dir, t_min, t_max, blocks, |_| {
+            hit = true;
+            true
+        });
         hit
     }
 
@@ -104,19 +98,11 @@ impl Bvh {
         t_max: f32,
         blocks: impl Fn(u32, f32, f32) -> bool,
     ) -> u32 {
-        let inv = dir.recip();
         let mut hits = 0;
-        self.traverse(
-            |node| slab_hit(node, origin, inv, t_min, t_max),
-            |k| {
-                if let Some((t, u, v)) = intersect_uv(&self.triangles[k], origin, dir) {
-                    if t > t_min && t < t_max && blocks(self.original[k], u, v) {
-                        hits += 1;
-                    }
-                }
-                false
-            },
-        );
+        self.for_each_blocking_hit(origin, dir, t_min, t_max, blocks, |_| {
+            hits += 1;
+            false
+        });
         hits
     }
 
@@ -128,6 +114,29 @@ impl Bvh {
             on_hit(index);
             false
         });
+    }
+
+    /// [`Self::for_each_hit`] over the crossings `blocks(index, u, v)` accepts
+    /// at their barycentrics.
+    fn for_each_blocking_hit(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        t_min: f32,
+        t_max: f32,
+        blocks: impl Fn(u32, f32, f32) -> bool,
+        mut on_hit: impl FnMut(u32) -> bool,
+    ) {
+        let inv = dir.recip();
+        self.traverse(
+            |node| slab_hit(node, origin, inv, t_min, t_max),
+            |k| {
+                let index = self.original[k];
+                intersect_uv(&self.triangles[k], origin, dir)
+                    .is_some_and(|(t, u, v)| t > t_min && t < t_max && blocks(index, u, v))
+                    && on_hit(index)
+            },
+        );
     }
 
     /// Calls `on_hit(index)` for every triangle the segment crosses, until it says stop.

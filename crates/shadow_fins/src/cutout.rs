@@ -339,8 +339,8 @@ impl Outline {
         let mut welder = std::collections::HashMap::<[u32; 3], u32>::new();
         // Per face and corner edge, where iso-line segments cross it.
         let mut breaks: Vec<[Vec<EdgeBreak>; 3]> = Vec::with_capacity(face_uvs.len());
-        // Segments: face, UV ends, 3D ends (filled once the breaks are merged).
-        let mut segments: Vec<(u32, [Vec2; 2], [Vec3; 2])> = Vec::new();
+        // Segments: face, 3D ends (those on a face's edge moved once the breaks are merged).
+        let mut segments: Vec<(u32, [Vec3; 2])> = Vec::new();
         let corners3 = |f: usize| topology.faces[f].map(|i| topology.positions[i as usize]);
         let mut budget = MAX_CELLS_PER_MESH;
         for (f, uv) in face_uvs.iter().enumerate() {
@@ -348,14 +348,14 @@ impl Outline {
             match iso_segments(mask, uv, &mut budget) {
                 None => out.unmodelled_faces += 1,
                 Some(segs) => {
+                    let p = corners3(f);
+                    let at = |q: Vec2| {
+                        let b = barycentrics_2d(uv, q);
+                        p[0] * b.x + p[1] * b.y + p[2] * b.z
+                    };
                     for (ends, on_edges) in segs {
                         let seg = segments.len();
-                        let p = corners3(f);
-                        let at = |q: Vec2| {
-                            let b = barycentrics_2d(uv, q);
-                            p[0] * b.x + p[1] * b.y + p[2] * b.z
-                        };
-                        segments.push((f as u32, ends, [at(ends[0]), at(ends[1])]));
+                        segments.push((f as u32, [at(ends[0]), at(ends[1])]));
                         for (end, on) in on_edges.into_iter().enumerate() {
                             let count = on.iter().filter(|&&o| o).count();
                             for k in (0..3).filter(|&k| on[k]) {
@@ -451,7 +451,7 @@ impl Outline {
                         s
                     }
                 };
-                segments[seg].2[end] = point_at(s);
+                segments[seg].1[end] = point_at(s);
                 face_breaks[slot].push((s, after));
             }
             let mut stops: Vec<f32> = vec![0.0];
@@ -533,7 +533,7 @@ impl Outline {
                 out.positions.len() as u32 - 1
             })
         };
-        for (f, uv_ends, [a, b]) in &segments {
+        for (f, [a, b]) in &segments {
             if a == b {
                 continue;
             }
@@ -543,7 +543,6 @@ impl Outline {
             // when its UV triangle turns the same way as its winding.
             let uv = &face_uvs[*f as usize];
             let turns = (uv[1] - uv[0]).perp_dot(uv[2] - uv[0]) >= 0.0;
-            let _ = uv_ends;
             out.edges.push(crate::mesh::Edge { vertices: [ia, ib], faces: [*f, NO_FACE], forward: [turns, false] });
             out.crease.push(true);
         }
@@ -597,8 +596,7 @@ impl Outline {
                     .enumerate()
                     .map(|(i, &w)| (i, self.positions[w as usize].distance(p)))
                     .min_by(|a, b| a.1.total_cmp(&b.1));
-                let Some((i, d)) = nearest.filter(|&(_, d)| d <= reach) else { break };
-                let _ = d;
+                let Some((i, _)) = nearest.filter(|&(_, d)| d <= reach) else { break };
                 let w = short[i];
                 self.edges.push(crate::mesh::Edge {
                     vertices: [w, v as u32],
@@ -744,7 +742,7 @@ fn clip_to_triangle(a: Vec2, b: Vec2, t: &[Vec2; 3], sign: f32, hair: f32) -> Op
     }
     let (mut t0, mut t1) = (0.0f32, 1.0f32);
     let mut on = [[false; 3]; 2];
-    for (k, &(ga, gb)) in g.iter().enumerate() {
+    for &(ga, gb) in &g {
         if ga <= hair && gb <= hair {
             return None;
         }
@@ -754,7 +752,6 @@ fn clip_to_triangle(a: Vec2, b: Vec2, t: &[Vec2; 3], sign: f32, hair: f32) -> Op
         if gb < -hair {
             t1 = t1.min(ga / (ga - gb));
         }
-        let _ = k;
     }
     if !(t1 > t0) {
         return None;

@@ -159,12 +159,13 @@ pub fn potential_silhouette_edges(scene: &Scene, light_space: &LightSpaceScene, 
                 let third = [third(e.faces[0], v0, v1), third(e.faces[1], v0, v1)];
                 out.push(CoverageEdge { a, b, third, faces: 2 });
             }
-        }
-        for e in t.non_manifold_edges.iter().filter(|_| object.fitting_cutout().is_none()) {
-            let [v0, v1] = e.vertices;
-            let (a, b) = (pts[v0 as usize], pts[v1 as usize]);
-            for &(face, _) in &e.faces {
-                out.push(CoverageEdge { a, b, third: [third(face, v0, v1), Vec3::ZERO], faces: 1 });
+            // A masked object's outline already cuts its non-manifold edges per face.
+            for e in &t.non_manifold_edges {
+                let [v0, v1] = e.vertices;
+                let (a, b) = (pts[v0 as usize], pts[v1 as usize]);
+                for &(face, _) in &e.faces {
+                    out.push(CoverageEdge { a, b, third: [third(face, v0, v1), Vec3::ZERO], faces: 1 });
+                }
             }
         }
         if perspective {

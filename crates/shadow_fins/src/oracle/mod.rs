@@ -334,6 +334,7 @@ impl FinExtractor {
         let frame = &light_space.frame;
         let (mut vertex_base, mut patches) = (0u32, 0u32);
         for (object, to_frame) in scene.objects.iter().zip(&light_space.object_frames) {
+            let outline = object.fitting_cutout().map(|c| &*c.outline);
             if object.casts_shadows {
                 let light = to_frame.light_in_object(frame);
                 patches += extract_object_silhouettes(
@@ -345,11 +346,10 @@ impl FinExtractor {
                     &mut self.scratch,
                     &mut self.face_patches,
                     &mut self.silhouettes,
-                    object.fitting_cutout().map(|c| &*c.outline),
+                    outline,
                 );
             }
-            vertex_base += object.topology.positions.len() as u32
-                + object.fitting_cutout().map_or(0, |c| c.outline.positions.len() as u32);
+            vertex_base += object.topology.positions.len() as u32 + outline.map_or(0, |o| o.positions.len() as u32);
         }
         self.patch_count = patches;
         // A sphere light's face keeps the silhouettes that can shade it.
