@@ -97,6 +97,16 @@ fn fin_visibility_at(slot: u32, p: vec3<f32>) -> f32 {
     return clamp(v, 0.0, 1.0);
 }
 
+// A Bevy light's contribution `light` at the fragment, times V when it is
+// the fin-shadowed light of `kind` and index `id` and V applies there.
+fn fin_shadowed(light: vec3<f32>, kind: u32, id: u32, p: vec3<f32>) -> vec3<f32> {
+    let slot = fin_slot(kind, id);
+    if (slot == NONE || !fin_applies(p)) {
+        return light;
+    }
+    return light * fin_visibility_at(slot, p);
+}
+
 // Point lights. Bevy's `spot_light` calls `point_light` too, and whether
 // naga_oil redirects that call inside `bevy_pbr::lighting` is its business:
 // a spot gets V in the `spot_light` override below, never here, so it gets
@@ -110,11 +120,10 @@ override fn lighting::point_light(
     let light = lighting::point_light(light_id, input, enable_diffuse, enable_texture);
     let spot = (mesh_view_bindings::clustered_lights.data[light_id].flags
         & mesh_view_types::POINT_LIGHT_FLAGS_SPOT_LIGHT_BIT) != 0u;
-    let slot = fin_slot(KIND_BEVY, light_id);
-    if (spot || slot == NONE || !fin_applies((*input).P)) {
+    if (spot) {
         return light;
     }
-    return light * fin_visibility_at(slot, (*input).P);
+    return fin_shadowed(light, KIND_BEVY, light_id, (*input).P);
 }
 
 override fn lighting::spot_light(
@@ -123,11 +132,7 @@ override fn lighting::spot_light(
     enable_diffuse: bool,
 ) -> vec3<f32> {
     let light = lighting::spot_light(light_id, input, enable_diffuse);
-    let slot = fin_slot(KIND_BEVY, light_id);
-    if (slot == NONE || !fin_applies((*input).P)) {
-        return light;
-    }
-    return light * fin_visibility_at(slot, (*input).P);
+    return fin_shadowed(light, KIND_BEVY, light_id, (*input).P);
 }
 
 override fn shadows::fetch_point_shadow(
@@ -161,11 +166,7 @@ override fn lighting::directional_light(
     enable_diffuse: bool,
 ) -> vec3<f32> {
     let light = lighting::directional_light(light_id, input, enable_diffuse);
-    let slot = fin_slot(KIND_BEVY_DIRECTIONAL, light_id);
-    if (slot == NONE || !fin_applies((*input).P)) {
-        return light;
-    }
-    return light * fin_visibility_at(slot, (*input).P);
+    return fin_shadowed(light, KIND_BEVY_DIRECTIONAL, light_id, (*input).P);
 }
 
 override fn shadows::fetch_directional_shadow(
@@ -189,11 +190,7 @@ override fn lighting::rect_light(
     enable_diffuse: bool,
 ) -> vec3<f32> {
     let light = lighting::rect_light(light_id, input, enable_diffuse);
-    let slot = fin_slot(KIND_BEVY_RECT, light_id);
-    if (slot == NONE || !fin_applies((*input).P)) {
-        return light;
-    }
-    return light * fin_visibility_at(slot, (*input).P);
+    return fin_shadowed(light, KIND_BEVY_RECT, light_id, (*input).P);
 }
 #endif
 #endif

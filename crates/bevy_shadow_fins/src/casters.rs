@@ -8,9 +8,9 @@
 //!   of one hash per entity. A frame with changes rehashes only the changed
 //!   entities (Bevy's change detection names them); the walk over every mesh
 //!   ([`FinCasterScans`](crate::FinCasterScans)) is left for what may change
-//!   every caster at once (a mesh asset loading or edited, any material
-//!   swapped or its cut-out changed, a skin's bind poses loading, a sun
-//!   starting to fit its views).
+//!   every caster at once (a mesh asset loading or edited, a material's
+//!   cut-out changing, a skin's bind poses loading, a sun starting to fit
+//!   its views).
 //! - [`CasterScene`]: the casters as core `SceneObject`s with their packed GPU
 //!   geometry, boxes and layers. A caster that moved or changed its layers or
 //!   shadow flags is rebuilt in its slot ([`CasterScene::update`]); one that
@@ -293,6 +293,10 @@ pub(crate) struct CasterScene {
     /// invalid): receivers all the same, so the reference plane must cover them.
     pub unread_bounds: Vec<[Vec3; 8]>,
     unread: HashSet<Entity>,
+    /// The readable objects' world box ([`Self::measure_boxes`]).
+    pub objects_box: (Vec3, Vec3),
+    /// Every drawn mesh's world box, readable or not.
+    drawn_box: (Vec3, Vec3),
     /// Bumped by every collect and update.
     pub version: u64,
     /// The slots the latest update rebuilt in place; `None` when the latest
@@ -316,6 +320,8 @@ impl CasterScene {
             index: HashMap::new(),
             unread_bounds: vec![],
             unread: HashSet::new(),
+            objects_box: (Vec3::INFINITY, Vec3::NEG_INFINITY),
+            drawn_box: (Vec3::ZERO, Vec3::ONE),
             version,
             dirty: None,
             nearest: Default::default(),
@@ -340,6 +346,7 @@ impl CasterScene {
                 }
             }
         }
+        scene.measure_boxes();
         scene
     }
 
@@ -367,6 +374,7 @@ impl CasterScene {
             (self.world_boxes[i], self.layers[i]) = (world_box, layers);
             dirty.push(i);
         }
+        self.measure_boxes();
         self.version += 1;
         self.dirty = Some(dirty);
         self.nearest.lock().unwrap_or_else(|e| e.into_inner()).clear();
@@ -420,9 +428,21 @@ impl CasterScene {
         (0..self.objects.len()).map(|i| self.seen_by_one(i, light, frame, sees)).collect()
     }
 
-    /// The readable objects' world box.
-    pub fn objects_box(&self) -> (Vec3, Vec3) {
-        self.world_boxes.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), b| (lo.min(b.0), hi.max(b.1)))
+    /// The boxes every light's frame reads, made once per collect or update:
+    /// the readable objects' and (a unit box when nothing is drawn) every
+    /// drawn mesh's, readable or not.
+    fn measure_boxes(&mut self) {
+        self.objects_box = self
+            .world_boxes
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), b| (lo.min(b.0), hi.max(b.1)));
+        let (lo, hi) = self
+            .unread_bounds
+            .iter()
+            .flatten()
+            .filter(|p| p.is_finite())
+            .fold(self.objects_box, |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        self.drawn_box = if lo.x <= hi.x { (lo, hi) } else { (Vec3::ZERO, Vec3::ONE) };
     }
 
     /// The light's frame. A disk's is its own; the sun's origin is put in
@@ -432,13 +452,7 @@ impl CasterScene {
     /// (`SphereLight::face_window`, the core's `nearest_caster_distance`,
     /// triangles scanned only in boxes nearer than the nearest found yet).
     pub fn frame_for(&self, light: &Light, face: Option<CubeFace>) -> (LightFrame, (Vec3, Vec3)) {
-        let (lo, hi) = self
-            .unread_bounds
-            .iter()
-            .flatten()
-            .filter(|p| p.is_finite())
-            .fold(self.objects_box(), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
-        let (lo, hi) = if lo.x <= hi.x { (lo, hi) } else { (Vec3::ZERO, Vec3::ONE) };
+        let (lo, hi) = self.drawn_box;
         if let (Light::Sphere(sphere), Some(face)) = (light, face) {
             let key = sphere.center.to_array().map(f32::to_bits);
             let mut known = self.nearest.lock().unwrap_or_else(|e| e.into_inner());

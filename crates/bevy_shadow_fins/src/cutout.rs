@@ -119,8 +119,6 @@ pub(crate) struct CasterMaterials<'w, 's> {
     // Optional: a world without Bevy's PBR or image plugins has none.
     material_events: Option<MessageReader<'w, 's, AssetEvent<StandardMaterial>>>,
     image_events: Option<MessageReader<'w, 's, AssetEvent<Image>>>,
-    changed: Query<'w, 's, (), Changed<MeshMaterial3d<StandardMaterial>>>,
-    removed: RemovedComponents<'w, 's, MeshMaterial3d<StandardMaterial>>,
     pub(crate) cache: ResMut<'w, CutoutCache>,
 }
 
@@ -139,11 +137,10 @@ impl CasterMaterials<'_, '_> {
     /// Reads this frame's material and texture events. Forgets (and bumps
     /// the cache's generation for) what they make stale: a material whose
     /// mask inputs changed, one that arrived as a mask, a texture a mask reads
-    /// or waits for. A colour change, a non-mask material's, is none.
-    /// Returns whether a caster's material was swapped (its id is in the
-    /// frame's signature: the casters are walked again).
-    pub(crate) fn refresh(&mut self) -> bool {
-        let swapped = !self.changed.is_empty() | (self.removed.read().count() > 0);
+    /// or waits for. A colour change, a non-mask material's, is none. (A
+    /// caster whose material was swapped is signed again by itself: its
+    /// material id is in its signature, `casters.rs`.)
+    pub(crate) fn refresh(&mut self) {
         let CutoutCache { masks, cutouts, generation } = &mut *self.cache;
         let mut stale = false;
         if let Some(events) = self.material_events.as_mut() {
@@ -181,7 +178,6 @@ impl CasterMaterials<'_, '_> {
         if stale {
             *generation += 1;
         }
-        swapped
     }
 
     /// The material id an entity casts with, for the frame's signature.

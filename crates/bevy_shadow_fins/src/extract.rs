@@ -401,10 +401,10 @@ struct FrameAsked<'a> {
 
 /// How many times the frame builder has walked every mesh to sign the
 /// casters. Only what may change every caster at once walks: a mesh asset
-/// loading, edited or removed, a material swapped or its cut-out changed, a
-/// skin's bind poses loading, a sun starting or stopping to fit the views.
-/// A caster that moved, appeared, went, was hidden or shown, or changed its
-/// layers or shadow flags is signed alone ([`FinCasterUpdates`](crate::FinCasterUpdates)
+/// loading, edited or removed, a material's cut-out changing, a skin's bind
+/// poses loading, a sun starting or stopping to fit the views. A caster that
+/// moved, appeared, went, was hidden or shown, or changed its layers, shadow
+/// flags or material is signed alone ([`FinCasterUpdates`](crate::FinCasterUpdates)
 /// counts the ones rebuilt in place), so a still scene — or one where a few
 /// casters move — costs no walk however many entities it holds (Bevy's change
 /// ticks are still checked per entity; issue 16's "big scenes that move"; a
@@ -435,6 +435,8 @@ struct CasterChanges<'w, 's> {
                 // What poses it (a skin or morph weights arriving or swapped).
                 Changed<bevy::mesh::skinning::SkinnedMesh>,
                 Changed<bevy::mesh::morph::MeshMorphWeights>,
+                // What it casts with (its material id is in its signature).
+                Changed<MeshMaterial3d<StandardMaterial>>,
             )>,
         ),
     >,
@@ -445,6 +447,7 @@ struct CasterChanges<'w, 's> {
     removed_boxes: RemovedComponents<'w, 's, Aabb>,
     removed_transforms: RemovedComponents<'w, 's, GlobalTransform>,
     removed_visibility: RemovedComponents<'w, 's, InheritedVisibility>,
+    removed_materials: RemovedComponents<'w, 's, MeshMaterial3d<StandardMaterial>>,
     scans: ResMut<'w, FinCasterScans>,
     updates: ResMut<'w, FinCasterUpdates>,
     kept: Local<'s, CasterSignature>,
@@ -454,8 +457,8 @@ struct CasterChanges<'w, 's> {
 
 impl CasterChanges<'_, '_> {
     /// The mesh entities that changed since the last call: changed or
-    /// removed components, and every posed caster when a pose may have
-    /// changed (the removal readers are drained either way).
+    /// removed components, and the posed casters whose pose may have changed
+    /// (the removal readers are drained either way).
     fn take_changed(&mut self) -> HashSet<Entity> {
         let mut changed: HashSet<Entity> = self.changed.iter().collect();
         changed.extend(self.removed_meshes.read());
@@ -465,9 +468,8 @@ impl CasterChanges<'_, '_> {
         changed.extend(self.removed_boxes.read());
         changed.extend(self.removed_transforms.read());
         changed.extend(self.removed_visibility.read());
-        if self.poses.any_changed() {
-            changed.extend(self.poses.posed_entities());
-        }
+        changed.extend(self.removed_materials.read());
+        changed.extend(self.poses.changed_poses());
         changed
     }
 }
@@ -778,11 +780,6 @@ struct CasterAssets<'w, 's> {
     materials: crate::cutout::CasterMaterials<'w, 's>,
 }
 
-/// A material's cut-out changed: every frame's signature changes with it.
-fn kept_material_epoch(changes: &mut CasterChanges) {
-    changes.kept.mesh_epoch += 1;
-}
-
 /// Rebuilds each light's frame when it, a setting or a caster changed.
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
 fn update_fin_frames(
@@ -803,14 +800,16 @@ fn update_fin_frames(
     mut frames: ResMut<FinFrames>,
 ) {
     let meshes = &assets.meshes;
+    // Bumps the casters' epoch: the same entities, new triangles or cut-outs.
     let mut meshes_changed = false;
     // Any mesh event (one finishing loading, too) changes what casts; so
     // does a change of what an alpha-masked material cuts out.
-    let mut mesh_event = assets.materials.refresh();
+    let mut mesh_event = false;
+    assets.materials.refresh();
     let cutouts = assets.materials.cache.generation();
     if cutouts != cache.cutout_generation {
         cache.cutout_generation = cutouts;
-        kept_material_epoch(&mut changes);
+        meshes_changed = true;
         mesh_event = true;
     }
     if let Some(events) = assets.bindpose_events.as_mut()
@@ -1099,8 +1098,6 @@ pub(crate) fn set_stats(light_stats: &mut Query<&mut FinLightStats>, light: Enti
     }
 }
 
-/// Every mesh that casts or receives, as the core's scene objects, once per
-/// frame in which some light needs a new frame.
 /// What a light's shadow sees of the scene: where it lights and its layers.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct LightSees<'a> {
@@ -1232,7 +1229,7 @@ fn light_frame(
         let dirty = dirty.filter(|_| gpu_frame == Some(frame));
         built.gpu_frame = Some(frame);
         let max = GpuCapacity::max_for(max_buffer);
-        let scene = gpu.build(&built.objects, &scene.gpu_meshes, &frame, scene.objects_box(), dirty, capacity, max);
+        let scene = gpu.build(&built.objects, &scene.gpu_meshes, &frame, scene.objects_box, dirty, capacity, max);
         // Buffers sized by the scene itself cannot shrink: past the limit the
         // core crate extracts on the CPU instead.
         match scene.input_bytes().into_iter().find(|(_, bytes)| *bytes > max_buffer) {

@@ -29,12 +29,11 @@ use bevy::{
 /// What poses meshes: skins, morph weights, joints, inverse bind poses.
 #[derive(bevy::ecs::system::SystemParam)]
 pub(crate) struct Poses<'w, 's> {
-    skins: Query<'w, 's, &'static SkinnedMesh>,
-    morphs: Query<'w, 's, Ref<'static, MeshMorphWeights>>,
+    skins: Query<'w, 's, (Entity, &'static SkinnedMesh)>,
+    morphs: Query<'w, 's, (Entity, Ref<'static, MeshMorphWeights>)>,
     weights: Query<'w, 's, Ref<'static, MorphWeights>>,
     joints: Query<'w, 's, Ref<'static, GlobalTransform>>,
     bindposes: Res<'w, Assets<SkinnedMeshInverseBindposes>>,
-    posed: Query<'w, 's, Entity, Or<(With<SkinnedMesh>, With<MeshMorphWeights>)>>,
 }
 
 /// A posed mesh's vertex positions.
@@ -51,23 +50,23 @@ impl Poses<'_, '_> {
         self.skins.contains(entity) || self.morphs.contains(entity)
     }
 
-    /// Every entity drawn posed.
-    pub(crate) fn posed_entities(&self) -> impl Iterator<Item = Entity> + '_ {
-        self.posed.iter()
-    }
-
-    /// True when some posed mesh's pose may have changed since the last
-    /// frame: a joint moved, or morph weights changed.
-    pub(crate) fn any_changed(&self) -> bool {
-        let joint_moved =
-            self.skins.iter().any(|s| s.joints.iter().any(|j| self.joints.get(*j).is_ok_and(|t| t.is_changed())));
-        joint_moved || self.morphs.iter().any(|m| m.is_changed()) || self.weights.iter().any(|w| w.is_changed())
+    /// The posed entities whose pose may have changed since the last frame:
+    /// a joint of its skin moved, or its morph weights changed.
+    pub(crate) fn changed_poses(&self) -> impl Iterator<Item = Entity> + '_ {
+        let moved = |joints: &[Entity]| joints.iter().any(|j| self.joints.get(*j).is_ok_and(|t| t.is_changed()));
+        let skinned = self.skins.iter().filter(move |(_, s)| moved(&s.joints)).map(|(e, _)| e);
+        let morphed = self.morphs.iter().filter_map(|(e, m)| {
+            let changed = m.is_changed()
+                || matches!(&*m, MeshMorphWeights::Reference(source) if self.weights.get(*source).is_ok_and(|w| w.is_changed()));
+            changed.then_some(e)
+        });
+        skinned.chain(morphed)
     }
 
     /// Hashes `entity`'s pose (its joints' matrices and morph weights) into
     /// `hasher`: what a frame's signature must change with.
     pub(crate) fn hash_pose(&self, entity: Entity, hasher: &mut impl Hasher) {
-        if let Ok(skin) = self.skins.get(entity) {
+        if let Ok((_, skin)) = self.skins.get(entity) {
             skin.inverse_bindposes.id().hash(hasher);
             for joint in &skin.joints {
                 let m = self.joints.get(*joint).map_or([f32::NAN; 16], |t| t.to_matrix().to_cols_array());
@@ -81,7 +80,7 @@ impl Poses<'_, '_> {
 
     /// The weights `entity`'s morph targets are drawn at.
     fn morph_weights(&self, entity: Entity) -> Option<&[f32]> {
-        match self.morphs.get(entity).ok()?.into_inner() {
+        match self.morphs.get(entity).ok()?.1.into_inner() {
             MeshMorphWeights::Value { weights } => Some(weights),
             MeshMorphWeights::Reference(source) => self.weights.get(*source).ok().map(|w| w.into_inner().weights()),
         }
@@ -109,7 +108,7 @@ impl Poses<'_, '_> {
             }
         }
         let morphed = Some(Posed { positions: positions.clone(), world: false }).filter(|_| morph.is_some());
-        let Ok(skin) = self.skins.get(entity) else { return morphed };
+        let Ok((_, skin)) = self.skins.get(entity) else { return morphed };
         let Some(matrices) = self.joint_matrices(skin) else { return morphed };
         let (Ok(Some(VertexAttributeValues::Uint16x4(joints))), Ok(Some(VertexAttributeValues::Float32x4(weights)))) = (
             mesh.try_attribute_option(Mesh::ATTRIBUTE_JOINT_INDEX),
