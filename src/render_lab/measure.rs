@@ -196,7 +196,7 @@ pub fn measure(
             };
             // A method on the CPU at the same pixels, timed as prepare + evaluate
             // over `runs` runs; its last values.
-            let mut on_cpu = |measured: Measured, settings: FinSettings, map: Option<u32>, runs: u32| {
+            let on_cpu = |measured: Measured, settings: FinSettings, map: Option<u32>, runs: u32| {
                 let mut times = vec![];
                 let mut last = None;
                 for _ in 0..runs {

@@ -104,21 +104,7 @@ impl EditorOptions {
 }
 
 pub(crate) fn build(app: &mut App) {
-    app.add_systems(Startup, apply_view_options).add_systems(Last, (count_frames, take_screenshot_when_due).chain());
-}
-
-/// `--view` and `--peer`: what the viewport shows at start.
-fn apply_view_options(
-    options: Res<EditorOptions>,
-    mut state: ResMut<EditorState>,
-    mut peer: ResMut<crate::peers::PeerJob>,
-) {
-    if let Some(view) = options.view {
-        state.view = view;
-    }
-    if let Some(method) = options.peer {
-        peer.method = method;
-    }
+    app.add_systems(Last, (count_frames, take_screenshot_when_due).chain());
 }
 
 fn count_frames(mut state: ResMut<EditorState>) {

@@ -68,7 +68,8 @@ impl Plugin for EditorPlugin {
             // materials as well; the plugin leaves the app-wide choice to the app).
             .insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred())
             .insert_resource(self.options.clone())
-            .init_resource::<EditorState>();
+            // `--view`: what the viewport shows from the first frame.
+            .insert_resource(EditorState { view: self.options.view.unwrap_or_default(), ..default() });
         scene::build(app);
         orbit::build(app);
         views::build(app);

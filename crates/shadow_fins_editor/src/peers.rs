@@ -30,7 +30,6 @@ use crate::{
     EditorState,
     scene::{EditorCamera, LightParams, LoadedScene, window_size},
     truth::{Grid, GroundTruthJob, Job, core_camera, grid_size, view_key},
-    views::ViewKind,
 };
 
 /// The peer shown, its visibility on the grid and its error so far.
@@ -67,7 +66,11 @@ impl Default for PeerJob {
 }
 
 pub(crate) fn build(app: &mut App) {
-    app.init_resource::<PeerJob>().add_systems(Update, (update_peer, score_peer).chain());
+    // What `--peer` asks for, from the first frame.
+    let method = app.world().get_resource::<crate::EditorOptions>().and_then(|o| o.peer);
+    let job = PeerJob { method: method.unwrap_or(PeerJob::default().method), ..default() };
+    app.insert_resource(job)
+        .add_systems(Update, (update_peer, score_peer).chain().run_if(|state: Res<EditorState>| state.view.is_peer()));
 }
 
 /// Receivers evaluated between two looks at the cancel flag.
@@ -114,15 +117,11 @@ pub fn peer_visibility(
 /// camera, the scene or the method changed; collects its result.
 fn update_peer(
     mut job: ResMut<PeerJob>,
-    state: Res<EditorState>,
     scene: Option<Res<LoadedScene>>,
     params: Res<LightParams>,
     camera: Query<(&GlobalTransform, &Projection), With<EditorCamera>>,
     window: Query<&Window, With<PrimaryWindow>>,
 ) {
-    if !matches!(state.view, ViewKind::Peer | ViewKind::PeerError) {
-        return;
-    }
     let (Some(scene), Ok((transform, projection)), Some(size)) = (scene, camera.single(), window_size(&window)) else {
         return;
     };

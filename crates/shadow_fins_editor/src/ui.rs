@@ -42,7 +42,7 @@ struct History {
 #[derive(Default)]
 struct ViewTexture {
     handle: Option<egui::TextureHandle>,
-    key: (Option<ViewKind>, u64, usize, u32),
+    key: (Option<ViewKind>, u64, usize, u64, u32),
 }
 
 pub(crate) fn build(app: &mut App) {
@@ -228,7 +228,7 @@ fn panels(
             });
             if method != peer.method {
                 peer.method = method;
-                if !matches!(state.view, ViewKind::Peer | ViewKind::PeerError) {
+                if !state.view.is_peer() {
                     state.view = ViewKind::Peer;
                 }
             }
@@ -282,7 +282,7 @@ fn panels(
                     ui.label("error: waiting for ground truth");
                 }
             }
-            if matches!(state.view, ViewKind::Peer | ViewKind::PeerError) {
+            if state.view.is_peer() {
                 match (&peer.grid, peer.metrics) {
                     (Some(_), Some(m)) => {
                         ui.label(format!("{}: MAE {:.4} · p99 {:.3}", peer.method.name(), m.mae, m.p99));
@@ -365,9 +365,8 @@ fn panels(
         // Only the GPU's views follow its read-backs (a texture set anew
         // every few frames can miss a screenshot's frame).
         if matches!(state.view, ViewKind::Visibility | ViewKind::Error) { latest.serial / 3 } else { 0 },
-        analysis.map_or(0, |a| a as *const _ as usize)
-            ^ error.signed.as_ref().map_or(0, |g| g.values.len())
-            ^ (peer.serial as usize).rotate_left(20),
+        analysis.map_or(0, |a| a as *const _ as usize) ^ error.signed.as_ref().map_or(0, |g| g.values.len()),
+        peer.serial,
         truth.status.rows_done,
     );
     if texture.key != key {

@@ -58,6 +58,11 @@ impl ViewKind {
         ViewKind::PeerError,
     ];
 
+    /// One of the views of another paper's method (`peers.rs`).
+    pub fn is_peer(self) -> bool {
+        matches!(self, ViewKind::Peer | ViewKind::PeerError)
+    }
+
     /// Its name on the command line (`--view`).
     pub fn cli_name(self) -> &'static str {
         match self {
@@ -198,23 +203,17 @@ fn update_error(
         return;
     }
     *last = (latest.serial, truth.status.rows_done);
-    let mut method = vec![];
-    let mut reference = vec![];
-    let mut signed = vec![f32::NAN; grid.values.len()];
-    for y in 0..grid.height {
-        for x in 0..grid.width {
-            let i = (y * grid.width + x) as usize;
-            let (Some(v), r) = (latest.sample_for(grid, x, y), grid.values[i]) else { continue };
-            if r.is_nan() {
-                continue;
-            }
-            method.push(v);
-            reference.push(r);
-            signed[i] = v - r;
-        }
-    }
-    error.metrics = (!method.is_empty()).then(|| ErrorMetrics::compute(&method, &reference));
-    error.signed = Some(Grid { width: grid.width, height: grid.height, values: signed });
+    // The GPU's visibility under each grid cell's centre, scored as the peers are.
+    let sampled = Grid {
+        width: grid.width,
+        height: grid.height,
+        values: (0..grid.height)
+            .flat_map(|y| (0..grid.width).map(move |x| (x, y)))
+            .map(|(x, y)| latest.sample_for(grid, x, y).unwrap_or(f32::NAN))
+            .collect(),
+    };
+    let (metrics, signed) = crate::peers::score(&sampled, grid);
+    (error.metrics, error.signed) = (metrics, Some(signed));
 }
 
 /// RGBA pixels of the view `kind` (width, height, pixels), or `None` when its

@@ -2,7 +2,11 @@
 //! settings, at which light radius. Settings a method ignores are dropped
 //! before deduplication, so no configuration is rendered twice.
 
-use shadow_fins::{oracle::Method, peers::PeerMethod, refine::Falloff};
+use shadow_fins::{
+    oracle::Method,
+    peers::{PeerMethod, convolution::ConvolutionSettings},
+    refine::Falloff,
+};
 
 /// What renders a configuration's shadows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -106,7 +110,10 @@ impl Config {
             refinement: technique.uses_fins().then_some(refinement),
             falloff: technique.uses_fins().then_some(falloff),
             // The peers keep their own resolutions: one configuration each, whatever the sweep.
-            map_resolution: if matches!(technique, Technique::Peer(_)) { 512 } else { map_resolution.clamp(16, 4096) },
+            map_resolution: match technique {
+                Technique::Peer(_) => ConvolutionSettings::default().resolution,
+                _ => map_resolution.clamp(16, 4096),
+            },
             radius,
             baseline: false,
         }

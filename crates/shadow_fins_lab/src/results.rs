@@ -3,7 +3,10 @@
 
 use std::fmt::Write;
 
-use shadow_fins::{metrics::ErrorMetrics, peers::PeerMethod};
+use shadow_fins::{
+    metrics::ErrorMetrics,
+    peers::{PeerMethod, convolution::ConvolutionSettings},
+};
 
 use crate::grid::{Config, Technique};
 
@@ -203,7 +206,9 @@ pub fn markdown(rows: &[Row]) -> String {
         };
         // The peers keep their own resolutions (convolution: 512² basis maps).
         let map = match r.config.technique {
-            Technique::Peer(PeerMethod::Convolution | PeerMethod::ConvolutionMipmap) => "512 (own)".to_string(),
+            Technique::Peer(PeerMethod::Convolution | PeerMethod::ConvolutionMipmap) => {
+                format!("{} (own)", ConvolutionSettings::default().resolution)
+            }
             Technique::Peer(_) => "–".to_string(),
             _ => r.config.map_resolution.to_string(),
         };
