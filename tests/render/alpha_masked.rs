@@ -16,7 +16,7 @@ use shadow_fins::{light::Light, oracle::Method, scenes::SceneId};
 use shadow_fins_app::harness::{Session, Setup};
 
 use super::{
-    common::{HEIGHT, WIDTH, assert_not_trivial, compare, oracle, per_pixel, render, save, settings, setup},
+    common::{HEIGHT, WIDTH, assert_not_trivial, asset, compare, oracle, per_pixel, render, save, settings, setup},
     coverage::{coverage_oracle, coverage_settings},
 };
 
@@ -32,7 +32,7 @@ fn on_ground(setup: &Setup, gpu: &[f32], expected: &[f32]) -> (Vec<f32>, Vec<f32
 }
 
 fn leaf_cards_gltf() -> Setup {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets").join("leaf-cards.gltf");
+    let path = asset("leaf-cards.gltf");
     let import = shadow_fins::gltf_import::load_gltf(&path).expect("the core importer reads it");
     let camera = shadow_fins::camera::Camera::looking_at(Vec3::new(2.2, 3.0, 2.8), Vec3::new(0.0, 0.2, 0.0));
     let sun = shadow_fins::light::SunLight::new(Vec3::new(0.25, -1.0, 0.15), 0.03).expect("a valid sun");
@@ -40,6 +40,13 @@ fn leaf_cards_gltf() -> Setup {
     setup.gltf = Some(path);
     setup.sun_illuminance = 1500.0;
     setup
+}
+
+/// `setup` with every caster solid (its cut-out dropped).
+fn solid_cards(setup: &Setup) -> Setup {
+    let mut solid = setup.clone();
+    solid.scene.objects.iter_mut().for_each(|o| o.cutout = None);
+    solid
 }
 
 #[test]
@@ -71,9 +78,7 @@ fn leaf_cards_as_bevy_loads_them_cast_through_their_holes() {
     assert!(mad <= 0.01 && far <= 0.03, "{mad} / {far}");
     // The same cards solid cast a visibly different shadow: the holes and
     // the blades' outlines are what the GPU drew.
-    let mut solid = judged.clone();
-    solid.scene.objects.iter_mut().for_each(|o| o.cutout = None);
-    let (_, solid_shadow) = on_ground(&judged, &shot.visibility, &oracle(&solid, Method::MultiLayer));
+    let (_, solid_shadow) = on_ground(&judged, &shot.visibility, &oracle(&solid_cards(&judged), Method::MultiLayer));
     let (apart, differ) = compare(&solid_shadow, &expected);
     let (gpu_apart, _) = compare(&gpu, &solid_shadow);
     println!(
@@ -97,9 +102,7 @@ fn gpu_coverage_and_fins_cut_a_core_scenes_masked_cards_as_the_oracles_do() {
     println!("leaf-cards fins: mean |gpu − oracle| = {mad:.5}, share > 0.1 = {:.2}%", far * 100.0);
     assert!(mad <= 0.01 && far <= 0.03, "fins: {mad} / {far}");
     // Against the same cards solid the GPU is far off: it drew the cut-outs.
-    let mut solid = fins.clone();
-    solid.scene.objects.iter_mut().for_each(|o| o.cutout = None);
-    let (_, solid_shadow) = on_ground(&fins, &shot.visibility, &oracle(&solid, Method::MultiLayer));
+    let (_, solid_shadow) = on_ground(&fins, &shot.visibility, &oracle(&solid_cards(&fins), Method::MultiLayer));
     let (gpu_apart, _) = compare(&gpu, &solid_shadow);
     println!("leaf-cards fins: gpu vs the solid cards' oracle {gpu_apart:.4}");
     assert!(gpu_apart > 0.01 && gpu_apart > 10.0 * mad, "the cut-outs hardly mattered: {gpu_apart}");

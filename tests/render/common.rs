@@ -189,6 +189,21 @@ impl SingleLightComposite {
     pub fn lit_umbra(&self) -> usize {
         (0..self.gain.len()).filter(|&i| self.shadowed.visibility[i] < 0.02 && self.gain[i] > 0.05).count()
     }
+
+    /// Asserts Bevy shaded the light times V: a non-trivial shadow, V = 1
+    /// where nothing casts, over 1000 unclipped lit pixels with more than 50
+    /// in the umbra, and |shadowed − (dark + V·(lit − dark))| of mean ≤ 0.005
+    /// and p99 ≤ 0.02 (`label` names the light in messages).
+    pub fn assert_is_the_light_times_visibility(self, label: &str) {
+        assert_not_trivial(&self.shadowed);
+        assert!(self.lit.visibility.iter().all(|v| *v == 1.0), "{label}: nothing casts, yet V < 1 somewhere");
+        let n = self.errors.len();
+        assert!(n > 1000, "{label}: only {n} unclipped lit pixels");
+        assert!(self.lit_umbra() > 50, "{label}: no lit-but-shadowed umbra to check: is its shadow composited?");
+        let (mean, p99) = mean_and_p99(self.errors);
+        println!("{label}: |shadowed − (dark + V·(lit − dark))| mean {mean:.4}, p99 {p99:.4} over {n} pixels");
+        assert!(mean <= 0.005 && p99 <= 0.02, "{label}: mean {mean}, p99 {p99}");
+    }
 }
 
 /// Every built-in scene of `ids` rendered as `make(id)` sets it up, against
@@ -207,4 +222,9 @@ pub fn assert_matches_the_oracle(label: &str, ids: &[SceneId], make: impl Fn(Sce
         let penumbra = shot.visibility.iter().filter(|v| (0.05..0.95).contains(*v)).count();
         assert!(penumbra > 100, "{tag}: only {penumbra} penumbra pixels: is the light soft at all?");
     }
+}
+
+/// A file of the project's `assets/` folder.
+pub fn asset(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets").join(name)
 }

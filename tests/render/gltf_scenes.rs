@@ -14,11 +14,7 @@ use shadow_fins::{
 };
 use shadow_fins_app::harness::{Session, Setup};
 
-use super::common::{HEIGHT, WIDTH, assert_not_trivial, compare, linear, oracle, save, settings};
-
-fn asset(name: &str) -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets").join(name)
-}
+use super::common::{HEIGHT, WIDTH, assert_not_trivial, asset, compare, linear, oracle, save, settings};
 
 /// The core importer's reading of `name` and a setup that loads it through
 /// Bevy's loader instead, seen by the core's default view.

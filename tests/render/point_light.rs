@@ -99,15 +99,7 @@ fn a_fin_shadowed_point_light_is_bevys_light_times_the_visibility() {
     shadowed.intensity = 2.0e5;
     let mut dark = shadowed.clone();
     dark.intensity = 0.0;
-    let c = SingleLightComposite::render(&shadowed, &dark, "point");
-    assert_not_trivial(&c.shadowed);
-    assert!(c.lit.visibility.iter().all(|v| *v == 1.0), "nothing casts, yet V < 1 somewhere");
-    let n = c.errors.len();
-    assert!(n > 1000, "only {n} unclipped lit pixels");
-    assert!(c.lit_umbra() > 50, "no lit-but-shadowed umbra to check: is the point light's shadow composited?");
-    let (mean, p99) = mean_and_p99(c.errors);
-    println!("point composite vs dark + V·(lit − dark): mean {mean:.4}, p99 {p99:.4} over {n} pixels");
-    assert!(mean <= 0.005 && p99 <= 0.02, "mean {mean}, p99 {p99}");
+    SingleLightComposite::render(&shadowed, &dark, "point").assert_is_the_light_times_visibility("point light");
 }
 
 #[test]

@@ -18,11 +18,7 @@ use bevy_shadow_fins::FinSnapshotApproximation;
 use shadow_fins::{light::Light, oracle::Method};
 use shadow_fins_app::harness::{Session, Setup, Shot};
 
-use super::common::{HEIGHT, WIDTH, assert_not_trivial, compare, oracle, per_pixel, save, settings};
-
-fn asset(name: &str) -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets").join(name)
-}
+use super::common::{HEIGHT, WIDTH, assert_not_trivial, asset, compare, oracle, per_pixel, save, settings};
 
 /// `name` loaded by Bevy, seen from above the side its shadows fall to, under a
 /// low fin-shadowed sun (long shadows of a thin arm), twice the usual size.
@@ -70,15 +66,30 @@ fn matches_its_oracle(session: &mut Session, setup: &Setup, shot: &Shot, label: 
     mad
 }
 
+/// The next settled shot, saved as `name`, judged against the oracle of the
+/// pose the plugin saw.
+fn settled_pose(session: &mut Session, setup: &Setup, name: &str, label: &str) -> Shot {
+    let shot = session.settle(16).expect("render");
+    save(&shot, name);
+    assert_not_trivial(&shot);
+    matches_its_oracle(session, setup, &shot, label);
+    shot
+}
+
+/// Asserts the shadow moved between two poses (more than 1% of pixels by
+/// more than 0.1); `stale` says what a shadow that stayed would mean.
+fn assert_shadow_moved(before: &Shot, after: &Shot, what: &str, stale: &str) {
+    let (apart, far) = compare(&before.visibility, &after.visibility);
+    println!("{what}: {apart:.4} mean, {:.1}% of pixels by > 0.1", far * 100.0);
+    assert!(far > 0.01, "{what}: the shadow hardly moved ({apart}, {far}): {stale}");
+}
+
 #[test]
 fn a_skinned_arm_casts_the_shadow_of_its_current_pose() {
     let setup = posed_setup("skinned-arm.gltf");
     let mut session = Session::new(&setup);
     session.wait_for_gltf().expect("Bevy loads it");
-    let straight = session.settle(16).expect("render");
-    save(&straight, "posed_arm_straight");
-    assert_not_trivial(&straight);
-    matches_its_oracle(&mut session, &setup, &straight, "arm straight");
+    let straight = settled_pose(&mut session, &setup, "posed_arm_straight", "arm straight");
     // The file's `bend` animation at 1 s: each joint turned about z.
     let world = session.app.world_mut();
     let mut joints = world.query::<(&Name, &mut Transform)>();
@@ -94,13 +105,8 @@ fn a_skinned_arm_casts_the_shadow_of_its_current_pose() {
         turned += 1;
     }
     assert_eq!(turned, 3, "the arm's three joints");
-    let bent = session.settle(16).expect("render");
-    save(&bent, "posed_arm_bent");
-    assert_not_trivial(&bent);
-    matches_its_oracle(&mut session, &setup, &bent, "arm bent");
-    let (apart, far) = compare(&straight.visibility, &bent.visibility);
-    println!("straight vs bent arm's shadow: {apart:.4} mean, {:.1}% of pixels by > 0.1", far * 100.0);
-    assert!(far > 0.01, "bending the arm hardly moved its shadow ({apart}, {far}): the bind pose is cast");
+    let bent = settled_pose(&mut session, &setup, "posed_arm_bent", "arm bent");
+    assert_shadow_moved(&straight, &bent, "straight vs bent arm", "the bind pose is cast");
 }
 
 #[test]
@@ -123,13 +129,8 @@ fn a_skins_bind_poses_changing_poses_its_caster_again() {
             poses.get(id).expect("loaded").iter().map(|m| *m * Mat4::from_rotation_z(0.4)).collect();
         poses.insert(id, SkinnedMeshInverseBindposes::from(turned)).expect("the same asset");
     }
-    let after = session.settle(16).expect("render");
-    save(&after, "posed_arm_bindposes_turned");
-    assert_not_trivial(&after);
-    matches_its_oracle(&mut session, &setup, &after, "arm, bind poses turned");
-    let (apart, far) = compare(&before.visibility, &after.visibility);
-    println!("bind poses turned: {apart:.4} mean, {:.1}% of pixels by > 0.1", far * 100.0);
-    assert!(far > 0.01, "new bind poses hardly moved the shadow ({apart}, {far}): the old pose is cast");
+    let after = settled_pose(&mut session, &setup, "posed_arm_bindposes_turned", "arm, bind poses turned");
+    assert_shadow_moved(&before, &after, "bind poses turned", "the old pose is cast");
 }
 
 #[test]
@@ -137,10 +138,7 @@ fn a_morph_blob_casts_the_shadow_of_its_current_weights() {
     let setup = posed_setup("morph-blob.gltf");
     let mut session = Session::new(&setup);
     session.wait_for_gltf().expect("Bevy loads it");
-    let flat = session.settle(16).expect("render");
-    save(&flat, "posed_blob_flat");
-    assert_not_trivial(&flat);
-    matches_its_oracle(&mut session, &setup, &flat, "blob flat");
+    let flat = settled_pose(&mut session, &setup, "posed_blob_flat", "blob flat");
     // `spike` and `lean` both at full weight: the top's middle 1.6 m up, the top leaning.
     let world = session.app.world_mut();
     let mut set = 0;
@@ -155,11 +153,6 @@ fn a_morph_blob_casts_the_shadow_of_its_current_weights() {
         }
     }
     assert!(set > 0, "the blob has morph weights");
-    let grown = session.settle(16).expect("render");
-    save(&grown, "posed_blob_grown");
-    assert_not_trivial(&grown);
-    matches_its_oracle(&mut session, &setup, &grown, "blob grown");
-    let (apart, far) = compare(&flat.visibility, &grown.visibility);
-    println!("flat vs grown blob's shadow: {apart:.4} mean, {:.1}% of pixels by > 0.1", far * 100.0);
-    assert!(far > 0.01, "the morph targets hardly moved the shadow ({apart}, {far}): the base shape is cast");
+    let grown = settled_pose(&mut session, &setup, "posed_blob_grown", "blob grown");
+    assert_shadow_moved(&flat, &grown, "flat vs grown blob", "the base shape is cast");
 }
