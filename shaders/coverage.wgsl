@@ -20,7 +20,8 @@
 // shader after 65535 loop iterations in all; a GPU's watchdog is similar).
 // The per-sample and per-face tests are unrolled for the same reason.
 #import bevy_render::view::View
-#import bevy_shadow_fins::coverage_types::{CoverageParams, Edge, FinView, CHUNK, MAX_CHUNKS, list_stride, texel_center}
+#import bevy_shadow_fins::coverage_types::{CoverageParams, Edge, CHUNK, MAX_CHUNKS, list_stride, texel_center}
+#import bevy_shadow_fins::fin_view::FinView
 #import bevy_shadow_fins::fin_types::in_face
 
 @group(0) @binding(0) var<uniform> params: CoverageParams;

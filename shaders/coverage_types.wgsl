@@ -29,13 +29,6 @@ struct Edge {
     segment: vec4<f32>,
 }
 
-struct FinView {
-    column_x: vec4<f32>,
-    column_y: vec4<f32>,
-    column_z: vec4<f32>,
-    translation: vec4<f32>,
-}
-
 const INF_BITS: u32 = 0x7f800000u;
 const WORKGROUP: u32 = 64u;
 // Samples a u32 word counts; words per pixel (N ≤ 256); bit planes of a count.

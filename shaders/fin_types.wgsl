@@ -70,6 +70,16 @@ fn orthographic(params: FinParams) -> bool {
     return params.flags.w == 1u;
 }
 
+// Penumbra half-width in map units that an edge at depth lb casts at depth lr
+// (`LightFrame::penumbra_half_width`): a disk's R(1/lb − 1/lr) without the
+// cancellation of two nearby reciprocals, the sun's tan θ (lr − lb).
+fn penumbra_half_width(params: FinParams, lb: f32, lr: f32) -> f32 {
+    if (orthographic(params)) {
+        return max(params.light.x * (lr - lb), 0.0);
+    }
+    return max(params.light.x * ((lr - lb) / lb) / lr, 0.0);
+}
+
 // A caster's depth at map point q (`MapTriangle::depth_at`): its plane
 // n·X = offset along the ray X = z (q, 1) under perspective, X = (q, z) under
 // the sun's orthographic projection, kept within the triangle's own depth

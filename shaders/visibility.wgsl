@@ -5,21 +5,9 @@
 #import bevy_render::view::View
 #import bevy_shadow_fins::fin_types::{
     FinParams, FinSample, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, texel_index, decode_min_key, decode_max_key,
-    orthographic, in_face,
+    orthographic, in_face, penumbra_half_width,
 }
-
-// The camera's view space → the light frame, composed on the CPU in f64
-// (columns of the linear part, and the translation). Positions are rebuilt in
-// view space, where they are small near the camera, and never pass through
-// world coordinates: at 1e5 from the origin an f32 world position is off by
-// 0.008, the size of the one-texel lift.
-struct FinView {
-    linear0: vec4<f32>,
-    linear1: vec4<f32>,
-    linear2: vec4<f32>,
-    // w: the coverage pass's least receiver lift (`camera_raster_error`), unused here.
-    translation: vec4<f32>,
-}
+#import bevy_shadow_fins::fin_view::{FinView, dir_to_frame, in_viewport, pixel_position}
 
 @group(0) @binding(0) var<uniform> params: FinParams;
 @group(0) @binding(1) var<storage, read> maps: array<u32>;
@@ -29,14 +17,8 @@ struct FinView {
 @group(0) @binding(5) var<uniform> view: View;
 @group(0) @binding(6) var<uniform> fin_view: FinView;
 
-// Penumbra half-width in map units that an edge at depth lb casts at depth lr
-// (`LightFrame::penumbra_half_width`): a disk's R(1/lb − 1/lr) without the
-// cancellation of two nearby reciprocals, the sun's tan θ (lr − lb).
 fn half_width(lb: f32, lr: f32) -> f32 {
-    if (orthographic(params)) {
-        return max(params.light.x * (lr - lb), 0.0);
-    }
-    return max(params.light.x * ((lr - lb) / lb) / lr, 0.0);
+    return penumbra_half_width(params, lb, lr);
 }
 
 // Eq. 5, clamped; a negative result means the fin is not in front of the receiver.
@@ -104,15 +86,6 @@ fn falloff(i: f32) -> f32 {
     return clamp(0.5 + (s * sqrt(max(1.0 - s * s, 0.0)) + asin(s)) / 3.14159265358979, 0.0, 1.0);
 }
 
-fn view_to_frame(p: vec3<f32>) -> vec3<f32> {
-    return fin_view.linear0.xyz * p.x + fin_view.linear1.xyz * p.y + fin_view.linear2.xyz * p.z
-        + fin_view.translation.xyz;
-}
-
-fn dir_to_frame(d: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(dot(d, params.axis_u.xyz), dot(d, params.axis_v.xyz), dot(d, params.axis_n.xyz));
-}
-
 @compute @workgroup_size(8, 8, 1)
 fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
     let size = textureDimensions(visibility);
@@ -123,16 +96,11 @@ fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
     let depth = textureLoad(depth_prepass, pixel, 0);
     // Background (reverse-Z far plane): fully lit. The light's own
     // half-space test is the compositing pass's.
-    let in_viewport = all(vec2<f32>(id.xy) >= view.viewport.xy) && all(vec2<f32>(id.xy) < view.viewport.xy + view.viewport.zw);
-    if (depth <= 0.0 || !in_viewport) {
+    if (depth <= 0.0 || !in_viewport(view, id.xy)) {
         textureStore(visibility, pixel, vec4<f32>(1.0));
         return;
     }
-    // Target pixel → the camera's clip space, through its viewport (split screen).
-    let uv = (vec2<f32>(id.xy) + 0.5 - view.viewport.xy) / view.viewport.zw;
-    let ndc = vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
-    let in_view = view.view_from_clip * ndc;
-    let position = view_to_frame(in_view.xyz / in_view.w);
+    let position = pixel_position(view, fin_view, id.xy, depth);
     // A point light's cube face shades the receivers in its frustum only;
     // the six faces' passes fill the light's one layer between them
     // (`CubeFace::of`, a hair wider so no pixel between two is left: `in_face`).
@@ -145,7 +113,7 @@ fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let normal_world = normalize(textureLoad(normal_prepass, pixel, 0).xyz * 2.0 - 1.0);
-    let normal = dir_to_frame(normal_world);
+    let normal = dir_to_frame(params, normal_world);
 
     // Lift by one texel's world size along the normal (as the raster oracle:
     // a perspective texel grows with depth, an orthographic one does not).

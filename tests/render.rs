@@ -7,6 +7,7 @@ mod render {
     mod bevy_renderer;
     pub mod common;
     mod compositing;
+    mod convolution;
     mod coverage;
     mod editor;
     mod forward;

@@ -25,7 +25,7 @@ use super::{
 
 /// A built-in scene lit by a sphere: the lamp room's own, or for the others
 /// a sphere of their disk's radius at the disk's centre.
-fn point_setup(id: SceneId, settings: FinShadowSettings) -> Setup {
+pub(super) fn point_setup(id: SceneId, settings: FinShadowSettings) -> Setup {
     let mut s = setup(id, settings);
     if let Light::Disk(d) = s.light {
         s.light = Light::Sphere(SphereLight::new(d.center, d.radius).expect("a valid sphere"));

@@ -23,7 +23,7 @@ use super::{
 /// A built-in scene with its disk light replaced by a rectangle of the same
 /// area, four times as wide as high: penumbrae of the size the scene was built
 /// to show, a different width across each side of the rectangle.
-fn rect_setup(id: SceneId, settings: FinShadowSettings) -> Setup {
+pub(super) fn rect_setup(id: SceneId, settings: FinShadowSettings) -> Setup {
     let mut s = setup(id, settings);
     let Light::Disk(d) = s.light else { unreachable!("the built-in scenes have disk lights") };
     s.light = Light::Rect(RectLight::with_area_of(&d, 4.0).expect("a valid rectangle"));

@@ -15,7 +15,7 @@ use super::common::*;
 /// little so that shadows fall sideways, and as soft as the disk seen from the
 /// scene's origin (`tan θ = R / |c|`): penumbrae of the size the scene was
 /// built to show.
-fn sun_setup(id: SceneId, settings: FinShadowSettings) -> Setup {
+pub(super) fn sun_setup(id: SceneId, settings: FinShadowSettings) -> Setup {
     let mut s = setup(id, settings);
     let Light::Disk(d) = s.light else { unreachable!("the built-in scenes have disk lights") };
     s.light = Light::Sun(shadow_fins_app::render_lab::sun::sun_over(&d, None));
@@ -24,7 +24,7 @@ fn sun_setup(id: SceneId, settings: FinShadowSettings) -> Setup {
 
 /// Maps over the whole scene, as the oracle's (fitted maps are pinned by
 /// `fitting_the_suns_maps_to_the_view_brings_it_closer_to_the_truth`).
-fn unfitted() -> FinShadowSettings {
+pub(super) fn unfitted() -> FinShadowSettings {
     FinShadowSettings { fit_sun_to_views: false, ..settings() }
 }
 

@@ -158,6 +158,19 @@
 //! parts), at a cost that grows with the edges per pixel (2–81× the fins'
 //! frame on lavapipe, `BENCHMARKS.md`): fins stay the default.
 //!
+//! [`FinMethod::Convolution`] (Annen et al. 2008, the filtering peer) keeps
+//! stages 1–2 of the hard shadow map and replaces 3: after the map passes
+//! draw the map, `shaders/convolution_maps.wgsl` finds its nearest depth,
+//! expands each texel's normalised depth into `1 + 4M` Fourier basis images
+//! (`convolution_order` `M`) and builds their mip chain (the finest levels
+//! dropped, with a warning, past the device's storage limit); per camera
+//! pixel `shaders/convolution.wgsl` averages the blockers' depth over the
+//! light's footprint (CSM-Z), sizes the penumbra from it and filters the
+//! reconstructed shadow test over that footprint — as
+//! `shadow_fins::peers::convolution` with mipmaps, which its tests hold it
+//! to. Its cost does not grow with the casters, and it sees one depth per
+//! texel (stacked casters fuse, contact shadows lift: `BENCHMARKS.md`).
+//!
 //! With no caster at all, neither extraction nor map passes run, and the
 //! visibility pass writes 1 without reading the prepass.
 //!

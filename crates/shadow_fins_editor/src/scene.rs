@@ -56,12 +56,13 @@ impl Default for EditorMethod {
 }
 
 impl EditorMethod {
-    pub const ALL: [EditorMethod; 6] = [
+    pub const ALL: [EditorMethod; 7] = [
         EditorMethod::Fins(FinMethod::Hard),
         EditorMethod::Fins(FinMethod::OuterFins),
         EditorMethod::Fins(FinMethod::SingleLayer),
         EditorMethod::Fins(FinMethod::MultiLayer),
         EditorMethod::Fins(FinMethod::Coverage),
+        EditorMethod::Fins(FinMethod::Convolution),
         EditorMethod::BevyPcss,
     ];
 
@@ -80,6 +81,7 @@ impl EditorMethod {
             Some(FinMethod::SingleLayer) => "single-layer fins",
             Some(FinMethod::MultiLayer) => "multi-layer fins",
             Some(FinMethod::Coverage) => "coverage (exact, fused)",
+            Some(FinMethod::Convolution) => "convolution shadow maps",
             None => "Bevy PCSS",
         }
     }

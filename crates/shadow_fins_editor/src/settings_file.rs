@@ -18,7 +18,8 @@ pub struct EditorSettings {
     pub radius: f32,
     pub intensity: f32,
     pub color: [f32; 3],
-    /// `hard`, `outer-fins`, `single-layer`, `multi-layer`, `coverage` or `bevy-pcss`.
+    /// `hard`, `outer-fins`, `single-layer`, `multi-layer`, `coverage`,
+    /// `convolution` or `bevy-pcss`.
     pub method: String,
     pub layers: u32,
     pub sub_layers: u32,
@@ -31,6 +32,9 @@ pub struct EditorSettings {
     /// Light samples of the coverage method (absent in files from before it).
     #[serde(default = "default_coverage_samples")]
     pub coverage_samples: u32,
+    /// Order of the convolution method (absent in files from before it).
+    #[serde(default = "default_convolution_order")]
+    pub convolution_order: u32,
     /// The light is Bevy's `SpotLight` with `FinShadows` (absent in files from
     /// before it: the plugin's `FinLight`). Read only when `kind` is absent;
     /// still written, for editors from before `kind`.
@@ -67,6 +71,10 @@ fn default_coverage_samples() -> u32 {
     FinShadowSettings::default().coverage_samples
 }
 
+fn default_convolution_order() -> u32 {
+    FinShadowSettings::default().convolution_order
+}
+
 /// A settings file that could not be read or written.
 #[derive(Debug, thiserror::Error)]
 pub enum SettingsFileError {
@@ -85,6 +93,7 @@ fn method_name(m: EditorMethod) -> &'static str {
         EditorMethod::Fins(FinMethod::SingleLayer) => "single-layer",
         EditorMethod::Fins(FinMethod::MultiLayer) => "multi-layer",
         EditorMethod::Fins(FinMethod::Coverage) => "coverage",
+        EditorMethod::Fins(FinMethod::Convolution) => "convolution",
         EditorMethod::BevyPcss => "bevy-pcss",
     }
 }
@@ -106,6 +115,7 @@ impl EditorSettings {
             falloff: fins.falloff.name().into(),
             overlap: fins.overlap.name().into(),
             coverage_samples: fins.coverage_samples,
+            convolution_order: fins.convolution_order,
             spot: light.kind == LightKind::Spot,
             kind: Some(light.kind.name().into()),
             sun_angle: light.sun_angle,
@@ -149,6 +159,7 @@ impl EditorSettings {
             falloff: Falloff::parse(&self.falloff).unwrap_or(fins.falloff),
             overlap: Overlap::parse(&self.overlap).unwrap_or(fins.overlap),
             coverage_samples: self.coverage_samples,
+            convolution_order: self.convolution_order,
             ..*fins
         }
         .clamped();
@@ -324,6 +335,25 @@ mod tests {
         huge.coverage_samples = 1 << 30;
         huge.apply(&mut l, &mut f);
         assert_eq!(f.coverage_samples, 256);
+    }
+
+    #[test]
+    fn the_convolution_method_and_order_are_saved_clamped_and_default_in_older_files() {
+        let fins = FinShadowSettings { method: FinMethod::Convolution, convolution_order: 7, ..Default::default() };
+        let method = EditorMethod::Fins(FinMethod::Convolution);
+        let saved = EditorSettings::capture(&LightParams { method, ..light() }, &fins);
+        assert_eq!(saved.method, "convolution");
+        let (mut l, mut f) = (light(), FinShadowSettings::default());
+        EditorSettings::from_ron(&saved.to_ron(), "x.ron").unwrap().apply(&mut l, &mut f);
+        assert_eq!((l.method, f.method, f.convolution_order), (method, FinMethod::Convolution, 7));
+        let older = saved.to_ron().replace("convolution_order: 7,", "");
+        assert_ne!(older, saved.to_ron(), "the field must be in the file to be dropped from it");
+        let loaded = EditorSettings::from_ron(&older, "old.ron").unwrap();
+        assert_eq!(loaded.convolution_order, FinShadowSettings::default().convolution_order);
+        let mut huge = saved.clone();
+        huge.convolution_order = 0;
+        huge.apply(&mut l, &mut f);
+        assert_eq!(f.convolution_order, 1, "order 0 clamps to 1");
     }
 
     #[test]

@@ -191,6 +191,7 @@ fn panels(
             ui.add(egui::Slider::new(&mut s.layers, 1..=32).text("layers"));
             ui.add(egui::Slider::new(&mut s.sub_layers, 1..=4096).text("sub-layers").logarithmic(true));
             ui.add(egui::Slider::new(&mut s.coverage_samples, 1..=256).text("coverage samples").logarithmic(true));
+            ui.add(egui::Slider::new(&mut s.convolution_order, 1..=16).text("convolution order"));
             egui::ComboBox::from_label("map resolution").selected_text(s.map_resolution.to_string()).show_ui(
                 ui,
                 |ui| {

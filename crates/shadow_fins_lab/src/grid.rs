@@ -21,13 +21,16 @@ pub enum Technique {
     CpuOracle,
     /// The plugin's coverage method (`FinMethod::Coverage`, 256 light samples).
     Coverage,
+    /// The plugin's convolution shadow maps on the GPU
+    /// (`FinMethod::Convolution`: order 4, mipmaps, on its hard shadow map).
+    Convolution,
     /// Another paper's method, on the CPU with the core crate
     /// (`shadow_fins::peers`), at the pixels the GPU shaded.
     Peer(PeerMethod),
 }
 
 impl Technique {
-    pub const ALL: [Technique; 14] = [
+    pub const ALL: [Technique; 15] = [
         Technique::Fins(Method::MultiLayer),
         Technique::Fins(Method::SingleLayer),
         Technique::Fins(Method::OuterFins),
@@ -36,6 +39,7 @@ impl Technique {
         Technique::BevyPcss,
         Technique::CpuOracle,
         Technique::Coverage,
+        Technique::Convolution,
         Technique::Peer(PeerMethod::SingleSample),
         Technique::Peer(PeerMethod::Plateaus),
         Technique::Peer(PeerMethod::PenumbraWedges),
@@ -55,6 +59,7 @@ impl Technique {
             Technique::BevyPcss => "bevy-pcss",
             Technique::CpuOracle => "cpu-oracle",
             Technique::Coverage => "coverage",
+            Technique::Convolution => "gpu-convolution",
             Technique::Peer(p) => p.name(),
         }
     }
@@ -203,11 +208,10 @@ impl Axes {
                 push(Config::new(fins, bl, true, f, bm, br));
             }
         }
-        for &t in self
-            .techniques
-            .iter()
-            .filter(|t| matches!(t, Technique::BevyHard | Technique::BevyPcss | Technique::Coverage) || **t == fins)
-        {
+        for &t in self.techniques.iter().filter(|t| {
+            matches!(t, Technique::BevyHard | Technique::BevyPcss | Technique::Coverage | Technique::Convolution)
+                || **t == fins
+        }) {
             for &m in &self.map_resolutions {
                 push(Config::new(t, bl, true, base_falloff, m, br));
             }

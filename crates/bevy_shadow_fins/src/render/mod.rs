@@ -38,6 +38,7 @@ use crate::{
 
 mod bevy_lights;
 mod composite;
+mod convolution;
 mod coverage;
 mod extract_gpu;
 mod forward;
@@ -48,6 +49,7 @@ pub(crate) use forward::PbrFragment;
 pub(crate) fn build(app: &mut App) {
     load_shader_library!(app, "shaders/fin_types.wgsl");
     load_shader_library!(app, "shaders/cutout.wgsl");
+    load_shader_library!(app, "shaders/fin_view.wgsl");
     embedded_asset!(app, "shaders/maps.wgsl");
     embedded_asset!(app, "shaders/visibility.wgsl");
     app.add_plugins((
@@ -58,6 +60,7 @@ pub(crate) fn build(app: &mut App) {
     composite::build(app);
     forward::build(app);
     coverage::build(app);
+    convolution::build(app);
     extract_gpu::build(app);
 }
 
@@ -98,6 +101,7 @@ pub(crate) fn finish(app: &mut App) {
         .add_systems(RenderGraph, render_maps.before(camera_driver))
         .add_systems(Core3d, fin_visibility.after(Core3dSystems::Prepass).before(Core3dSystems::MainPass));
     coverage::finish(app);
+    convolution::finish(app);
     composite::finish(app);
     forward::finish(app);
     bevy_lights::finish(app);
@@ -120,6 +124,8 @@ impl bevy::render::sync_component::SyncComponent for FinShadowView {
         FinViewBuffer,
         coverage::CoverageViewBindGroup,
         coverage::CoverageViewBuffers,
+        convolution::ConvolutionViewBindGroup,
+        convolution::ConvolutionViewBuffer,
         composite::FinCompositePipeline,
         composite::FinCompositeBindGroup,
         bevy::pbr::deferred::SkipDeferredLighting,
@@ -238,6 +244,9 @@ struct FinMapsGpu {
     mask_words: Option<Buffer>,
     bind_group: Option<BindGroup>,
     counts: (u32, u32, u64),
+    /// How many times the map passes have drawn these maps (what the
+    /// convolution method's basis was built from, `convolution.rs`).
+    renders: u64,
     mode: MapsSource,
     extraction: extract_gpu::ExtractBuffers,
 }
@@ -463,6 +472,7 @@ fn render_light_maps(
     match gpu.mode {
         MapsSource::Nothing => {
             gpu.dirty = false;
+            gpu.renders += 1;
             return;
         }
         MapsSource::Gpu => {
@@ -499,6 +509,7 @@ fn render_light_maps(
             }
             span.end(ctx.command_encoder());
             gpu.dirty = false;
+            gpu.renders += 1;
             return;
         }
         MapsSource::Cpu => {}
@@ -531,6 +542,7 @@ fn render_light_maps(
     }
     span.end(ctx.command_encoder());
     gpu.dirty = false;
+    gpu.renders += 1;
 }
 
 /// Per camera: its visibility (illuminance) buffers, one layer per fin-shadowed
@@ -545,7 +557,8 @@ pub struct FinViewTexture {
 }
 
 /// Per camera and frame slot: the fin visibility pass's bind group (`None`
-/// for lights on the coverage method, or that cannot run this frame).
+/// for lights on the coverage or convolution method, or that cannot run
+/// this frame).
 #[derive(Component)]
 pub struct FinViewBindGroup(Vec<Option<BindGroup>>);
 
@@ -723,6 +736,10 @@ fn prepare_view_bind_groups(
             .iter()
             .enumerate()
             .map(|(slot, frame)| {
+                // The convolution method reads the maps through its own pass.
+                if frame.data.settings.method == crate::light::FinMethod::Convolution {
+                    return None;
+                }
                 let gpu = lights.0.get(&frame.key())?;
                 let (Some(params), Some(maps), Some(_), Some((depth, normal)), Some(layer)) = (
                     gpu.params.as_ref(),
@@ -830,10 +847,11 @@ mod shader_layout_tests {
         let linked = manifest.join("src/render/shaders").canonicalize().expect("src/render/shaders resolves");
         let top = manifest.join("../../shaders").canonicalize().expect("the top-level shaders/ folder");
         assert_eq!(linked, top);
-        let sources: String = ["mod.rs", "composite.rs", "coverage.rs", "extract_gpu.rs", "forward.rs"]
-            .iter()
-            .map(|f| std::fs::read_to_string(manifest.join("src/render").join(f)).expect("render source"))
-            .collect();
+        let sources: String =
+            ["mod.rs", "composite.rs", "convolution.rs", "coverage.rs", "extract_gpu.rs", "forward.rs"]
+                .iter()
+                .map(|f| std::fs::read_to_string(manifest.join("src/render").join(f)).expect("render source"))
+                .collect();
         for entry in std::fs::read_dir(&top).expect("shaders/") {
             let name = entry.expect("entry").file_name().into_string().expect("utf-8 name");
             assert!(sources.contains(&format!("\"shaders/{name}\"")), "shaders/{name} is not embedded by the plugin");

@@ -79,11 +79,28 @@ pub struct ConvolutionSettings {
     pub prefilter: Prefilter,
     /// Sharpening `(A, B)` of eq. 9, or `None` for `p = 1`.
     pub sharpening: Option<(f32, f32)>,
+    /// Mipmaps only: how many levels finer than the footprint's side the
+    /// lookup reads, `log2(side) − mip_bias` (clamped to `0..=4`). 0 is the
+    /// paper's choice; bilinear taps of a level-`l` texel blur as a box of
+    /// side `√3 · 2^l` (equal variance), so [`VARIANCE_MATCHED_MIP_BIAS`]
+    /// filters as wide as the box meant, where 0 blurs √3× wider.
+    pub mip_bias: f32,
 }
+
+/// `log2 √3`: the mip bias at which a trilinear lookup has the variance of the
+/// box filter it stands for (box of side `s`: `s²/12`; a level-`l` texel's
+/// box under the bilinear tent: `4^l (1/12 + 1/6)`).
+pub const VARIANCE_MATCHED_MIP_BIAS: f32 = 0.792_481_2;
 
 impl Default for ConvolutionSettings {
     fn default() -> Self {
-        Self { resolution: 512, order: 4, prefilter: Prefilter::SummedArea, sharpening: Some((30.0, 20.0)) }
+        Self {
+            resolution: 512,
+            order: 4,
+            prefilter: Prefilter::SummedArea,
+            sharpening: Some((30.0, 20.0)),
+            mip_bias: 0.0,
+        }
     }
 }
 
@@ -143,15 +160,43 @@ pub fn depth_span(order: u32) -> f32 {
     1.0 - 3.0 * step_shift(order)
 }
 
+/// The basis images' values at normalised depth `z` (`1 + 4M` channels):
+/// `z`, then `cos(c_k z)`, `sin(c_k z)`, `z cos(c_k z)`, `z sin(c_k z)` for
+/// `k = 1..=M`, each group of `M` together (the GPU's `convolution.wgsl`
+/// stores them in this order).
+pub fn basis(z: f32, order: u32, out: &mut [f32]) {
+    let m = order as usize;
+    out[0] = z;
+    for k in 0..m {
+        let (s, co) = (c(k as u32 + 1) * z).sin_cos();
+        out[1 + k] = co;
+        out[1 + m + k] = s;
+        out[1 + 2 * m + k] = z * co;
+        out[1 + 3 * m + k] = z * s;
+    }
+}
+
 /// Half sides of the filter box of a light of size 1 (its bounding circle):
 /// the square around the disk, or the rectangle itself (units of the circle).
-fn kernel_shape(aperture: Aperture) -> Vec2 {
+pub fn kernel_shape(aperture: Aperture) -> Vec2 {
     match aperture {
         // A sphere's face reaches the peers as the disk in the face's plane
         // (`PeerModel::new`).
         Aperture::Disk | Aperture::Sphere { .. } => Vec2::ONE,
         Aperture::Rect { half_extents } => half_extents,
     }
+}
+
+/// What a mipmap's bilinear tap off the map reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum OffMap {
+    /// The empty plane: the map covers every caster, and a kernel reaching
+    /// past it (a penumbra outside the casters' footprint) must not see the
+    /// casters on its edge spread outwards.
+    Empty,
+    /// The map's border texels: the map is a window onto casters that go on
+    /// past it (`ConvolutionModel::fitted`, padded by the kernels' reach).
+    Border,
 }
 
 /// Prefiltered basis images: box averages over any rectangle of texels.
@@ -207,10 +252,20 @@ impl Prefiltered {
 
     /// Average of each channel over the texel-space rectangle `[lo, hi]`,
     /// into `out`; what lies outside the map counts as `empty` texels
-    /// (summed-area tables), or as the map's border (mipmaps, whose border
-    /// the region's padding keeps empty). A mipmap's level is that of the
-    /// square of side `side`, or of the footprint's larger side when `None`.
-    fn average(&self, lo: Vec2, hi: Vec2, side: Option<f32>, empty: &[f64], out: &mut [f64]) {
+    /// (summed-area tables), or as `off_map` says (a mipmap's bilinear taps
+    /// off its level). A mipmap's level is that of the square of side
+    /// `side`, or of the footprint's larger side when `None`.
+    #[allow(clippy::too_many_arguments)]
+    fn average(
+        &self,
+        lo: Vec2,
+        hi: Vec2,
+        side: Option<f32>,
+        bias: f32,
+        empty: &[f64],
+        off_map: OffMap,
+        out: &mut [f64],
+    ) {
         match self {
             Prefiltered::SummedArea { res, channels, table } => {
                 let r = *res as f32;
@@ -238,7 +293,7 @@ impl Prefiltered {
             }
             Prefiltered::Mipmap { channels, levels } => {
                 let size = side.unwrap_or_else(|| (hi - lo).max_element()).max(1.0);
-                let level = size.log2().clamp(0.0, (levels.len() - 1) as f32);
+                let level = (size.log2() - bias).clamp(0.0, (levels.len() - 1) as f32);
                 let (l0, t) = (level.floor() as usize, level.fract());
                 let l1 = (l0 + 1).min(levels.len() - 1);
                 let centre = 0.5 * (lo + hi);
@@ -247,21 +302,31 @@ impl Prefiltered {
                     if weight == 0.0 {
                         continue;
                     }
-                    let (r, data) = &levels[l];
-                    // Bilinear between the level's texel centres.
+                    let (r, data) = (levels[l].0 as i64, &levels[l].1);
+                    // Bilinear between the level's texel centres; a tap off
+                    // the level reads an empty texel, or the border's.
                     let q = centre / (1u32 << l) as f32 - 0.5;
-                    let max = (*r - 1) as f32;
-                    let q = q.clamp(Vec2::ZERO, Vec2::splat(max));
-                    let (i, j) = (q.x.floor() as usize, q.y.floor() as usize);
-                    let (i1, j1) = ((i + 1).min(*r - 1), (j + 1).min(*r - 1));
-                    let (a, b) = (q.x - i as f32, q.y - j as f32);
+                    let q = match off_map {
+                        OffMap::Empty => q.clamp(Vec2::splat(-1.0), Vec2::splat(r as f32)),
+                        OffMap::Border => q.clamp(Vec2::ZERO, Vec2::splat((r - 1) as f32)),
+                    };
+                    let (i, j) = (q.x.floor() as i64, q.y.floor() as i64);
+                    let (a, b) = ((q.x - i as f32) as f64, (q.y - j as f32) as f64);
                     for (ch, o) in out.iter_mut().enumerate().take(*channels) {
-                        let t = |x: usize, y: usize| data[(y * r + x) * channels + ch];
+                        let t = |x: i64, y: i64| {
+                            if (0..r).contains(&x) && (0..r).contains(&y) {
+                                data[((y * r + x) as usize) * channels + ch] as f64
+                            } else if off_map == OffMap::Border {
+                                data[((y.clamp(0, r - 1) * r + x.clamp(0, r - 1)) as usize) * channels + ch] as f64
+                            } else {
+                                empty[ch]
+                            }
+                        };
                         let v = t(i, j) * (1.0 - a) * (1.0 - b)
-                            + t(i1, j) * a * (1.0 - b)
-                            + t(i, j1) * (1.0 - a) * b
-                            + t(i1, j1) * a * b;
-                        *o += (weight * v) as f64;
+                            + t(i + 1, j) * a * (1.0 - b)
+                            + t(i, j + 1) * (1.0 - a) * b
+                            + t(i + 1, j + 1) * a * b;
+                        *o += weight as f64 * v;
                     }
                 }
             }
@@ -274,6 +339,7 @@ pub struct ConvolutionModel {
     pub settings: ConvolutionSettings,
     pub region: MapRegion,
     maps: Prefiltered,
+    off_map: OffMap,
     /// The basis of an empty texel (the far plane).
     empty: Vec<f64>,
     frame: LightFrame,
@@ -373,30 +439,43 @@ impl ConvolutionModel {
                 }
             }
         }
+        Self { off_map: OffMap::Border, ..Self::on_depth_map(light_space, settings, region, &depth) }
+    }
+
+    /// Convolution shadow maps of a shadow map made elsewhere: `depth` holds
+    /// the nearest caster depth (light frame, `+∞` where none) at each texel
+    /// centre of `region`, row by row, a region that covers every caster
+    /// (past it lies the empty plane). What the plugin's GPU method does with
+    /// its hard shadow map (`FinMethod::Convolution`), and what it is tested
+    /// against, with the mipmap prefilter.
+    pub fn on_depth_map(
+        light_space: &LightSpaceScene,
+        settings: ConvolutionSettings,
+        region: MapRegion,
+        depth: &[f32],
+    ) -> Self {
+        let order = settings.order.clamp(1, 16);
+        let channels = 1 + 4 * order as usize;
+        let res = region.resolution as usize;
+        assert_eq!(depth.len(), res * res, "one depth per texel of the region");
+        let settings = ConvolutionSettings { resolution: region.resolution, order, ..settings };
+        let frame = light_space.frame;
         let near = depth.iter().copied().filter(|d| d.is_finite()).fold(f32::INFINITY, f32::min);
         let far = light_space.reference_depth * (1.0 + 1e-4);
         let near = if near.is_finite() && near < far { near } else { far * 0.5 };
         let span = depth_span(order);
         let normalise = |z: f32| ((z - near) / (far - near)).clamp(0.0, 1.0) * span;
-        let basis = |z: f32, t: &mut [f32]| {
-            t[0] = z;
-            for k in 1..=order {
-                let (s, co) = (c(k) * z).sin_cos();
-                let m = order as usize;
-                let k = k as usize - 1;
-                t[1 + k] = co;
-                t[1 + m + k] = s;
-                t[1 + 2 * m + k] = z * co;
-                t[1 + 3 * m + k] = z * s;
-            }
-        };
         let mut texels = vec![0.0f32; res * res * channels];
         for (i, &d) in depth.iter().enumerate() {
             // Empty texels hold the far plane: nothing in front of any receiver.
-            basis(if d.is_finite() { normalise(d) } else { span }, &mut texels[i * channels..(i + 1) * channels]);
+            basis(
+                if d.is_finite() { normalise(d) } else { span },
+                order,
+                &mut texels[i * channels..(i + 1) * channels],
+            );
         }
         let mut empty = vec![0.0f32; channels];
-        basis(span, &mut empty);
+        basis(span, order, &mut empty);
         let maps = match settings.prefilter {
             Prefilter::SummedArea => Prefiltered::summed_area(res, channels, &texels),
             Prefilter::Mipmap => Prefiltered::mipmap(res, channels, texels),
@@ -405,6 +484,7 @@ impl ConvolutionModel {
             settings,
             region,
             maps,
+            off_map: OffMap::Empty,
             empty: empty.iter().map(|v| *v as f64).collect(),
             frame,
             near,
@@ -438,7 +518,8 @@ impl ConvolutionModel {
             Aperture::Disk | Aperture::Sphere { .. } => None,
             Aperture::Rect { .. } => Some(2.0 * (h.x * h.y).sqrt()),
         };
-        self.maps.average(lo, hi, side, &self.empty, scratch);
+        let bias = self.settings.mip_bias.clamp(0.0, 4.0);
+        self.maps.average(lo, hi, side, bias, &self.empty, self.off_map, scratch);
         let m = self.settings.order as usize;
         let d = (d - self.shift) as f64;
         let (mut complement, mut numerator) = (0.5, 0.5 * scratch[0]);
@@ -518,6 +599,54 @@ mod tests {
     }
 
     #[test]
+    fn a_mipmaps_taps_off_the_map_read_empty_texels_not_its_border() {
+        // A map of ones in an empty (zero) plane: a box centred on its right
+        // border reads half map, half plane — clamping to the border texels
+        // would read all ones and spread a caster on the edge outwards.
+        let res = 8;
+        let maps = Prefiltered::mipmap(res, 1, vec![1.0; res * res]);
+        let mut out = [0.0f64];
+        maps.average(Vec2::new(7.0, 3.0), Vec2::new(9.0, 5.0), None, 0.0, &[0.0], OffMap::Empty, &mut out);
+        assert!((out[0] - 0.5).abs() < 1e-6, "{}", out[0]);
+        // A window onto casters that go on reads its border there.
+        maps.average(Vec2::new(7.0, 3.0), Vec2::new(9.0, 5.0), None, 0.0, &[0.0], OffMap::Border, &mut out);
+        assert!((out[0] - 1.0).abs() < 1e-6, "{}", out[0]);
+        // Inside, the same box reads the map alone.
+        maps.average(Vec2::new(3.0, 3.0), Vec2::new(5.0, 5.0), None, 0.0, &[0.0], OffMap::Empty, &mut out);
+        assert!((out[0] - 1.0).abs() < 1e-6, "{}", out[0]);
+    }
+
+    #[test]
+    fn the_variance_matched_mip_bias_filters_a_step_closer_to_the_box_than_the_papers_level() {
+        // Vertical steps at every offset from the level grid (ones left of
+        // x = 32 + k), each filtered by a 16-texel box swept across it: the
+        // summed-area table is the exact box, each mip bias a trilinear
+        // approximation (exact at the paper's level only where the step
+        // lies on a level-4 texel boundary).
+        let res = 64;
+        let error = |bias: f32| {
+            let mut sum = 0.0;
+            for k in 0..16 {
+                let texels: Vec<f32> = (0..res * res).map(|i| if i % res < 32 + k { 1.0 } else { 0.0 }).collect();
+                let exact = Prefiltered::summed_area(res, 1, &texels);
+                let mip = Prefiltered::mipmap(res, 1, texels);
+                for i in 0..40 {
+                    let c = Vec2::new(14.0 + k as f32 + i as f32 * 0.9, 32.0);
+                    let (lo, hi) = (c - Vec2::splat(8.0), c + Vec2::splat(8.0));
+                    let (mut a, mut b) = ([0.0f64], [0.0f64]);
+                    exact.average(lo, hi, None, 0.0, &[0.0], OffMap::Empty, &mut a);
+                    mip.average(lo, hi, None, bias, &[0.0], OffMap::Empty, &mut b);
+                    sum += (a[0] - b[0]).abs();
+                }
+            }
+            sum / (16.0 * 40.0)
+        };
+        let (paper, matched) = (error(0.0), error(VARIANCE_MATCHED_MIP_BIAS));
+        println!("mean |mip − box|: paper's level {paper:.4}, variance-matched {matched:.4}");
+        assert!(matched < 0.8 * paper, "variance-matched {matched} vs paper's level {paper}");
+    }
+
+    #[test]
     fn summed_area_averages_are_exact_box_filters() {
         let res = 8;
         let texels: Vec<f32> = (0..res * res).map(|i| ((i * 37) % 11) as f32).collect();
@@ -525,7 +654,7 @@ mod tests {
         let mut out = [0.0f64];
         // A fractional rectangle, integrated by fine sampling.
         let (lo, hi) = (Vec2::new(1.3, 2.6), Vec2::new(5.1, 6.9));
-        maps.average(lo, hi, None, &[0.0], &mut out);
+        maps.average(lo, hi, None, 0.0, &[0.0], OffMap::Empty, &mut out);
         let n = 400;
         let mut sum = 0.0f64;
         for i in 0..n {

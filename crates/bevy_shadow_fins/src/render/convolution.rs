@@ -1,0 +1,510 @@
+//! Render world of the convolution method (`FinMethod::Convolution`, Annen
+//! et al. 2008): per light frame, the basis images of its hard shadow map
+//! (`convolution_maps.wgsl`: nearest depth, the Fourier basis, the mip
+//! chain), rebuilt right after the penumbra-map passes redraw that map; and
+//! per camera the visibility pass (`convolution.wgsl`) writing the same
+//! visibility buffer the fins write, so compositing is unchanged.
+
+use bevy::{
+    asset::{embedded_asset, load_embedded_asset},
+    core_pipeline::{
+        prepass::ViewPrepassTextures,
+        schedule::{Core3d, Core3dSystems, camera_driver},
+    },
+    prelude::*,
+    render::{
+        Render, RenderApp, RenderSystems,
+        diagnostic::RecordDiagnostics,
+        render_resource::{
+            binding_types::{
+                storage_buffer_read_only_sized, storage_buffer_sized, texture_2d, texture_depth_2d, texture_storage_2d,
+                uniform_buffer, uniform_buffer_sized,
+            },
+            *,
+        },
+        renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue, ViewQuery},
+        view::{ExtractedView, ViewUniform, ViewUniformOffset, ViewUniforms},
+    },
+    shader::load_shader_library,
+};
+use shadow_fins::peers::convolution::{
+    VARIANCE_MATCHED_MIP_BIAS, basis, depth_span, kernel_shape, ringing_scale, step_shift,
+};
+
+use super::{FinLightsGpu, FinViewTexture, ViewsWithVisibility, extract_gpu::ensure, view_transform};
+use crate::{
+    extract::{FinFrameData, FinFrames, FrameKey},
+    light::{FinMethod, FinShadowView},
+};
+
+/// Sharpening `(A, B)` of eq. 9, the core's default (their Figure 4's `A`,
+/// its tightest `B`, in normalised depths).
+const SHARPENING: (f32, f32) = (30.0, 20.0);
+/// Mip levels a chain may have (a 4096² map has 13).
+const MAX_LEVELS: usize = 16;
+/// Bytes between two downsampling dispatches' level uniforms (the largest
+/// dynamic-offset alignment a device may ask).
+const LEVEL_STRIDE: u64 = 256;
+
+pub(super) fn build(app: &mut App) {
+    load_shader_library!(app, "shaders/convolution_types.wgsl");
+    embedded_asset!(app, "shaders/convolution_maps.wgsl");
+    embedded_asset!(app, "shaders/convolution.wgsl");
+}
+
+pub(super) fn finish(app: &mut App) {
+    let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
+    render_app
+        .init_resource::<ConvolutionLightsGpu>()
+        .add_systems(bevy::render::RenderStartup, init_pipelines)
+        .add_systems(
+            Render,
+            (
+                prepare_convolution.in_set(RenderSystems::PrepareResources).after(super::prepare_maps),
+                prepare_view_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+            ),
+        )
+        .add_systems(RenderGraph, render_basis.after(super::render_maps).before(camera_driver))
+        .add_systems(Core3d, convolution_visibility.after(Core3dSystems::Prepass).before(Core3dSystems::MainPass));
+}
+
+#[derive(Resource)]
+struct ConvolutionPipelines {
+    maps_layout: BindGroupLayoutDescriptor,
+    view_layout: BindGroupLayoutDescriptor,
+    find_near: CachedComputePipelineId,
+    first_level: CachedComputePipelineId,
+    downsample: CachedComputePipelineId,
+    visibility: CachedComputePipelineId,
+}
+
+fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, asset_server: Res<AssetServer>) {
+    let maps_layout = BindGroupLayoutDescriptor::new(
+        "fin_convolution_maps_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                uniform_buffer_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_sized(false, None),
+                uniform_buffer_sized(false, None),
+                storage_buffer_sized(false, None),
+                uniform_buffer_sized(true, std::num::NonZeroU64::new(16)),
+            ),
+        ),
+    );
+    let view_layout = BindGroupLayoutDescriptor::new(
+        "fin_convolution_view_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                uniform_buffer_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                uniform_buffer_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                texture_depth_2d(),
+                texture_2d(TextureSampleType::Float { filterable: false }),
+                texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
+                uniform_buffer::<ViewUniform>(true),
+                uniform_buffer_sized(false, None),
+            ),
+        ),
+    );
+    let maps_shader = load_embedded_asset!(asset_server.as_ref(), "shaders/convolution_maps.wgsl");
+    let view_shader = load_embedded_asset!(asset_server.as_ref(), "shaders/convolution.wgsl");
+    let compute =
+        |label, layout: &_, shader: &_, entry| super::queue_compute(&pipeline_cache, label, layout, shader, entry);
+    commands.insert_resource(ConvolutionPipelines {
+        find_near: compute("fin_convolution_find_near", &maps_layout, &maps_shader, "find_near"),
+        first_level: compute("fin_convolution_first_level", &maps_layout, &maps_shader, "first_level"),
+        downsample: compute("fin_convolution_downsample", &maps_layout, &maps_shader, "downsample"),
+        visibility: compute("fin_convolution_visibility", &view_layout, &view_shader, "convolution_pass"),
+        maps_layout,
+        view_layout,
+    });
+}
+
+/// `ConvolutionParams` in `convolution_types.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct ConvolutionUniform {
+    counts: [u32; 4],
+    series: [f32; 4],
+    kernel: [f32; 4],
+    lookup: [f32; 4],
+    levels: [[u32; 4]; MAX_LEVELS / 2],
+    empty: [[f32; 4]; 17],
+}
+
+/// The basis images' mip chain of one frame: which levels are stored, where.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct BasisLayout {
+    /// Floats per texel, `1 + 4M`.
+    pub channels: u32,
+    /// The first stored level (0 unless the budget dropped the finest).
+    pub first: u32,
+    /// Levels of the full chain, from the map's resolution down to 1.
+    pub chain: u32,
+    /// Per stored level: (resolution, offset in floats).
+    pub stored: Vec<(u32, u32)>,
+}
+
+impl BasisLayout {
+    /// The chain of a `resolution`² map at order `order`, without as many of
+    /// its finest levels as it takes to fit in `limit_bytes` (each dropped
+    /// level quarters the memory and blurs penumbrae narrower than two of its
+    /// texels; `None` when even one texel's basis does not fit).
+    pub fn new(resolution: u32, order: u32, limit_bytes: u64) -> Option<Self> {
+        let channels = 1 + 4 * order.clamp(1, 16);
+        let mut sizes = vec![resolution.max(1)];
+        while *sizes.last().expect("one level") > 1 && sizes.len() < MAX_LEVELS {
+            sizes.push(sizes.last().expect("one level").div_ceil(2));
+        }
+        let bytes_from =
+            |first: usize| -> u64 { sizes[first..].iter().map(|r| *r as u64 * *r as u64 * channels as u64 * 4).sum() };
+        let first = (0..sizes.len()).find(|f| bytes_from(*f) <= limit_bytes)?;
+        let mut offset = 0u64;
+        let stored = sizes[first..]
+            .iter()
+            .map(|r| {
+                let at = offset;
+                offset += *r as u64 * *r as u64 * channels as u64;
+                (*r, at as u32)
+            })
+            .collect();
+        Some(Self { channels, first: first as u32, chain: sizes.len() as u32, stored })
+    }
+
+    pub fn bytes(&self) -> u64 {
+        self.stored.iter().map(|(r, _)| *r as u64 * *r as u64 * self.channels as u64 * 4).sum()
+    }
+}
+
+fn uniform_of(f: &FinFrameData, layout: &BasisLayout) -> ConvolutionUniform {
+    let order = f.settings.convolution_order.clamp(1, 16);
+    let span = depth_span(order);
+    let shape = kernel_shape(f.aperture);
+    let rect = matches!(f.aperture, shadow_fins::light::Aperture::Rect { .. });
+    let mut levels = [[0u32; 4]; MAX_LEVELS / 2];
+    for (i, (r, at)) in layout.stored.iter().enumerate() {
+        levels[i / 2][2 * (i % 2)] = *r;
+        levels[i / 2][2 * (i % 2) + 1] = *at;
+    }
+    let mut empty_basis = [0.0f32; 68];
+    basis(span, order, &mut empty_basis);
+    let mut empty = [[0.0f32; 4]; 17];
+    for (i, v) in empty_basis.iter().enumerate() {
+        empty[i / 4][i % 4] = *v;
+    }
+    ConvolutionUniform {
+        counts: [order, layout.channels, layout.first, layout.chain],
+        series: [ringing_scale(order), step_shift(order), span, SHARPENING.0],
+        kernel: [SHARPENING.1, shape.x, shape.y, if rect { 1.0 } else { 0.0 }],
+        lookup: [VARIANCE_MATCHED_MIP_BIAS, 0.0, 0.0, 0.0],
+        levels,
+        empty,
+    }
+}
+
+/// Every convolution-method frame's basis images, by light and cube face.
+#[derive(Resource, Default)]
+struct ConvolutionLightsGpu(std::collections::HashMap<FrameKey, ConvolutionGpu>);
+
+#[derive(Default)]
+struct ConvolutionGpu {
+    /// The frame generation the layout and uniform were made for.
+    generation: u64,
+    layout: Option<BasisLayout>,
+    basis: Option<Buffer>,
+    uniform: Option<Buffer>,
+    state: Option<Buffer>,
+    levels: Option<Buffer>,
+    bind_group: Option<BindGroup>,
+    /// The map drawing (`FinMapsGpu::renders`) the basis was built from.
+    built_from: Option<u64>,
+}
+
+fn on_convolution(frames: &FinFrames) -> impl Iterator<Item = &crate::extract::FinLightFrame> {
+    frames.on_coverage(false).filter(|f| f.data.settings.method == FinMethod::Convolution)
+}
+
+fn prepare_convolution(
+    frames: Res<FinFrames>,
+    maps: Res<FinLightsGpu>,
+    mut lights: ResMut<ConvolutionLightsGpu>,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    pipelines: Option<Res<ConvolutionPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+) {
+    lights.0.retain(|key, _| on_convolution(&frames).any(|f| f.key() == *key));
+    let Some(pipelines) = pipelines else {
+        lights.0.clear();
+        return;
+    };
+    for frame in on_convolution(&frames) {
+        let gpu = lights.0.entry(frame.key()).or_default();
+        match maps.0.get(&frame.key()) {
+            Some(m) if m.bind_group.is_some() => {
+                prepare_light(&frame.data, m, gpu, &device, &queue, &pipelines, &pipeline_cache)
+            }
+            _ => *gpu = ConvolutionGpu::default(),
+        }
+    }
+}
+
+/// One frame's basis buffers and uniform, made again when its frame changed.
+fn prepare_light(
+    f: &FinFrameData,
+    maps: &super::FinMapsGpu,
+    gpu: &mut ConvolutionGpu,
+    device: &RenderDevice,
+    queue: &RenderQueue,
+    pipelines: &ConvolutionPipelines,
+    pipeline_cache: &PipelineCache,
+) {
+    if f.generation == gpu.generation && gpu.bind_group.is_some() {
+        return;
+    }
+    let limit = device.limits().max_storage_buffer_binding_size.min(f.limit_bytes);
+    let order = f.settings.convolution_order.clamp(1, 16);
+    let Some(layout) = BasisLayout::new(f.region.resolution, order, limit) else {
+        warn_once!("fin shadows: no convolution basis fits this GPU's storage binding limit; no convolution shadows");
+        *gpu = ConvolutionGpu::default();
+        return;
+    };
+    if layout.first > 0 {
+        warn_once!(
+            "fin shadows: the convolution basis of {}² maps at order {order} exceeds the storage limit; its {} finest mip level(s) are not stored",
+            f.region.resolution,
+            layout.first
+        );
+    }
+    let storage = BufferUsages::STORAGE | BufferUsages::COPY_DST;
+    let uniform = BufferUsages::UNIFORM | BufferUsages::COPY_DST;
+    ensure(&mut gpu.basis, device, "fin_convolution_basis", layout.bytes().max(64), storage, limit);
+    ensure(&mut gpu.uniform, device, "fin_convolution_params", size_of::<ConvolutionUniform>() as u64, uniform, limit);
+    ensure(&mut gpu.state, device, "fin_convolution_state", 16, storage, limit);
+    let stride = LEVEL_STRIDE.max(device.limits().min_uniform_buffer_offset_alignment as u64);
+    ensure(&mut gpu.levels, device, "fin_convolution_levels", stride * MAX_LEVELS as u64, uniform, u64::MAX);
+    queue.write_buffer(gpu.uniform.as_ref().unwrap(), 0, bytemuck::bytes_of(&uniform_of(f, &layout)));
+    let mut levels = vec![0u8; (stride * MAX_LEVELS as u64) as usize];
+    for l in 0..MAX_LEVELS {
+        levels[l * stride as usize..][..4].copy_from_slice(&(l as u32).to_le_bytes());
+    }
+    queue.write_buffer(gpu.levels.as_ref().unwrap(), 0, &levels);
+    let (Some(params), Some(map_buffer)) = (maps.params.as_ref(), maps.maps.as_ref()) else { return };
+    gpu.bind_group = Some(device.create_bind_group(
+        "fin_convolution_maps_bind_group",
+        &pipeline_cache.get_bind_group_layout(&pipelines.maps_layout),
+        &BindGroupEntries::sequential((
+            params.as_entire_binding(),
+            map_buffer.as_entire_binding(),
+            gpu.basis.as_ref().unwrap().as_entire_binding(),
+            gpu.uniform.as_ref().unwrap().as_entire_binding(),
+            gpu.state.as_ref().unwrap().as_entire_binding(),
+            BufferBinding { buffer: gpu.levels.as_ref().unwrap(), offset: 0, size: std::num::NonZeroU64::new(16) },
+        )),
+    ));
+    gpu.layout = Some(layout);
+    gpu.generation = f.generation;
+    gpu.built_from = None;
+}
+
+/// Builds each frame's basis images after its map passes drew a new map.
+fn render_basis(
+    frames: Res<FinFrames>,
+    maps: Res<FinLightsGpu>,
+    mut lights: ResMut<ConvolutionLightsGpu>,
+    pipelines: Option<Res<ConvolutionPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    device: Res<RenderDevice>,
+    mut ctx: RenderContext,
+) {
+    let Some(pipelines) = pipelines else { return };
+    let (Some(find_near), Some(first_level), Some(downsample)) = (
+        pipeline_cache.get_compute_pipeline(pipelines.find_near),
+        pipeline_cache.get_compute_pipeline(pipelines.first_level),
+        pipeline_cache.get_compute_pipeline(pipelines.downsample),
+    ) else {
+        return;
+    };
+    let stride = LEVEL_STRIDE.max(device.limits().min_uniform_buffer_offset_alignment as u64) as u32;
+    for frame in on_convolution(&frames) {
+        let (Some(m), Some(gpu)) = (maps.0.get(&frame.key()), lights.0.get_mut(&frame.key())) else { continue };
+        // Only a map the passes finished drawing, once per drawing.
+        if m.dirty || gpu.built_from == Some(m.renders) {
+            continue;
+        }
+        let (Some(bind_group), Some(layout)) = (gpu.bind_group.as_ref(), gpu.layout.as_ref()) else { continue };
+        let diagnostics = ctx.diagnostic_recorder();
+        let diagnostics = diagnostics.as_deref();
+        let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/convolution_basis");
+        {
+            let mut pass = ctx.command_encoder().begin_compute_pass(&ComputePassDescriptor {
+                label: Some("fin_convolution_basis"),
+                timestamp_writes: None,
+            });
+            pass.set_bind_group(0, bind_group, &[0]);
+            pass.set_pipeline(find_near);
+            pass.dispatch_workgroups(1, 1, 1);
+            let groups = |r: u32| r.div_ceil(8);
+            pass.set_pipeline(first_level);
+            let r0 = layout.stored[0].0;
+            pass.dispatch_workgroups(groups(r0), groups(r0), 1);
+            pass.set_pipeline(downsample);
+            for (l, (r, _)) in layout.stored.iter().enumerate().skip(1) {
+                pass.set_bind_group(0, bind_group, &[l as u32 * stride]);
+                pass.dispatch_workgroups(groups(*r), groups(*r), 1);
+            }
+        }
+        span.end(ctx.command_encoder());
+        gpu.built_from = Some(m.renders);
+    }
+}
+
+/// Per camera and frame slot: the convolution pass's bind group (`None` for
+/// lights on other methods, or whose basis cannot be built this frame).
+#[derive(Component)]
+pub struct ConvolutionViewBindGroup(Vec<Option<BindGroup>>);
+
+/// Per camera and frame slot: its view → light-frame transform.
+#[derive(Component, Default)]
+pub struct ConvolutionViewBuffer(Vec<Buffer>);
+
+#[allow(clippy::too_many_arguments)]
+fn prepare_view_bind_groups(
+    mut commands: Commands,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    maps: Res<FinLightsGpu>,
+    lights: Res<ConvolutionLightsGpu>,
+    frames: Res<FinFrames>,
+    pipelines: Option<Res<ConvolutionPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    view_uniforms: Res<ViewUniforms>,
+    mut views: Query<(
+        Entity,
+        &FinViewTexture,
+        &ViewPrepassTextures,
+        &ExtractedView,
+        Option<&mut ConvolutionViewBuffer>,
+    )>,
+) {
+    let binding = view_uniforms.uniforms.binding();
+    for (entity, texture, prepass, view, buffers) in &mut views {
+        let (Some(pipelines), Some(view_binding), false, Some((depth, normal))) =
+            (pipelines.as_ref(), binding.clone(), lights.0.is_empty(), super::prepass_inputs(prepass))
+        else {
+            commands.entity(entity).remove::<ConvolutionViewBindGroup>();
+            continue;
+        };
+        let mut buffers = buffers.map(|mut b| std::mem::take(&mut b.0)).unwrap_or_default();
+        let groups = frames
+            .0
+            .iter()
+            .enumerate()
+            .map(|(slot, frame)| {
+                let gpu = lights.0.get(&frame.key())?;
+                let m = maps.0.get(&frame.key())?;
+                let (Some(params), Some(basis), Some(uniform), Some(state), Some(_), Some(layer)) = (
+                    m.params.as_ref(),
+                    gpu.basis.as_ref(),
+                    gpu.uniform.as_ref(),
+                    gpu.state.as_ref(),
+                    gpu.bind_group.as_ref(),
+                    texture.layers.get(frame.layer),
+                ) else {
+                    return None;
+                };
+                let buffer = view_transform(&device, &queue, &frame.data, &view.world_from_view, &mut buffers, slot);
+                Some(device.create_bind_group(
+                    "fin_convolution_view_bind_group",
+                    &pipeline_cache.get_bind_group_layout(&pipelines.view_layout),
+                    &BindGroupEntries::sequential((
+                        params.as_entire_binding(),
+                        basis.as_entire_binding(),
+                        uniform.as_entire_binding(),
+                        state.as_entire_binding(),
+                        depth,
+                        normal,
+                        layer,
+                        view_binding.clone(),
+                        buffer.as_entire_binding(),
+                    )),
+                ))
+            })
+            .collect();
+        commands.entity(entity).insert((ConvolutionViewBindGroup(groups), ConvolutionViewBuffer(buffers)));
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn convolution_visibility(
+    view: ViewQuery<(Entity, &FinShadowView, &FinViewTexture, &ConvolutionViewBindGroup, &ViewUniformOffset)>,
+    frames: Res<FinFrames>,
+    maps: Res<FinLightsGpu>,
+    lights: Res<ConvolutionLightsGpu>,
+    pipelines: Option<Res<ConvolutionPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    images: Res<bevy::render::render_asset::RenderAssets<bevy::render::texture::GpuImage>>,
+    mut written: ResMut<ViewsWithVisibility>,
+    mut ctx: RenderContext,
+) {
+    let (entity, settings, texture, bind_groups, offset) = view.into_inner();
+    let Some(pipeline) = pipelines.and_then(|p| pipeline_cache.get_compute_pipeline(p.visibility)) else { return };
+    let size = texture.texture.texture.size();
+    for (slot, bind_group) in bind_groups.0.iter().enumerate() {
+        let Some(bind_group) = bind_group else { continue };
+        // Only over a basis built from the map as it is now (a frame whose
+        // basis passes could not run yet gets no visibility: not stale ones).
+        let key = frames.0[slot].key();
+        let built = match (maps.0.get(&key), lights.0.get(&key)) {
+            (Some(m), Some(g)) => !m.dirty && g.built_from == Some(m.renders),
+            _ => false,
+        };
+        if !built {
+            continue;
+        }
+        let diagnostics = ctx.diagnostic_recorder();
+        let diagnostics = diagnostics.as_deref();
+        let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/visibility");
+        {
+            let mut pass = ctx.command_encoder().begin_compute_pass(&ComputePassDescriptor {
+                label: Some("fin_convolution_visibility"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, bind_group, &[offset.offset]);
+            pass.dispatch_workgroups(size.width.div_ceil(8), size.height.div_ceil(8), 1);
+        }
+        span.end(ctx.command_encoder());
+        written.0.insert((entity, slot));
+        super::copy_to_targets(&mut ctx, settings, texture, &images, &frames, slot);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_basis_chain_runs_down_to_one_texel_and_drops_its_finest_levels_to_fit() {
+        let full = BasisLayout::new(1000, 4, u64::MAX).expect("fits");
+        // 1000, 500, 250, 125, 63, 32, 16, 8, 4, 2, 1.
+        assert_eq!(full.chain, 11);
+        assert_eq!(full.stored.iter().map(|s| s.0).collect::<Vec<_>>(), [1000, 500, 250, 125, 63, 32, 16, 8, 4, 2, 1]);
+        assert_eq!(full.channels, 17);
+        assert_eq!(full.stored[1].1, 1000 * 1000 * 17, "level 1 starts after level 0");
+        assert_eq!(full.first, 0);
+        // Under a quarter of that, the finest level goes (and only it).
+        let fitted = BasisLayout::new(1000, 4, full.bytes() / 3).expect("fits");
+        assert_eq!((fitted.first, fitted.stored[0].0, fitted.chain), (1, 500, 11));
+        assert!(fitted.bytes() <= full.bytes() / 3);
+        assert_eq!(fitted.stored[0].1, 0);
+        // Not even one texel's basis: none.
+        assert!(BasisLayout::new(16, 16, 64).is_none());
+        // The order is clamped to 1..=16 (65 channels at most).
+        assert_eq!(BasisLayout::new(16, 99, u64::MAX).expect("fits").channels, 65);
+    }
+}

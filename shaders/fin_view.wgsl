@@ -1,0 +1,44 @@
+// A camera's pixel as a receiver in the light frame: shared by the fin
+// visibility pass (`visibility.wgsl`) and the convolution pass
+// (`convolution.wgsl`), which read the same prepasses the same way; the
+// coverage pass (`coverage.wgsl`) shares the view transform.
+#define_import_path bevy_shadow_fins::fin_view
+#import bevy_render::view::View
+#import bevy_shadow_fins::fin_types::FinParams
+
+// The camera's view space → the light frame, composed on the CPU in f64
+// (columns of the linear part, and the translation). Positions are rebuilt in
+// view space, where they are small near the camera, and never pass through
+// world coordinates: at 1e5 from the origin an f32 world position is off by
+// 0.008, the size of the one-texel lift.
+struct FinView {
+    column_x: vec4<f32>,
+    column_y: vec4<f32>,
+    column_z: vec4<f32>,
+    // w: the coverage pass's least receiver lift (`camera_raster_error`), unused here.
+    translation: vec4<f32>,
+}
+
+fn view_to_frame(fin_view: FinView, p: vec3<f32>) -> vec3<f32> {
+    return fin_view.column_x.xyz * p.x + fin_view.column_y.xyz * p.y + fin_view.column_z.xyz * p.z
+        + fin_view.translation.xyz;
+}
+
+fn dir_to_frame(params: FinParams, d: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot(d, params.axis_u.xyz), dot(d, params.axis_v.xyz), dot(d, params.axis_n.xyz));
+}
+
+// Whether the target pixel lies in the camera's viewport (split screen).
+fn in_viewport(view: View, id: vec2<u32>) -> bool {
+    let p = vec2<f32>(id);
+    return all(p >= view.viewport.xy) && all(p < view.viewport.xy + view.viewport.zw);
+}
+
+// The light-frame position of the surface at target pixel `id` and prepass
+// depth `depth`: through the viewport to clip space, to view space, to the frame.
+fn pixel_position(view: View, fin_view: FinView, id: vec2<u32>, depth: f32) -> vec3<f32> {
+    let uv = (vec2<f32>(id) + 0.5 - view.viewport.xy) / view.viewport.zw;
+    let ndc = vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
+    let in_view = view.view_from_clip * ndc;
+    return view_to_frame(fin_view, in_view.xyz / in_view.w);
+}

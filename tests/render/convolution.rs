@@ -1,0 +1,130 @@
+//! The convolution method on the GPU (`FinMethod::Convolution`:
+//! `convolution_maps.wgsl`, `convolution.wgsl`) against the core's
+//! convolution model built on the raster oracle's hard shadow map at the
+//! same resolution (`ConvolutionModel::on_depth_map`, mipmaps).
+//!
+//! Tolerance: mean |GPU − oracle| ≤ 0.01 and at most 3% of pixels off by more
+//! than 0.1 (the view's geometric edges, as for the fins). Both sides run the
+//! same series and filters; the GPU sums its basis images and series in f32
+//! where the core accumulates in f64.
+
+use bevy_shadow_fins::{FinExtraction, FinMethod, FinShadowSettings};
+use shadow_fins::{
+    ground_truth::GroundTruth,
+    metrics::ErrorMetrics,
+    oracle::{FinShadowModel, Method},
+    peers::convolution::{ConvolutionModel, ConvolutionSettings, Prefilter, VARIANCE_MATCHED_MIP_BIAS},
+    scene::LightSpaceScene,
+    scenes::SceneId,
+};
+use shadow_fins_app::harness::Setup;
+
+use super::{common::*, point_light::point_setup, rect_light::rect_setup, sun::sun_setup, sun::unfitted};
+
+fn convolution_settings() -> FinShadowSettings {
+    FinShadowSettings { method: FinMethod::Convolution, ..settings() }
+}
+
+/// The core's convolution model of `setup`'s light, per light frame, on the
+/// hard shadow map the raster oracle draws at the plugin's resolution.
+fn convolution_models(setup: &Setup) -> (Vec<LightSpaceScene>, Vec<ConvolutionModel>) {
+    let faces = LightSpaceScene::faces(&setup.scene, setup.light);
+    let s = setup.settings.clamped();
+    let settings = ConvolutionSettings {
+        resolution: s.map_resolution,
+        order: s.convolution_order,
+        prefilter: Prefilter::Mipmap,
+        sharpening: Some((30.0, 20.0)),
+        mip_bias: VARIANCE_MATCHED_MIP_BIAS,
+    };
+    let models = faces
+        .iter()
+        .map(|ls| {
+            let hard = FinShadowModel::new(&setup.scene, ls, Method::Hard, s.core());
+            let maps = hard.raster(s.map_resolution);
+            let texels = maps.layers.first().map_or(0, Vec::len);
+            let depth: Vec<f32> = (0..texels)
+                .map(|i| maps.layers.iter().map(|l| l[i].slab_depth).fold(f32::INFINITY, f32::min))
+                .collect();
+            ConvolutionModel::on_depth_map(ls, settings, maps.region, &depth)
+        })
+        .collect();
+    (faces, models)
+}
+
+fn convolution_oracle(setup: &Setup) -> Vec<f32> {
+    let (faces, models) = convolution_models(setup);
+    per_pixel_in_faces(setup, &setup.camera, &faces, |face, r| models[face].visibility(r))
+}
+
+fn assert_matches_its_model(setup: &Setup, tag: &str) -> shadow_fins_app::harness::Shot {
+    let shot = render_bevy_lights(setup);
+    save(&shot, &format!("convolution_{tag}"));
+    assert_not_trivial(&shot);
+    let (mad, far) = compare(&shot.visibility, &convolution_oracle(setup));
+    println!("convolution {tag}: mean |gpu − oracle| = {mad:.5}, share > 0.1 = {:.2}%", far * 100.0);
+    assert!(mad <= 0.01 && far <= 0.03, "{tag}: {mad} / {far}");
+    let penumbra = shot.visibility.iter().filter(|v| (0.05..0.95).contains(*v)).count();
+    assert!(penumbra > 100, "{tag}: only {penumbra} penumbra pixels: is the light soft at all?");
+    assert_eq!(shot.stats.fins, 0, "{tag}: convolution builds no fins");
+    shot
+}
+
+#[test]
+fn gpu_convolution_matches_its_model_under_disk_rect_sun_and_sphere_lights() {
+    for id in [SceneId::BoxOverPlane, SceneId::Kitbash, SceneId::NearContact] {
+        assert_matches_its_model(&setup(id, convolution_settings()), &format!("disk_{}", id.name()));
+    }
+    let cpu = FinShadowSettings { extraction: FinExtraction::Cpu, ..convolution_settings() };
+    assert_matches_its_model(&setup(SceneId::Kitbash, cpu), "disk_kitbash_cpu_extraction");
+    assert_matches_its_model(&rect_setup(SceneId::BoxOverPlane, convolution_settings()), "rect_box_over_plane");
+    let sun = FinShadowSettings { method: FinMethod::Convolution, ..unfitted() };
+    assert_matches_its_model(&sun_setup(SceneId::BoxOverPlane, sun), "sun_box_over_plane");
+    assert_matches_its_model(&point_setup(SceneId::LampRoom, convolution_settings()), "sphere_lamp_room");
+}
+
+#[test]
+fn gpu_convolution_at_radius_zero_is_the_hard_shadow() {
+    let mut setup = setup(SceneId::Kitbash, convolution_settings());
+    setup.light = setup.light.with_zero_size();
+    let shot = render(&setup);
+    assert_not_trivial(&shot);
+    assert!(shot.visibility.iter().all(|v| *v == 0.0 || *v == 1.0), "radius 0 gives only 0 and 1");
+    let (mad, far) = compare(&shot.visibility, &oracle(&setup, Method::Hard));
+    println!("radius 0: mean |gpu − hard oracle| = {mad:.5}, share > 0.1 = {:.2}%", far * 100.0);
+    assert!(mad <= 0.01 && far <= 0.03, "{mad} / {far}");
+}
+
+/// The order is a live setting: a higher one reconstructs the step more
+/// sharply (Annen et al. Figure 3), so the GPU's result changes with it and
+/// still matches the model at that order.
+#[test]
+fn the_convolution_order_changes_the_shadow_and_each_matches_its_model() {
+    let low = setup(SceneId::BoxOverPlane, FinShadowSettings { convolution_order: 2, ..convolution_settings() });
+    let high = setup(SceneId::BoxOverPlane, FinShadowSettings { convolution_order: 8, ..convolution_settings() });
+    let (a, b) = (assert_matches_its_model(&low, "order_2"), assert_matches_its_model(&high, "order_8"));
+    let (differ, _) = compare(&a.visibility, &b.visibility);
+    assert!(differ > 0.002, "orders 2 and 8 give the same image ({differ})");
+}
+
+/// Against ground truth the GPU's error is the model's (it is the method's
+/// error, not the port's), and softer than the hard shadow's.
+#[test]
+fn gpu_convolution_is_as_close_to_the_truth_as_its_model_and_closer_than_hard() {
+    let setup = setup(SceneId::BoxOverPlane, convolution_settings());
+    let shot = render(&setup);
+    let ls = LightSpaceScene::new(&setup.scene, setup.light);
+    let truth = GroundTruth::new(&ls, 4096);
+    let oracle = convolution_oracle(&setup);
+    let hard = super::common::oracle(&setup, Method::Hard);
+    let reference = per_pixel(&setup, &setup.camera, &ls, |r| truth.visibility(r));
+    let lit: Vec<usize> = (0..reference.len()).filter(|i| reference[*i] < 1.0 || shot.visibility[*i] < 1.0).collect();
+    let pick = |v: &[f32]| lit.iter().map(|i| v[*i]).collect::<Vec<f32>>();
+    let truth_values = pick(&reference);
+    let gpu = ErrorMetrics::compute(&pick(&shot.visibility), &truth_values);
+    let cpu = ErrorMetrics::compute(&pick(&oracle), &truth_values);
+    let hard = ErrorMetrics::compute(&pick(&hard), &truth_values);
+    println!("against 4096-sample truth: GPU CSM MAE {:.4}, model {:.4}, hard {:.4}", gpu.mae, cpu.mae, hard.mae);
+    assert!((gpu.mae - cpu.mae).abs() <= 0.01, "GPU {gpu:?} vs model {cpu:?}");
+    assert!(gpu.mae < 0.8 * hard.mae, "GPU {gpu:?} vs hard {hard:?}");
+}
