@@ -16,6 +16,7 @@ mod render {
     mod lab;
     mod lights;
     mod oracle_agreement;
+    mod plateaus;
     mod point_light;
     mod posed;
     mod rect_light;

@@ -250,7 +250,10 @@ pub fn measure(
                         if den > 0.0 { energy(&shot.linear[*i]) / den } else { 1.0 }
                     })
                     .collect();
-                if matches!(config.technique, Technique::Fins(_) | Technique::Coverage | Technique::Convolution) {
+                if matches!(
+                    config.technique,
+                    Technique::Fins(_) | Technique::Coverage | Technique::Convolution | Technique::Plateaus
+                ) {
                     row.modelled = Some((shot.stats.silhouettes, shot.stats.fins, shot.stats.layers));
                     row.non_finite = shot.visibility.iter().filter(|v| !v.is_finite()).count();
                     row.out_of_range = shot.visibility.iter().filter(|v| **v < -1e-3 || **v > 1.0 + 1e-3).count();
@@ -300,6 +303,7 @@ fn fin_settings(c: &Config) -> FinShadowSettings {
             Technique::Fins(Method::SingleLayer) => FinMethod::SingleLayer,
             Technique::Coverage => FinMethod::Coverage,
             Technique::Convolution => FinMethod::Convolution,
+            Technique::Plateaus => FinMethod::Plateaus,
             _ => FinMethod::MultiLayer,
         },
         layers: c.layers.unwrap_or(defaults.layers),

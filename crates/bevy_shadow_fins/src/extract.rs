@@ -251,6 +251,8 @@ pub struct FinFrameData {
     pub(crate) gpu: Option<GpuScene>,
     /// The coverage method's edges, grid, casters and samples (`None` for fins).
     pub(crate) coverage: Option<CoverageFrame>,
+    /// The plateaus method's plane, cones and sheets (`None` for other methods).
+    pub(crate) plateaus: Option<crate::plateau_frame::PlateauFrame>,
 }
 
 impl FinFrameData {
@@ -1243,6 +1245,13 @@ fn light_frame(
             None => gpu_scene = Some(Ok(scene)),
         }
     }
+    // The plateaus' texture reads the scene in this frame; the maps below
+    // are its hard shadow.
+    let plateaus = (settings.method == FinMethod::Plateaus).then(|| {
+        let scene = Scene::new(objects_of(state));
+        let light_space = in_frame.light_space(&scene, unread_bounds.iter().flatten().copied());
+        crate::plateau_frame::plateau_frame(&scene, &light_space)
+    });
     let receiver_bound = unread_bounds.into_iter().flatten();
     let mut data = match (extraction, gpu_scene) {
         (FinExtraction::Gpu, Some(Ok(scene))) => {
@@ -1298,6 +1307,7 @@ fn light_frame(
                 settings,
                 gpu: Some(scene),
                 coverage: None,
+                plateaus: None,
             }
         }
         (_, fallback) => {
@@ -1310,6 +1320,10 @@ fn light_frame(
             data
         }
     };
+    if let Some(p) = plateaus {
+        data.stats.silhouettes = p.sheets.len();
+        data.plateaus = Some(p);
+    }
     data.stats.map_resolution = data.region.resolution;
     data.stats.extraction = if data.gpu.is_some() { FinExtraction::Gpu } else { FinExtraction::Cpu };
     // What the last read-back said the GPU had to drop still holds until a
@@ -1373,6 +1387,7 @@ fn coverage_data(
         settings,
         gpu: None,
         coverage: Some(coverage),
+        plateaus: None,
     }
 }
 
@@ -1560,6 +1575,7 @@ fn cpu_frame(
         settings,
         gpu: None,
         coverage: None,
+        plateaus: None,
     }
 }
 

@@ -190,6 +190,7 @@ mod extract;
 mod gltf;
 mod gpu_scene;
 mod light;
+mod plateau_frame;
 mod pose;
 mod receivers;
 mod render;

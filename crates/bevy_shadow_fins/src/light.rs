@@ -135,15 +135,25 @@ pub enum FinMethod {
     /// and contact shadows lift (see `BENCHMARKS.md`). Mipmaps only on the GPU
     /// (f32 summed-area tables lose the small differences they subtract).
     Convolution,
+    /// Plateaus (Haines 2001, `003_…`; the core's
+    /// `shadow_fins::peers::plateaus`), the outer-only ancestor of fins: on
+    /// one receiver plane (the largest flat receiver facing the light), the
+    /// hard drop shadow widened outwards by a cone at every silhouette
+    /// vertex and a sheet along every silhouette edge, darkest wins. Every
+    /// receiver off that plane gets the hard shadow; the umbra never
+    /// shrinks (it over-darkens where the light would wrap round, see
+    /// `BENCHMARKS.md`). The silhouettes are found on the CPU when
+    /// something moves.
+    Plateaus,
 }
 
 impl From<FinMethod> for Method {
-    /// The core's fin method. `Coverage` and `Convolution` have no fins: they
-    /// map to the hard shadow map (the one convolution filters, and what the
-    /// fin-map views of the editor show for both).
+    /// The core's fin method. `Coverage`, `Convolution` and `Plateaus` have
+    /// no fins: they map to the hard shadow map (the one convolution filters
+    /// and plateaus widen, and what the fin-map views of the editor show).
     fn from(m: FinMethod) -> Self {
         match m {
-            FinMethod::Hard | FinMethod::Coverage | FinMethod::Convolution => Method::Hard,
+            FinMethod::Hard | FinMethod::Coverage | FinMethod::Convolution | FinMethod::Plateaus => Method::Hard,
             FinMethod::OuterFins => Method::OuterFins,
             FinMethod::SingleLayer => Method::SingleLayer,
             FinMethod::MultiLayer => Method::MultiLayer,

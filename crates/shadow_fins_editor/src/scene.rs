@@ -56,13 +56,14 @@ impl Default for EditorMethod {
 }
 
 impl EditorMethod {
-    pub const ALL: [EditorMethod; 7] = [
+    pub const ALL: [EditorMethod; 8] = [
         EditorMethod::Fins(FinMethod::Hard),
         EditorMethod::Fins(FinMethod::OuterFins),
         EditorMethod::Fins(FinMethod::SingleLayer),
         EditorMethod::Fins(FinMethod::MultiLayer),
         EditorMethod::Fins(FinMethod::Coverage),
         EditorMethod::Fins(FinMethod::Convolution),
+        EditorMethod::Fins(FinMethod::Plateaus),
         EditorMethod::BevyPcss,
     ];
 
@@ -82,6 +83,7 @@ impl EditorMethod {
             Some(FinMethod::MultiLayer) => "multi-layer fins",
             Some(FinMethod::Coverage) => "coverage (exact, fused)",
             Some(FinMethod::Convolution) => "convolution shadow maps",
+            Some(FinMethod::Plateaus) => "plateaus (one receiver plane)",
             None => "Bevy PCSS",
         }
     }

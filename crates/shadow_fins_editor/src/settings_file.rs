@@ -19,7 +19,7 @@ pub struct EditorSettings {
     pub intensity: f32,
     pub color: [f32; 3],
     /// `hard`, `outer-fins`, `single-layer`, `multi-layer`, `coverage`,
-    /// `convolution` or `bevy-pcss`.
+    /// `convolution`, `plateaus` or `bevy-pcss`.
     pub method: String,
     pub layers: u32,
     pub sub_layers: u32,
@@ -94,6 +94,7 @@ fn method_name(m: EditorMethod) -> &'static str {
         EditorMethod::Fins(FinMethod::MultiLayer) => "multi-layer",
         EditorMethod::Fins(FinMethod::Coverage) => "coverage",
         EditorMethod::Fins(FinMethod::Convolution) => "convolution",
+        EditorMethod::Fins(FinMethod::Plateaus) => "plateaus",
         EditorMethod::BevyPcss => "bevy-pcss",
     }
 }

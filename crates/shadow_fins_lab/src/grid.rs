@@ -24,13 +24,16 @@ pub enum Technique {
     /// The plugin's convolution shadow maps on the GPU
     /// (`FinMethod::Convolution`: order 4, mipmaps, on its hard shadow map).
     Convolution,
+    /// The plugin's plateaus on the GPU (`FinMethod::Plateaus`: the texture
+    /// on the receiver plane beside its hard shadow map).
+    Plateaus,
     /// Another paper's method, on the CPU with the core crate
     /// (`shadow_fins::peers`), at the pixels the GPU shaded.
     Peer(PeerMethod),
 }
 
 impl Technique {
-    pub const ALL: [Technique; 15] = [
+    pub const ALL: [Technique; 16] = [
         Technique::Fins(Method::MultiLayer),
         Technique::Fins(Method::SingleLayer),
         Technique::Fins(Method::OuterFins),
@@ -40,6 +43,7 @@ impl Technique {
         Technique::CpuOracle,
         Technique::Coverage,
         Technique::Convolution,
+        Technique::Plateaus,
         Technique::Peer(PeerMethod::SingleSample),
         Technique::Peer(PeerMethod::Plateaus),
         Technique::Peer(PeerMethod::PenumbraWedges),
@@ -60,6 +64,7 @@ impl Technique {
             Technique::CpuOracle => "cpu-oracle",
             Technique::Coverage => "coverage",
             Technique::Convolution => "gpu-convolution",
+            Technique::Plateaus => "gpu-plateaus",
             Technique::Peer(p) => p.name(),
         }
     }

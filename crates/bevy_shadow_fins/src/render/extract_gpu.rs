@@ -301,8 +301,8 @@ pub(super) fn prepare(
     let storage = BufferUsages::STORAGE | BufferUsages::COPY_DST;
     let [vertices, faces, edges] = scene.totals;
     let method = match s.method {
-        // Convolution filters the hard shadow map.
-        FinMethod::Hard | FinMethod::Convolution => 0,
+        // Convolution filters the hard shadow map; plateaus widen it.
+        FinMethod::Hard | FinMethod::Convolution | FinMethod::Plateaus => 0,
         FinMethod::OuterFins => 1,
         FinMethod::SingleLayer => 2,
         FinMethod::MultiLayer => 3,

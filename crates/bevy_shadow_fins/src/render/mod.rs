@@ -42,6 +42,7 @@ mod convolution;
 mod coverage;
 mod extract_gpu;
 mod forward;
+mod plateaus;
 
 pub use forward::FinForwardShading;
 pub(crate) use forward::PbrFragment;
@@ -61,6 +62,7 @@ pub(crate) fn build(app: &mut App) {
     forward::build(app);
     coverage::build(app);
     convolution::build(app);
+    plateaus::build(app);
     extract_gpu::build(app);
 }
 
@@ -102,6 +104,7 @@ pub(crate) fn finish(app: &mut App) {
         .add_systems(Core3d, fin_visibility.after(Core3dSystems::Prepass).before(Core3dSystems::MainPass));
     coverage::finish(app);
     convolution::finish(app);
+    plateaus::finish(app);
     composite::finish(app);
     forward::finish(app);
     bevy_lights::finish(app);
@@ -126,6 +129,8 @@ impl bevy::render::sync_component::SyncComponent for FinShadowView {
         coverage::CoverageViewBuffers,
         convolution::ConvolutionViewBindGroup,
         convolution::ConvolutionViewBuffer,
+        plateaus::PlateauViewBindGroup,
+        plateaus::PlateauViewBuffer,
         composite::FinCompositePipeline,
         composite::FinCompositeBindGroup,
         bevy::pbr::deferred::SkipDeferredLighting,
@@ -557,8 +562,8 @@ pub struct FinViewTexture {
 }
 
 /// Per camera and frame slot: the fin visibility pass's bind group (`None`
-/// for lights on the coverage or convolution method, or that cannot run
-/// this frame).
+/// for lights on the coverage, convolution or plateaus method, or that
+/// cannot run this frame).
 #[derive(Component)]
 pub struct FinViewBindGroup(Vec<Option<BindGroup>>);
 
@@ -736,8 +741,9 @@ fn prepare_view_bind_groups(
             .iter()
             .enumerate()
             .map(|(slot, frame)| {
-                // The convolution method reads the maps through its own pass.
-                if frame.data.settings.method == crate::light::FinMethod::Convolution {
+                // Convolution and plateaus read the maps through their own passes.
+                use crate::light::FinMethod;
+                if matches!(frame.data.settings.method, FinMethod::Convolution | FinMethod::Plateaus) {
                     return None;
                 }
                 let gpu = lights.0.get(&frame.key())?;
@@ -848,7 +854,7 @@ mod shader_layout_tests {
         let top = manifest.join("../../shaders").canonicalize().expect("the top-level shaders/ folder");
         assert_eq!(linked, top);
         let sources: String =
-            ["mod.rs", "composite.rs", "convolution.rs", "coverage.rs", "extract_gpu.rs", "forward.rs"]
+            ["mod.rs", "composite.rs", "convolution.rs", "coverage.rs", "extract_gpu.rs", "forward.rs", "plateaus.rs"]
                 .iter()
                 .map(|f| std::fs::read_to_string(manifest.join("src/render").join(f)).expect("render source"))
                 .collect();

@@ -29,7 +29,7 @@ use crate::{
 };
 
 pub use convolution::{ConvolutionModel, ConvolutionSettings, Prefilter};
-pub use plateaus::{PlateauModel, ReceiverPlane};
+pub use plateaus::{PlateauModel, PlateauTexture, ReceiverPlane, SheetRecord};
 pub use single_sample::SingleSampleModel;
 pub use wedges::{WedgeBlending, WedgeModel};
 

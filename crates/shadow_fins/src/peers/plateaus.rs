@@ -153,17 +153,39 @@ impl Footprint {
 
 /// One scene under one light, as a plateau texture on its receiver plane.
 pub struct PlateauModel {
-    pub plane: ReceiverPlane,
+    /// The cones and sheets: the texture beside the drop shadow.
+    pub texture: PlateauTexture,
     /// Casters off the plane, for the drop shadow.
     drop: Bvh,
     /// Every caster, for the hard shadow of receivers off the plane.
     hard: Bvh,
+    projection: Projection,
+    reference_depth: f32,
+}
+
+/// The soft part of the plateau texture on one plane: every silhouette
+/// edge's sheet between its two cones, binned by footprint, evaluated where
+/// it is read (the renderer's texture, drawn at the receivers' own points).
+/// The drop shadow is the caller's: a ray cast ([`PlateauModel`]) or a shadow
+/// map (the plugin's `FinMethod::Plateaus`).
+pub struct PlateauTexture {
+    pub plane: ReceiverPlane,
     sheets: Vec<Sheet>,
     grid: CellGrid,
     axes: (Vec3, Vec3),
-    projection: Projection,
     extent: f32,
-    reference_depth: f32,
+}
+
+/// One sheet as the plugin's GPU reads it (`Sheet` in `plateaus.wgsl`):
+/// `ends` the two cones' centres (plane coordinates), `radii` their radii
+/// and the cross-section (`z` 0 circle, 1 parallelogram), `to_axes` the
+/// parallelogram's matrix by columns.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SheetRecord {
+    pub ends: [f32; 4],
+    pub radii: [f32; 4],
+    pub to_axes: [f32; 4],
 }
 
 impl PlateauModel {
@@ -173,18 +195,114 @@ impl PlateauModel {
 
     /// The texture on a given plane.
     pub fn on_plane(scene: &Scene, light_space: &LightSpaceScene, plane: ReceiverPlane) -> Self {
-        // Plane coordinates from the foot of the light's axis on it (the
-        // frame origin's nearest point), where the frame keeps its digits: from
-        // a corner of a 60-wide ground they were f32 at 30, 2e-6 apart.
-        let plane = ReceiverPlane { point: plane.normal * plane.point.dot(plane.normal), ..plane };
-        let extent = light_space.extent;
-        let on_plane_tolerance = 1e-5 * extent.max(1e-30);
+        let texture = PlateauTexture::on_plane(scene, light_space, plane);
+        let on_plane_tolerance = 1e-5 * light_space.extent.max(1e-30);
+        let plane = texture.plane;
         let off_plane: Vec<[Vec3; 3]> = light_space
             .casters
             .iter()
             .filter(|t| t.iter().any(|p| plane.height(*p).abs() > on_plane_tolerance))
             .copied()
             .collect();
+        Self {
+            texture,
+            drop: Bvh::new(&off_plane),
+            hard: Bvh::new(&light_space.casters),
+            projection: light_space.frame.projection,
+            reference_depth: light_space.reference_depth,
+        }
+    }
+
+    /// Number of silhouette edges drawn as sheets.
+    pub fn sheet_count(&self) -> usize {
+        self.texture.sheets.len()
+    }
+
+    /// Visibility of the light from a receiver (light frame), in `[0, 1]`:
+    /// the texture on the plane, the hard shadow elsewhere.
+    pub fn visibility(&self, receiver: Receiver) -> f32 {
+        let eps = surface_epsilon(receiver.position, self.texture.extent);
+        let p = receiver.position;
+        let on_plane = self.texture.holds(p);
+        let o = if on_plane { p + self.texture.plane.normal * eps } else { p + receiver.normal * eps };
+        if !o.is_finite() {
+            return 0.0;
+        }
+        let (dir, t_max) = match self.projection {
+            Projection::Perspective { .. } => {
+                if !(o.z > self.reference_depth * 1e-5) {
+                    return 0.0;
+                }
+                (-o, 1.0)
+            }
+            Projection::Orthographic { .. } => (Vec3::NEG_Z, self.texture.extent * 4.0 + o.z.abs()),
+        };
+        let t_min = eps / dir.length().max(eps);
+        if !on_plane {
+            return if self.hard.any_hit(o, dir, t_min, t_max) { 0.0 } else { 1.0 };
+        }
+        if self.drop.any_hit(o, dir, t_min, t_max) {
+            return 0.0;
+        }
+        self.texture.value(p)
+    }
+}
+
+impl PlateauTexture {
+    /// Whether `p` (light frame) lies on the texture's plane: within ten
+    /// surface epsilons of it.
+    pub fn holds(&self, p: Vec3) -> bool {
+        self.plane.height(p).abs() <= 10.0 * surface_epsilon(p, self.extent)
+    }
+
+    /// Plane coordinates of `p`: from the plane's point along its two axes.
+    pub fn coordinates(&self, p: Vec3) -> Vec2 {
+        Vec2::new((p - self.plane.point).dot(self.axes.0), (p - self.plane.point).dot(self.axes.1))
+    }
+
+    /// The texture's value at `p` on the plane outside the drop shadow: the
+    /// darkest cone or sheet there, through Haines' falloff (1 where none reaches).
+    pub fn value(&self, p: Vec3) -> f32 {
+        let q = self.coordinates(p);
+        let tau = self.grid.cell(q).iter().fold(1.0f32, |t, &i| t.min(sheet_tau(&self.sheets[i as usize], q)));
+        Falloff::Bernstein.apply(tau)
+    }
+
+    /// The plane's two in-plane axes (light frame).
+    pub fn axes(&self) -> (Vec3, Vec3) {
+        self.axes
+    }
+
+    /// The sheets for a GPU copy, in the grid's item order.
+    pub fn sheet_records(&self) -> Vec<SheetRecord> {
+        self.sheets
+            .iter()
+            .map(|s| {
+                let (kind, m) = match s.shape {
+                    Footprint::Circle => (0.0, Mat2::IDENTITY),
+                    Footprint::Parallelogram { to_axes, .. } => (1.0, to_axes),
+                };
+                SheetRecord {
+                    ends: [s.p1.x, s.p1.y, s.p2.x, s.p2.y],
+                    radii: [s.r1, s.r2, kind, 0.0],
+                    to_axes: [m.x_axis.x, m.x_axis.y, m.y_axis.x, m.y_axis.y],
+                }
+            })
+            .collect()
+    }
+
+    /// The sheets' footprint grid (for a GPU copy).
+    pub fn grid(&self) -> &CellGrid {
+        &self.grid
+    }
+
+    /// The cones and sheets of `scene`'s silhouette edges on `plane`.
+    pub fn on_plane(scene: &Scene, light_space: &LightSpaceScene, plane: ReceiverPlane) -> Self {
+        // Plane coordinates from the foot of the light's axis on it (the
+        // frame origin's nearest point), where the frame keeps its digits: from
+        // a corner of a 60-wide ground they were f32 at 30, 2e-6 apart.
+        let plane = ReceiverPlane { point: plane.normal * plane.point.dot(plane.normal), ..plane };
+        let extent = light_space.extent;
         let projection = light_space.frame.projection;
         let spread = match projection {
             Projection::Perspective { radius } => 2.0 * radius,
@@ -271,53 +389,7 @@ impl PlateauModel {
             side = (side / 2).max(1);
         }
         let grid = CellGrid::build(lo, size, [side, side], &bounds);
-        Self {
-            plane,
-            drop: Bvh::new(&off_plane),
-            hard: Bvh::new(&light_space.casters),
-            sheets,
-            grid,
-            axes,
-            projection,
-            extent,
-            reference_depth: light_space.reference_depth,
-        }
-    }
-
-    /// Number of silhouette edges drawn as sheets.
-    pub fn sheet_count(&self) -> usize {
-        self.sheets.len()
-    }
-
-    /// Visibility of the light from a receiver (light frame), in `[0, 1]`:
-    /// the texture on the plane, the hard shadow elsewhere.
-    pub fn visibility(&self, receiver: Receiver) -> f32 {
-        let eps = surface_epsilon(receiver.position, self.extent);
-        let p = receiver.position;
-        let on_plane = self.plane.height(p).abs() <= 10.0 * eps;
-        let o = if on_plane { p + self.plane.normal * eps } else { p + receiver.normal * eps };
-        if !o.is_finite() {
-            return 0.0;
-        }
-        let (dir, t_max) = match self.projection {
-            Projection::Perspective { .. } => {
-                if !(o.z > self.reference_depth * 1e-5) {
-                    return 0.0;
-                }
-                (-o, 1.0)
-            }
-            Projection::Orthographic { .. } => (Vec3::NEG_Z, self.extent * 4.0 + o.z.abs()),
-        };
-        let t_min = eps / dir.length().max(eps);
-        if !on_plane {
-            return if self.hard.any_hit(o, dir, t_min, t_max) { 0.0 } else { 1.0 };
-        }
-        if self.drop.any_hit(o, dir, t_min, t_max) {
-            return 0.0;
-        }
-        let q = Vec2::new((p - self.plane.point).dot(self.axes.0), (p - self.plane.point).dot(self.axes.1));
-        let tau = self.grid.cell(q).iter().fold(1.0f32, |t, &i| t.min(sheet_tau(&self.sheets[i as usize], q)));
-        Falloff::Bernstein.apply(tau)
+        Self { plane, sheets, grid, axes, extent }
     }
 }
 

@@ -142,8 +142,8 @@ fn the_plateau_plane_is_the_largest_flat_receiver_facing_the_light() {
     let model = PlateauModel::new(&s.scene, &ls);
     // The ground (y = 0) in the light frame: its normal is world +Y.
     let up = ls.frame.dir_to_frame(Vec3::Y);
-    assert!(model.plane.normal.dot(up) > 0.999, "plane normal {:?}", model.plane.normal);
-    assert!(ls.frame.to_world(model.plane.point).y.abs() < 1e-4);
+    assert!(model.texture.plane.normal.dot(up) > 0.999, "plane normal {:?}", model.texture.plane.normal);
+    assert!(ls.frame.to_world(model.texture.plane.point).y.abs() < 1e-4);
     assert!(model.sheet_count() >= 4, "the box's silhouette makes sheets");
 }
 
@@ -345,13 +345,13 @@ fn plateaus_at_radius_zero_are_exactly_the_hard_shadow_on_a_tilted_plane() {
     for light in [s.light.with_zero_size(), rect] {
         let (ls, receivers) = view_receivers(&s.scene, light, &s.camera, 64, 48);
         let model = PlateauModel::new(&s.scene, &ls);
-        assert!(model.plane.normal.dot(ls.frame.dir_to_frame(tilted)) > 0.9999, "{:?}", model.plane);
+        assert!(model.texture.plane.normal.dot(ls.frame.dir_to_frame(tilted)) > 0.9999, "{:?}", model.texture.plane);
         let bvh = Bvh::new(&ls.casters);
         let on_plane: Vec<Receiver> = receivers
             .into_iter()
             .filter(|r| {
                 let eps = surface_epsilon(r.position, ls.extent);
-                ((r.position - model.plane.point).dot(model.plane.normal)).abs() <= eps
+                ((r.position - model.texture.plane.point).dot(model.texture.plane.normal)).abs() <= eps
             })
             .collect();
         let shadowed = on_plane.iter().filter(|r| hard(&ls, &bvh, **r) == 0.0).count();

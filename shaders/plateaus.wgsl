@@ -1,0 +1,172 @@
+// The visibility buffer of one camera under plateaus (Haines 2001): the
+// hard shadow from the light's shadow map everywhere, and on the receiver
+// plane, outside it, the darkest cone or sheet of the silhouette edges
+// through Haines' falloff — `PlateauTexture::value` beside the raster
+// oracle's hard shadow, evaluated at each pixel instead of drawn into a
+// texture (the same values at the pixels' own points, no texel grid).
+#import bevy_render::view::View
+#import bevy_shadow_fins::fin_types::{FinParams, CHANNELS, orthographic, in_face}
+#import bevy_shadow_fins::fin_view::{FinView, dir_to_frame, in_viewport, pixel_position}
+
+// `PlateauUniform` in `plateau_frame.rs`.
+struct PlateauParams {
+    point: vec4<f32>,
+    normal: vec4<f32>,
+    axis_u: vec4<f32>,
+    axis_v: vec4<f32>,
+    // (grid origin x, y, cells per unit x, y)
+    grid: vec4<f32>,
+    // (cells in x, cells in y, sheets, 0)
+    dims: vec4<u32>,
+}
+
+// Two cones (centres and radii on the plane) and the sheet between them;
+// radii.z: 0 circles, 1 parallelograms of matrix `to_axes` (columns).
+struct Sheet {
+    ends: vec4<f32>,
+    radii: vec4<f32>,
+    to_axes: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> params: FinParams;
+@group(0) @binding(1) var<storage, read> maps: array<u32>;
+@group(0) @binding(2) var<uniform> plateau: PlateauParams;
+@group(0) @binding(3) var<storage, read> sheets: array<Sheet>;
+@group(0) @binding(4) var<storage, read> cell_starts: array<u32>;
+@group(0) @binding(5) var<storage, read> cell_items: array<u32>;
+@group(0) @binding(6) var depth_prepass: texture_depth_2d;
+@group(0) @binding(7) var normal_prepass: texture_2d<f32>;
+@group(0) @binding(8) var visibility: texture_storage_2d<r32float, write>;
+@group(0) @binding(9) var<uniform> view: View;
+@group(0) @binding(10) var<uniform> fin_view: FinView;
+
+// Sheets one cell may list before the rest are skipped: llvmpipe stops an
+// invocation after 65535 loop iterations (the core's grid keeps cells far
+// shorter: `MAX_ENTRIES` in all).
+const MAX_CELL_SHEETS: u32 = 16384u;
+
+// τ at which q enters the hull of the sheet's cross-sections of radii
+// τ·r₁, τ·r₂ (`sheet_tau`): an end, the one stationary point (circles), or a
+// kink of the parallelogram norm.
+fn sheet_tau(s: Sheet, q: vec2<f32>) -> f32 {
+    let p1 = s.ends.xy;
+    let d = q - p1;
+    let e = s.ends.zw - p1;
+    let r1 = s.radii.x;
+    let dr = s.radii.y - s.radii.x;
+    var best = 3.0e38;
+    if (s.radii.z > 0.5) {
+        let m = mat2x2<f32>(s.to_axes.xy, s.to_axes.zw);
+        let c0 = m * d;
+        let ce = m * e;
+        var us = array<f32, 6>(0.0, 1.0, -1.0, -1.0, -1.0, -1.0);
+        var nums = vec4<f32>(c0.x, c0.y, c0.x - c0.y, c0.x + c0.y);
+        var dens = vec4<f32>(ce.x, ce.y, ce.x - ce.y, ce.x + ce.y);
+        for (var i = 0u; i < 4u; i++) {
+            if (dens[i] != 0.0) {
+                us[2u + i] = nums[i] / dens[i];
+            }
+        }
+        for (var i = 0u; i < 6u; i++) {
+            let u = us[i];
+            let r = r1 + u * dr;
+            if (u >= 0.0 && u <= 1.0 && r > 0.0) {
+                let c = c0 - ce * u;
+                best = min(best, max(abs(c.x), abs(c.y)) / r);
+            }
+        }
+        return best;
+    }
+    var us = array<f32, 3>(0.0, 1.0, -1.0);
+    let denom = r1 * dot(e, e) + dr * dot(d, e);
+    if (denom != 0.0) {
+        us[2] = (r1 * dot(d, e) + dr * dot(d, d)) / denom;
+    }
+    for (var i = 0u; i < 3u; i++) {
+        let u = us[i];
+        let r = r1 + u * dr;
+        if (u >= 0.0 && u <= 1.0 && r > 0.0) {
+            best = min(best, length(d - e * u) / r);
+        }
+    }
+    return best;
+}
+
+// The light's hard shadow at a receiver: its maps' slab depths looked up
+// after the one-texel lift, as `RasterMaps::visibility` of the hard method.
+fn hard_blocked(position: vec3<f32>, normal: vec3<f32>) -> bool {
+    let near = params.light.y;
+    let ortho = orthographic(params);
+    let texel_world = select(params.map.z * max(position.z, near), params.map.z, ortho);
+    let eps = max(params.light.w * length(position), params.light.z);
+    let p = position + normal * (eps + texel_world);
+    if (!(p.z > near)) {
+        return true;
+    }
+    let q = select(p.xy / p.z, p.xy, ortho);
+    let t = (q - params.map.xy) / params.map.z;
+    let res = f32(params.counts.x);
+    if (!(t.x >= 0.0 && t.y >= 0.0 && t.x < res && t.y < res)) {
+        return false;
+    }
+    let limit = p.z * (1.0 - 1e-6);
+    let r = params.counts.x;
+    for (var layer = 0u; layer < params.counts.y; layer++) {
+        let slab = bitcast<f32>(maps[((layer * r + u32(t.y)) * r + u32(t.x)) * CHANNELS]);
+        if (slab < limit) {
+            return true;
+        }
+    }
+    return false;
+}
+
+// The texture on the plane at p (light frame): Haines' falloff 3τ² − 2τ³
+// of the least τ over the cell's sheets.
+fn texture_value(p: vec3<f32>) -> f32 {
+    let rel = p - plateau.point.xyz;
+    let q = vec2<f32>(dot(rel, plateau.axis_u.xyz), dot(rel, plateau.axis_v.xyz));
+    let c = (q - plateau.grid.xy) * plateau.grid.zw;
+    if (!(c.x >= 0.0 && c.y >= 0.0 && u32(c.x) < plateau.dims.x && u32(c.y) < plateau.dims.y)) {
+        return 1.0;
+    }
+    let cell = u32(c.y) * plateau.dims.x + u32(c.x);
+    let start = cell_starts[cell];
+    let end = min(cell_starts[cell + 1u], start + MAX_CELL_SHEETS);
+    var tau = 1.0;
+    for (var i = start; i < end; i++) {
+        tau = min(tau, sheet_tau(sheets[cell_items[i]], q));
+    }
+    let x = clamp(tau, 0.0, 1.0);
+    return x * x * (3.0 - 2.0 * x);
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn plateaus_pass(@builtin(global_invocation_id) id: vec3<u32>) {
+    let size = textureDimensions(visibility);
+    if (id.x >= size.x || id.y >= size.y) {
+        return;
+    }
+    let pixel = vec2<i32>(id.xy);
+    let depth = textureLoad(depth_prepass, pixel, 0);
+    if (depth <= 0.0 || !in_viewport(view, id.xy)) {
+        textureStore(visibility, pixel, vec4<f32>(1.0));
+        return;
+    }
+    let position = pixel_position(view, fin_view, id.xy, depth);
+    // A point light's cube face shades the receivers in its frustum only.
+    if (params.flags.w == 2u && !in_face(position)) {
+        return;
+    }
+    let normal = dir_to_frame(params, normalize(textureLoad(normal_prepass, pixel, 0).xyz * 2.0 - 1.0));
+    var v = 1.0;
+    if (params.counts.y > 0u && hard_blocked(position, normal)) {
+        v = 0.0;
+    } else {
+        // On the plane: within ten surface epsilons of it (`PlateauTexture::holds`).
+        let eps = max(params.light.w * length(position), params.light.z);
+        if (abs(dot(position - plateau.point.xyz, plateau.normal.xyz)) <= 10.0 * eps) {
+            v = texture_value(position);
+        }
+    }
+    textureStore(visibility, pixel, vec4<f32>(v, 0.0, 0.0, 1.0));
+}
