@@ -136,6 +136,28 @@ fn the_editors_settings_change_what_the_plugin_renders() {
     assert!(changed > 500, "a 1-unit light and a hard shadow map rendered nearly the same ({changed} pixels differ)");
 }
 
+/// The method switch reaches the plugin's convolution and plateaus methods:
+/// each renders the 1-unit light's shadow differently from the hard shadow
+/// map it starts from (a settings file, as the radio buttons set it).
+#[test]
+fn the_editors_convolution_and_plateaus_methods_soften_the_hard_shadow() {
+    let dir = out_dir();
+    let write = |method: &str| {
+        let mut s = EditorSettings::load(&PathBuf::from("tests/data/editor-settings.ron")).expect("settings fixture");
+        (s.radius, s.method) = (1.0, method.into());
+        let path = dir.join(format!("method-{method}.ron"));
+        s.save(&path).unwrap();
+        path
+    };
+    let hard = screenshot("method-hard", &["--settings", write("hard").to_str().unwrap()], 12);
+    for method in ["convolution", "plateaus"] {
+        let shot = screenshot(&format!("method-{method}"), &["--settings", write(method).to_str().unwrap()], 12);
+        let changed = changed_pixels(&hard, &shot);
+        println!("{changed} sampled viewport pixels differ between hard and {method}");
+        assert!(changed > 300, "{method} rendered nearly the hard shadow ({changed} pixels differ)");
+    }
+}
+
 #[test]
 fn the_editors_rect_and_point_lights_cast_soft_shadows_that_their_size_changes() {
     // Bevy's RectLight and PointLight chosen in the editor (`kind: "rect"`,
