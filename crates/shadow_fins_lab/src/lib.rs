@@ -6,6 +6,7 @@
 
 pub mod assets;
 pub mod compare;
+pub mod environment;
 pub mod eval;
 pub mod grid;
 pub mod picture;

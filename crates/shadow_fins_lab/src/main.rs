@@ -105,6 +105,28 @@ enum Command {
         #[arg(long)]
         point: bool,
     },
+    /// Environment lighting (Annen et al. 2008 §4.2): the scene under a sky
+    /// cube map fitted with area lights at each threshold, each shadowed by
+    /// convolution shadow maps, a hard ray or exactly, against every texel
+    /// of the map as a light (markdown table, and an image strip at the
+    /// middle threshold).
+    Environment {
+        #[arg(long, default_value = "kitbash")]
+        scene: String,
+        /// Fit thresholds `t` (larger: more, smaller lights).
+        #[arg(long, value_delimiter = ',', default_value = "0.03,0.06,0.12")]
+        thresholds: Vec<f32>,
+        /// Texels per cube face side (the truth casts 6 × cube² rays a pixel).
+        #[arg(long, default_value_t = 24)]
+        cube: usize,
+        #[arg(long, default_value_t = 80)]
+        width: u32,
+        #[arg(long, default_value_t = 60)]
+        height: u32,
+        /// Output PNG (the strip).
+        #[arg(long, default_value = "out/environment.png")]
+        out: PathBuf,
+    },
     /// Write a built-in scene as a self-contained glTF file.
     ExportGltf {
         #[arg(long, default_value = "box-over-plane")]
@@ -176,6 +198,24 @@ fn run(command: Command) -> Result<(), LabError> {
             println!("{}", title(&loaded.name, &loaded.light, &fins));
             println!("{}", markdown_table(&c));
             strip(&c).save_png(&out)?;
+            eprintln!("wrote {}", out.display());
+        }
+        Command::Environment { scene, thresholds, cube, width, height, out } => {
+            let id = SceneId::parse(&scene).ok_or_else(|| LabError::Usage(format!("unknown scene '{scene}'")))?;
+            let thresholds: Vec<f32> = thresholds.into_iter().filter(|t| t.is_finite() && *t > 0.0).collect();
+            if thresholds.is_empty() {
+                return Err(LabError::Usage("--thresholds needs at least one positive number".into()));
+            }
+            let m = shadow_fins_lab::environment::measure(
+                id,
+                width.clamp(8, 1024),
+                height.clamp(8, 1024),
+                cube.clamp(4, 128),
+                &thresholds,
+            );
+            println!("### {scene} under a sky ({}² texels a face)\n", cube.clamp(4, 128));
+            println!("{}", shadow_fins_lab::environment::markdown(&m));
+            m.strip.save_png(&out)?;
             eprintln!("wrote {}", out.display());
         }
         Command::Report { fins, scenes, width, height, images, rect_aspect, point } => {

@@ -139,6 +139,32 @@ fn image_writes_a_png_strip_that_is_not_blank() {
     assert!(dark > 100 && bright > 100, "dark {dark}, bright {bright}");
 }
 
+/// The environment experiment: every shadow kind at each threshold, the
+/// light count growing with `t`, convolution within the errors the fit
+/// allows, and bad thresholds a usage error.
+#[test]
+fn environment_fits_more_lights_at_a_higher_threshold_and_scores_each_shadow_kind() {
+    let png = temp("environment.png");
+    let args = ["environment", "--scene", "box-over-plane", "--cube", "12", "--width", "40", "--height", "30"];
+    let out = lab(&[&args[..], &["--thresholds", "0.03,0.12", "--out", png.to_str().unwrap()]].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let table = String::from_utf8(out.stdout).unwrap();
+    let rows: Vec<Vec<&str>> = table
+        .lines()
+        .filter(|l| l.starts_with("| 0."))
+        .map(|l| l.split('|').map(str::trim).filter(|c| !c.is_empty()).collect())
+        .collect();
+    assert_eq!(rows.len(), 2 * 4, "{table}");
+    let lights = |t: &str| rows.iter().find(|r| r[0] == t).map(|r| r[1].parse::<usize>().unwrap()).unwrap();
+    assert!(lights("0.12") > lights("0.03"), "{table}");
+    for r in &rows {
+        let mae: f32 = r[3].parse().unwrap();
+        assert!(mae.is_finite() && (0.0..0.2).contains(&mae), "{r:?}");
+    }
+    assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
+    let bad = lab(&[&args[..], &["--thresholds", "-1", "--out", png.to_str().unwrap()]].concat());
+    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("--thresholds"));
+}
 #[test]
 fn exported_gltf_round_trips_through_the_cli() {
     let gltf = temp("scene.gltf");

@@ -19,6 +19,7 @@
 //! ([`crate::light::LightFrame::face_plane_disk`]).
 
 pub mod convolution;
+pub mod environment;
 pub mod plateaus;
 pub mod single_sample;
 pub mod wedges;
