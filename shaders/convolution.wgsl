@@ -7,7 +7,8 @@
 #import bevy_shadow_fins::fin_types::{FinParams, orthographic, in_face, penumbra_half_width}
 #import bevy_shadow_fins::fin_view::{FinView, dir_to_frame, in_viewport, pixel_position}
 #import bevy_shadow_fins::convolution_types::{
-    ConvolutionParams, ConvolutionState, c_k, level_resolution, level_offset, empty_channel,
+    ConvolutionParams, ConvolutionState, c_k, level_resolution, level_offset, empty_channel, far_depth, near_depth,
+    normalised,
 }
 
 @group(0) @binding(0) var<uniform> params: FinParams;
@@ -52,18 +53,25 @@ fn empty_terms(s: ptr<function, Series>) -> vec2<f32> {
 }
 
 // One stored level's bilinear lookup between texel centres at level-0 texel
-// position `centre`; a tap off the level is an empty texel.
+// position `centre`; a tap off the level is an empty texel, or the border's
+// for a map that is a window onto casters going on past it (`OffMap`).
 fn level_terms(stored: u32, centre: vec2<f32>, s: ptr<function, Series>, empty: vec2<f32>) -> vec2<f32> {
     let r = i32(level_resolution(csm, stored));
     let offset = level_offset(csm, stored);
     let scale = f32(1u << (stored + csm.counts.z));
-    let q = clamp(centre / scale - 0.5, vec2<f32>(-1.0), vec2<f32>(f32(r)));
+    let border = csm.lookup.y > 0.5;
+    let lowest = select(vec2<f32>(-1.0), vec2<f32>(0.0), border);
+    let highest = select(vec2<f32>(f32(r)), vec2<f32>(f32(r - 1)), border);
+    let q = clamp(centre / scale - 0.5, lowest, highest);
     let i = vec2<i32>(floor(q));
     let f = q - floor(q);
     var out = vec2<f32>(0.0);
     for (var t = 0u; t < 4u; t++) {
         let o = vec2<i32>(i32(t & 1u), i32(t >> 1u));
-        let at = i + o;
+        var at = i + o;
+        if (border) {
+            at = clamp(at, vec2<i32>(0), vec2<i32>(r - 1));
+        }
         let w = select(1.0 - f.x, f.x, o.x == 1) * select(1.0 - f.y, f.y, o.y == 1);
         if (w == 0.0) {
             continue;
@@ -135,10 +143,10 @@ fn convolution_pass(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let q = select(p.xy / p.z, p.xy, ortho);
-    let near = state.near;
-    let far = params.map.w * (1.0 + 1e-4);
+    let far = far_depth(params.map.w);
+    let near = near_depth(state.near_bits, far);
     let span = csm.series.z;
-    let d = clamp((p.z - near) / (far - near), 0.0, 1.0) * span;
+    let d = normalised(p.z, near, far, span);
     var s: Series;
     let dd = d - csm.series.y;
     for (var k = 0u; k < csm.counts.x; k++) {

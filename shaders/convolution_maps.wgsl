@@ -5,14 +5,15 @@
 // `ConvolutionModel::on_depth_map` with `Prefilter::Mipmap` does.
 #import bevy_shadow_fins::fin_types::{FinParams, CHANNELS}
 #import bevy_shadow_fins::convolution_types::{
-    ConvolutionParams, ConvolutionState, c_k, level_resolution, level_offset,
+    ConvolutionParams, c_k, level_resolution, level_offset, far_depth, near_depth, normalised,
 }
 
 @group(0) @binding(0) var<uniform> params: FinParams;
 @group(0) @binding(1) var<storage, read> maps: array<u32>;
 @group(0) @binding(2) var<storage, read_write> basis: array<f32>;
 @group(0) @binding(3) var<uniform> csm: ConvolutionParams;
-@group(0) @binding(4) var<storage, read_write> state: ConvolutionState;
+// `ConvolutionState.near_bits`, found by atomicMin.
+@group(0) @binding(4) var<storage, read_write> near_bits: atomic<u32>;
 // The stored level a downsampling dispatch writes (a dynamic offset per level).
 @group(0) @binding(5) var<uniform> level: vec4<u32>;
 
@@ -29,18 +30,20 @@ fn nearest_depth(x: u32, y: u32) -> f32 {
     return z;
 }
 
-fn far_depth() -> f32 {
-    return params.map.w * (1.0 + 1e-4);
+@compute @workgroup_size(1, 1, 1)
+fn reset_near() {
+    atomicStore(&near_bits, 0x7f800000u);
 }
 
-// One workgroup: the least finite depth of the map, the normalisation's
-// near; half the far depth when the map is empty (the core's rule).
+// The least depth of the map, one texel an invocation, a workgroup's least
+// into the buffer by atomicMin (no invocation loops over the whole map).
 @compute @workgroup_size(256, 1, 1)
-fn find_near(@builtin(local_invocation_index) lane: u32) {
+fn find_near(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let res = params.counts.x;
+    let t = (wg.x + wg.y * 65535u) * REDUCE + lane;
     var z = bitcast<f32>(0x7f800000u);
-    for (var t = lane; t < res * res; t += REDUCE) {
-        z = min(z, nearest_depth(t % res, t / res));
+    if (t < res * res) {
+        z = nearest_depth(t % res, t / res);
     }
     partial[lane] = z;
     workgroupBarrier();
@@ -50,10 +53,9 @@ fn find_near(@builtin(local_invocation_index) lane: u32) {
         }
         workgroupBarrier();
     }
-    if (lane == 0u) {
-        let far = far_depth();
-        let near = partial[0];
-        state.near = select(far * 0.5, near, near < far);
+    // Depths are ≥ 0 (an orthographic one clamps at 0): their bits order as they do.
+    if (lane == 0u && partial[0] >= 0.0 && partial[0] < 3.0e38) {
+        atomicMin(&near_bits, bitcast<u32>(max(partial[0], 0.0)));
     }
 }
 
@@ -93,8 +95,8 @@ fn first_level(@builtin(global_invocation_id) id: vec3<u32>) {
     let x1 = min(x0 + block, res);
     let y1 = min(y0 + block, res);
     let w = 1.0 / f32((x1 - x0) * (y1 - y0));
-    let near = state.near;
-    let far = far_depth();
+    let far = far_depth(params.map.w);
+    let near = near_depth(atomicLoad(&near_bits), far);
     let span = csm.series.z;
     for (var y = y0; y < y1; y++) {
         for (var x = x0; x < x1; x++) {
@@ -102,7 +104,7 @@ fn first_level(@builtin(global_invocation_id) id: vec3<u32>) {
             // Empty texels hold the far plane: nothing in front of any receiver.
             var z = span;
             if (d < 3.0e38) {
-                z = clamp((d - near) / (far - near), 0.0, 1.0) * span;
+                z = normalised(d, near, far, span);
             }
             add_basis(at, z, w);
         }

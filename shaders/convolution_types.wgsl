@@ -11,7 +11,9 @@ struct ConvolutionParams {
     series: vec4<f32>,
     // (sharpening B, kernel half side x, kernel half side y, 1 rectangle light / 0 disk)
     kernel: vec4<f32>,
-    // (mip bias: levels finer than the footprint's side, unused, unused, unused)
+    // (mip bias: levels finer than the footprint's side, 1 a tap off the map
+    // reads its border (a window onto casters going on) / 0 the empty plane,
+    // unused, unused)
     lookup: vec4<f32>,
     // Per stored level: (resolution, offset in floats) in xy and zw of each
     // vec4 (levels 2i and 2i + 1).
@@ -20,9 +22,27 @@ struct ConvolutionParams {
     empty: array<vec4<f32>, 17>,
 }
 
-// What the basis passes found: the nearest depth in the map (normalisation's near).
+// What the basis passes found: the nearest depth in the map (its f32 bits;
+// depths are ≥ 0, so their bits order as the depths), `+∞` for an empty map.
 struct ConvolutionState {
-    near: f32,
+    near_bits: u32,
+}
+
+// The far end of the depth normalisation, just past the deepest receiver
+// `L0` (`ConvolutionModel`'s `far`).
+fn far_depth(reference_depth: f32) -> f32 {
+    return reference_depth * (1.0 + 1e-4);
+}
+
+// The near end: the map's nearest depth, or half the far end for an empty map.
+fn near_depth(near_bits: u32, far: f32) -> f32 {
+    let near = bitcast<f32>(near_bits);
+    return select(far * 0.5, near, near < far);
+}
+
+// A depth normalised into [0, span] (an empty range reads 1, never NaN).
+fn normalised(z: f32, near: f32, far: f32, span: f32) -> f32 {
+    return clamp((z - near) / max(far - near, 1e-30), 0.0, 1.0) * span;
 }
 
 const PI: f32 = 3.14159265358979;

@@ -1,7 +1,8 @@
 // A camera's pixel as a receiver in the light frame: shared by the fin
-// visibility pass (`visibility.wgsl`) and the convolution pass
-// (`convolution.wgsl`), which read the same prepasses the same way; the
-// coverage pass (`coverage.wgsl`) shares the view transform.
+// visibility pass (`visibility.wgsl`), the convolution pass
+// (`convolution.wgsl`) and the plateaus pass (`plateaus.wgsl`), which read
+// the same prepasses the same way; the coverage pass (`coverage.wgsl`)
+// shares the view transform.
 #define_import_path bevy_shadow_fins::fin_view
 #import bevy_render::view::View
 #import bevy_shadow_fins::fin_types::FinParams

@@ -40,56 +40,62 @@ struct Sheet {
 @group(0) @binding(9) var<uniform> view: View;
 @group(0) @binding(10) var<uniform> fin_view: FinView;
 
-// Sheets one cell may list before the rest are skipped: llvmpipe stops an
-// invocation after 65535 loop iterations (the core's grid keeps cells far
-// shorter: `MAX_ENTRIES` in all).
+// Sheets one cell's pixels walk (`MAX_CELL_SHEETS` in `plateau_frame.rs`,
+// which reports a longer cell): llvmpipe stops an invocation after 65535
+// loop iterations, so `sheet_tau` has no loop of its own.
 const MAX_CELL_SHEETS: u32 = 16384u;
 
+// The circles' |q − p(u)| / r(u) at u on the segment, +∞ off it.
+fn circle_at(d: vec2<f32>, e: vec2<f32>, r1: f32, dr: f32, u: f32) -> f32 {
+    let r = r1 + u * dr;
+    if (!(u >= 0.0 && u <= 1.0 && r > 0.0)) {
+        return 3.0e38;
+    }
+    return length(d - e * u) / r;
+}
+
+// The parallelograms' norm max |cᵢ(u)| / r(u) at u on the segment, +∞ off it.
+fn box_at(c0: vec2<f32>, ce: vec2<f32>, r1: f32, dr: f32, u: f32) -> f32 {
+    let r = r1 + u * dr;
+    if (!(u >= 0.0 && u <= 1.0 && r > 0.0)) {
+        return 3.0e38;
+    }
+    let c = c0 - ce * u;
+    return max(abs(c.x), abs(c.y)) / r;
+}
+
+// Where num − den·u = 0, or −1 (off the segment) when den = 0.
+fn root(num: f32, den: f32) -> f32 {
+    return select(-1.0, num / den, den != 0.0);
+}
+
 // τ at which q enters the hull of the sheet's cross-sections of radii
-// τ·r₁, τ·r₂ (`sheet_tau`): an end, the one stationary point (circles), or a
-// kink of the parallelogram norm.
+// τ·r₁, τ·r₂ (`sheet_tau`, in f32 where the core has f64: a line light's
+// sliver of a side loses τ to rounding): an end, the one stationary point
+// (circles), or a kink of the parallelogram norm.
 fn sheet_tau(s: Sheet, q: vec2<f32>) -> f32 {
     let p1 = s.ends.xy;
     let d = q - p1;
     let e = s.ends.zw - p1;
     let r1 = s.radii.x;
     let dr = s.radii.y - s.radii.x;
-    var best = 3.0e38;
     if (s.radii.z > 0.5) {
         let m = mat2x2<f32>(s.to_axes.xy, s.to_axes.zw);
         let c0 = m * d;
         let ce = m * e;
-        var us = array<f32, 6>(0.0, 1.0, -1.0, -1.0, -1.0, -1.0);
-        var nums = vec4<f32>(c0.x, c0.y, c0.x - c0.y, c0.x + c0.y);
-        var dens = vec4<f32>(ce.x, ce.y, ce.x - ce.y, ce.x + ce.y);
-        for (var i = 0u; i < 4u; i++) {
-            if (dens[i] != 0.0) {
-                us[2u + i] = nums[i] / dens[i];
-            }
-        }
-        for (var i = 0u; i < 6u; i++) {
-            let u = us[i];
-            let r = r1 + u * dr;
-            if (u >= 0.0 && u <= 1.0 && r > 0.0) {
-                let c = c0 - ce * u;
-                best = min(best, max(abs(c.x), abs(c.y)) / r);
-            }
-        }
-        return best;
+        let ends = min(box_at(c0, ce, r1, dr, 0.0), box_at(c0, ce, r1, dr, 1.0));
+        let kinks = min(
+            min(box_at(c0, ce, r1, dr, root(c0.x, ce.x)), box_at(c0, ce, r1, dr, root(c0.y, ce.y))),
+            min(
+                box_at(c0, ce, r1, dr, root(c0.x - c0.y, ce.x - ce.y)),
+                box_at(c0, ce, r1, dr, root(c0.x + c0.y, ce.x + ce.y)),
+            ),
+        );
+        return min(ends, kinks);
     }
-    var us = array<f32, 3>(0.0, 1.0, -1.0);
-    let denom = r1 * dot(e, e) + dr * dot(d, e);
-    if (denom != 0.0) {
-        us[2] = (r1 * dot(d, e) + dr * dot(d, d)) / denom;
-    }
-    for (var i = 0u; i < 3u; i++) {
-        let u = us[i];
-        let r = r1 + u * dr;
-        if (u >= 0.0 && u <= 1.0 && r > 0.0) {
-            best = min(best, length(d - e * u) / r);
-        }
-    }
-    return best;
+    let ends = min(circle_at(d, e, r1, dr, 0.0), circle_at(d, e, r1, dr, 1.0));
+    let stationary = root(r1 * dot(d, e) + dr * dot(d, d), r1 * dot(e, e) + dr * dot(d, e));
+    return min(ends, circle_at(d, e, r1, dr, stationary));
 }
 
 // The light's hard shadow at a receiver: its maps' slab depths looked up

@@ -161,3 +161,58 @@ fn gpu_convolution_matches_its_model_on_the_editors_demo_scene() {
     println!("demo against 4096-sample truth: GPU convolution MAE {gpu:.4}, hard {hard:.4}");
     assert!(gpu < 0.7 * hard, "convolution {gpu} vs hard {hard}");
 }
+
+/// A sun fitted to the views (the default) draws its maps over a window
+/// onto casters that go on past it: the lookups read its border there, and
+/// the shadow is the unfitted one's up to the finer texels.
+#[test]
+fn gpu_convolution_under_a_sun_fitted_to_the_view_agrees_with_the_unfitted_one() {
+    let fitted = sun_setup(SceneId::Kitbash, convolution_settings());
+    let unfitted = sun_setup(SceneId::Kitbash, FinShadowSettings { method: FinMethod::Convolution, ..unfitted() });
+    let (a, b) = (render_bevy_lights(&fitted), render_bevy_lights(&unfitted));
+    save(&a, "convolution_sun_fitted");
+    assert_not_trivial(&a);
+    assert!(a.stats.degraded.is_none(), "{:?}", a.stats.degraded);
+    let (mad, far) = compare(&a.visibility, &b.visibility);
+    println!("fitted against unfitted sun: mean {mad:.4}, share > 0.1 = {:.2}%", far * 100.0);
+    assert!(mad <= 0.02 && far <= 0.05, "{mad} / {far}");
+}
+
+/// A map budget that leaves the basis less room than its full chain drops
+/// its finest levels, says so in the light's stats, and still shadows much
+/// as the full chain does; one that leaves no room for even the coarsest
+/// allowed chain says so and computes no convolution (no NaN, no garbage).
+#[test]
+fn the_convolution_basis_fits_the_map_budget_and_says_what_it_dropped() {
+    use bevy_shadow_fins::{FinDegradation, FinShadowBudget};
+    use shadow_fins_app::harness::Session;
+    let setup = setup(SceneId::BoxOverPlane, convolution_settings());
+    let full = render(&setup);
+    // 256² maps take 2.25 MiB; the full basis (order 4) 5.9 MiB, without
+    // level 0 1.5 MiB.
+    let maps = 256u64 * 256 * 36;
+    for (room, dropped) in [(2 << 20, true), (1 << 10, false)] {
+        let mut session = Session::new(&setup);
+        session.app.world_mut().insert_resource(FinShadowBudget { map_bytes: maps + room, ..Default::default() });
+        let shot = session.settle(6).expect("render");
+        println!("room {room}: {:?}", shot.stats.degraded.map(|d| d.to_string()));
+        assert!(shot.visibility.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
+        if dropped {
+            assert!(
+                matches!(shot.stats.degraded, Some(FinDegradation::ConvolutionLevels { dropped: 1, .. })),
+                "{:?}",
+                shot.stats.degraded
+            );
+            assert_not_trivial(&shot);
+            let (mad, _) = compare(&shot.visibility, &full.visibility);
+            println!("one level dropped against the full chain: mean {mad:.4}");
+            assert!(mad <= 0.02, "{mad}");
+        } else {
+            assert!(
+                matches!(shot.stats.degraded, Some(FinDegradation::ConvolutionBasis { .. })),
+                "{:?}",
+                shot.stats.degraded
+            );
+        }
+    }
+}

@@ -150,11 +150,27 @@ fn the_editors_convolution_and_plateaus_methods_soften_the_hard_shadow() {
         path
     };
     let hard = screenshot("method-hard", &["--settings", write("hard").to_str().unwrap()], 12);
+    // Mean sRGB of the view's middle half: the same light, so about the same
+    // exposure whichever shadow (not black, not blown out).
+    let mean = |image: &Image| {
+        let (w, h) = (image.width(), image.height());
+        let pixels: Vec<f32> = (h / 4..h * 3 / 4)
+            .step_by(4)
+            .flat_map(|y| (w / 4..w * 3 / 4).step_by(4).map(move |x| (x, y)))
+            .map(|(x, y)| image.get_color_at(x, y).unwrap().to_srgba())
+            .map(|c| (c.red + c.green + c.blue) / 3.0)
+            .collect();
+        pixels.iter().sum::<f32>() / pixels.len() as f32
+    };
     for method in ["convolution", "plateaus"] {
         let shot = screenshot(&format!("method-{method}"), &["--settings", write(method).to_str().unwrap()], 12);
         let changed = changed_pixels(&hard, &shot);
-        println!("{changed} sampled viewport pixels differ between hard and {method}");
+        let (w, h) = (shot.width(), shot.height());
+        let (a, b) = (mean(&hard), mean(&shot));
+        println!("{changed} sampled viewport pixels differ between hard and {method}; mean {a:.3} → {b:.3}");
         assert!(changed > 300, "{method} rendered nearly the hard shadow ({changed} pixels differ)");
+        assert!((a - b).abs() < 0.1 && b > 0.2, "{method}: mean brightness {b} against the hard shadow's {a}");
+        assert!(distinct_colours(&shot, (w / 4, w * 3 / 4, h / 4, h * 3 / 4)) > 20, "{method}: a flat view");
     }
 }
 

@@ -87,6 +87,16 @@ pub enum FinDegradation {
     /// this one (later by entity order) keeps Bevy's own shadow map (a
     /// `FinLight`, which only the plugin lights, is not lit).
     TooManyLights { max: u32 },
+    /// The convolution method's basis images (`FinMethod::Convolution`)
+    /// keep only their mip levels from `dropped` on: penumbrae narrower than
+    /// two of the finest kept texels blur.
+    ConvolutionLevels { dropped: u32, limit_bytes: u64 },
+    /// Not even the convolution basis of the coarsest allowed level fits:
+    /// the light has no convolution shadow (Bevy's own, where it has one).
+    ConvolutionBasis { bytes: u64, limit_bytes: u64 },
+    /// A plateau cell lists more sheets than one shader invocation walks
+    /// (the rest are skipped there: lighter penumbrae in that cell).
+    LongPlateauCell { sheets: u32, limit: u32 },
 }
 
 impl std::fmt::Display for FinDegradation {
@@ -122,7 +132,75 @@ impl std::fmt::Display for FinDegradation {
                     "more than {max} fin-shadowed lights: this one keeps Bevy's own shadow map (a FinLight is not lit)"
                 )
             }
+            FinDegradation::ConvolutionLevels { dropped, limit_bytes } => write!(
+                f,
+                "convolution basis: its {dropped} finest mip level(s) dropped to fit {:.3} MiB (what \
+                 FinShadowBudget::map_bytes leaves beside the maps, or the GPU's buffer limit)",
+                mib(limit_bytes)
+            ),
+            FinDegradation::ConvolutionBasis { bytes, limit_bytes } => write!(
+                f,
+                "convolution basis needs {:.3} MiB at its coarsest, over the {:.3} MiB allowed: no convolution shadow",
+                mib(bytes),
+                mib(limit_bytes)
+            ),
+            FinDegradation::LongPlateauCell { sheets, limit } => {
+                write!(f, "a plateau cell lists {sheets} sheets (over {limit}): the rest are skipped there")
+            }
         }
+    }
+}
+
+/// The convolution method's basis images: the mip chain of a map, which
+/// levels are stored, and where (`shaders/convolution_types.wgsl`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct BasisLayout {
+    /// Floats per texel, `1 + 4M`.
+    pub channels: u32,
+    /// The first stored level (0 unless the budget dropped the finest).
+    pub first: u32,
+    /// Levels of the full chain, from the map's resolution down to 1.
+    pub chain: u32,
+    /// Per stored level: (resolution, offset in floats).
+    pub stored: Vec<(u32, u32)>,
+}
+
+/// Mip levels a basis chain may have (a 4096² map has 13).
+pub(crate) const MAX_BASIS_LEVELS: usize = 16;
+/// Finest levels the budget may drop: the first stored level averages
+/// `2^k × 2^k` map texels per invocation, kept short.
+pub(crate) const MAX_DROPPED_LEVELS: u32 = 4;
+
+impl BasisLayout {
+    /// The chain of a `resolution`² map at order `order`, without as many of
+    /// its finest levels as it takes to fit in `limit_bytes` (each dropped
+    /// level quarters the memory and blurs penumbrae narrower than two of
+    /// its texels); `Err(bytes)`, what the coarsest allowed chain needs, when
+    /// even that does not fit.
+    pub fn new(resolution: u32, order: u32, limit_bytes: u64) -> Result<Self, u64> {
+        let channels = 1 + 4 * order.clamp(1, 16);
+        let mut sizes = vec![resolution.max(1)];
+        while *sizes.last().expect("one level") > 1 && sizes.len() < MAX_BASIS_LEVELS {
+            sizes.push(sizes.last().expect("one level").div_ceil(2));
+        }
+        let bytes_from =
+            |first: usize| -> u64 { sizes[first..].iter().map(|r| *r as u64 * *r as u64 * channels as u64 * 4).sum() };
+        let most = (MAX_DROPPED_LEVELS as usize).min(sizes.len() - 1);
+        let first = (0..=most).find(|f| bytes_from(*f) <= limit_bytes).ok_or(bytes_from(most))?;
+        let mut offset = 0u64;
+        let stored = sizes[first..]
+            .iter()
+            .map(|r| {
+                let at = offset;
+                offset += *r as u64 * *r as u64 * channels as u64;
+                (*r, at as u32)
+            })
+            .collect();
+        Ok(Self { channels, first: first as u32, chain: sizes.len() as u32, stored })
+    }
+
+    pub fn bytes(&self) -> u64 {
+        self.stored.iter().map(|(r, _)| *r as u64 * *r as u64 * self.channels as u64 * 4).sum()
     }
 }
 
@@ -213,6 +291,31 @@ pub(crate) fn check_device(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_basis_chain_runs_down_to_one_texel_and_drops_its_finest_levels_to_fit() {
+        let full = BasisLayout::new(1000, 4, u64::MAX).expect("fits");
+        // 1000, 500, 250, 125, 63, 32, 16, 8, 4, 2, 1.
+        assert_eq!(full.chain, 11);
+        assert_eq!(full.stored.iter().map(|s| s.0).collect::<Vec<_>>(), [1000, 500, 250, 125, 63, 32, 16, 8, 4, 2, 1]);
+        assert_eq!(full.channels, 17);
+        assert_eq!(full.stored[1].1, 1000 * 1000 * 17, "level 1 starts after level 0");
+        assert_eq!(full.first, 0);
+        // Under a third of that, the finest level goes (and only it).
+        let fitted = BasisLayout::new(1000, 4, full.bytes() / 3).expect("fits");
+        assert_eq!((fitted.first, fitted.stored[0].0, fitted.chain), (1, 500, 11));
+        assert!(fitted.bytes() <= full.bytes() / 3);
+        assert_eq!(fitted.stored[0].1, 0);
+        // At most MAX_DROPPED_LEVELS go: past that, the bytes the coarsest
+        // allowed chain needs.
+        let coarsest = BasisLayout::new(1000, 4, 1).expect_err("does not fit");
+        let allowed = BasisLayout::new(1000, 4, coarsest).expect("fits at its own size");
+        assert_eq!(allowed.first, MAX_DROPPED_LEVELS);
+        assert_eq!(allowed.bytes(), coarsest);
+        // The order is clamped to 1..=16 (65 channels at most), a 0² map is 1².
+        assert_eq!(BasisLayout::new(16, 99, u64::MAX).expect("fits").channels, 65);
+        assert_eq!(BasisLayout::new(0, 0, u64::MAX).expect("fits").stored, [(1, 0)]);
+    }
 
     #[test]
     fn maps_that_fit_are_not_degraded() {

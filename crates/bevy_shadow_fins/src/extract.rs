@@ -253,6 +253,12 @@ pub struct FinFrameData {
     pub(crate) coverage: Option<CoverageFrame>,
     /// The plateaus method's plane, cones and sheets (`None` for other methods).
     pub(crate) plateaus: Option<crate::plateau_frame::PlateauFrame>,
+    /// The convolution method's basis chain as the budget allows it (`None`
+    /// for other methods, or when it does not fit).
+    pub(crate) convolution: Option<crate::budget::BasisLayout>,
+    /// The maps are a window onto casters that go on past it (a sun fitted
+    /// to the views), not a cover of every caster.
+    pub(crate) windowed: bool,
 }
 
 impl FinFrameData {
@@ -1308,6 +1314,8 @@ fn light_frame(
                 gpu: Some(scene),
                 coverage: None,
                 plateaus: None,
+                convolution: None,
+                windowed: false,
             }
         }
         (_, fallback) => {
@@ -1322,7 +1330,32 @@ fn light_frame(
     };
     if let Some(p) = plateaus {
         data.stats.silhouettes = p.sheets.len();
+        let longest = p.cell_starts.windows(2).map(|w| w[1].saturating_sub(w[0])).max().unwrap_or(0);
+        if longest > crate::plateau_frame::MAX_CELL_SHEETS {
+            let why = FinDegradation::LongPlateauCell { sheets: longest, limit: crate::plateau_frame::MAX_CELL_SHEETS };
+            data.stats.degraded = data.stats.degraded.or(Some(why));
+        }
         data.plateaus = Some(p);
+    }
+    data.windowed = map_window.is_some();
+    if settings.method == FinMethod::Convolution {
+        // The basis shares the light's map budget with the maps it filters.
+        let resolution = data.region.resolution as u64;
+        let maps = data.map_layers.max(1) as u64 * resolution * resolution * MAP_TEXEL_BYTES;
+        let room = limits.map_bytes.saturating_sub(maps).min(limits.max_buffer);
+        match crate::budget::BasisLayout::new(data.region.resolution, settings.convolution_order, room) {
+            Ok(layout) => {
+                if layout.first > 0 {
+                    let why = FinDegradation::ConvolutionLevels { dropped: layout.first, limit_bytes: room };
+                    data.stats.degraded = data.stats.degraded.or(Some(why));
+                }
+                data.convolution = Some(layout);
+            }
+            Err(bytes) => {
+                let why = FinDegradation::ConvolutionBasis { bytes, limit_bytes: room };
+                data.stats.degraded = data.stats.degraded.or(Some(why));
+            }
+        }
     }
     data.stats.map_resolution = data.region.resolution;
     data.stats.extraction = if data.gpu.is_some() { FinExtraction::Gpu } else { FinExtraction::Cpu };
@@ -1388,6 +1421,8 @@ fn coverage_data(
         gpu: None,
         coverage: Some(coverage),
         plateaus: None,
+        convolution: None,
+        windowed: false,
     }
 }
 
@@ -1576,6 +1611,8 @@ fn cpu_frame(
         gpu: None,
         coverage: None,
         plateaus: None,
+        convolution: None,
+        windowed: false,
     }
 }
 

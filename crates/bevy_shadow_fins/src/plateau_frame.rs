@@ -12,6 +12,13 @@ use shadow_fins::{
     scene::{LightSpaceScene, Scene},
 };
 
+/// Sheets one cell's pixels walk (`MAX_CELL_SHEETS` in `plateaus.wgsl`):
+/// llvmpipe stops an invocation after 65535 loop iterations, and a GPU's
+/// watchdog stops long ones. The core's grid coarsens its cells until all
+/// lists fit `MAX_ENTRIES` in total, so one cell may list more: the frame
+/// says so (`FinDegradation::LongPlateauCell`).
+pub(crate) const MAX_CELL_SHEETS: u32 = 16384;
+
 /// One sheet (`Sheet` in `plateaus.wgsl`; the core's `SheetRecord`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]

@@ -20,7 +20,7 @@ use shadow_fins::{
     metrics::ErrorMetrics,
     peers::{
         convolution::{ConvolutionSettings, Prefilter},
-        environment::{CubeMap, EnvironmentLights, EnvironmentTruth, LightShadows, WorldReceiver, fit_area_lights},
+        environment::{CubeMap, EnvironmentTruth, LightShadows, WorldReceiver, fit_area_lights, shade},
     },
     scene::LightSpaceScene,
     scenes::SceneId,
@@ -69,6 +69,7 @@ pub fn measure(id: SceneId, width: u32, height: u32, cube: usize, thresholds: &[
     let truth = EnvironmentTruth::new(&scene, &sky);
     let exact: Vec<Option<(f32, f32)>> = receivers.par_iter().map(|r| r.map(|r| truth.irradiance(r))).collect();
     let truth_ms = start.elapsed().as_secs_f64() * 1e3;
+    let seen: Vec<WorldReceiver> = receivers.iter().flatten().copied().collect();
     let ratio = |e: f32, open: f32| if open > 0.0 { (e / open).clamp(0.0, 2.0) } else { 1.0 };
     let reference: Vec<f32> = exact.iter().flatten().map(|(e, open)| ratio(*e, *open)).collect();
     // 256² maps, as the paper's environment results (Figure 1, 10).
@@ -89,9 +90,11 @@ pub fn measure(id: SceneId, width: u32, height: u32, cube: usize, thresholds: &[
         let fitted = fit_area_lights(&sky, t);
         for (name, shadows) in methods {
             let start = Instant::now();
-            let lights = EnvironmentLights::new(&scene, &fitted, shadows);
+            let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+            let mut shaded = shade(&scene, &fitted, shadows, &seen, threads).into_iter();
+            // `seen` is the receivers without the background, in order.
             let values: Vec<Option<f32>> =
-                receivers.par_iter().zip(&exact).map(|(r, e)| Some(ratio(lights.irradiance((*r)?), (*e)?.1))).collect();
+                exact.iter().map(|e| e.map(|(_, open)| ratio(shaded.next().unwrap_or(0.0), open))).collect();
             let ms = start.elapsed().as_secs_f64() * 1e3;
             let measured: Vec<f32> = values.iter().flatten().copied().collect();
             let metrics = ErrorMetrics::compute(&measured, &reference);

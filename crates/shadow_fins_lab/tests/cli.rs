@@ -162,7 +162,7 @@ fn environment_fits_more_lights_at_a_higher_threshold_and_scores_each_shadow_kin
         assert!(mae.is_finite() && (0.0..0.2).contains(&mae), "{r:?}");
     }
     assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
-    let bad = lab(&[&args[..], &["--thresholds", "-1", "--out", png.to_str().unwrap()]].concat());
+    let bad = lab(&[&args[..], &["--thresholds", "0", "--out", png.to_str().unwrap()]].concat());
     assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("--thresholds"));
 }
 #[test]

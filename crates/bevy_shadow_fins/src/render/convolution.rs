@@ -28,20 +28,18 @@ use bevy::{
     shader::load_shader_library,
 };
 use shadow_fins::peers::convolution::{
-    VARIANCE_MATCHED_MIP_BIAS, basis, depth_span, kernel_shape, ringing_scale, step_shift,
+    ConvolutionSettings, VARIANCE_MATCHED_MIP_BIAS, basis, depth_span, kernel_shape, ringing_scale, step_shift,
 };
 
-use super::{FinLightsGpu, FinViewTexture, ViewsWithVisibility, extract_gpu::ensure, view_transform};
+use super::{FinLightsGpu, FinViewTexture, ViewsWithVisibility, extract_gpu::ensure, view_transform, workgroups};
 use crate::{
+    budget::BasisLayout,
     extract::{FinFrameData, FinFrames, FrameKey},
     light::{FinMethod, FinShadowView},
 };
 
-/// Sharpening `(A, B)` of eq. 9, the core's default (their Figure 4's `A`,
-/// its tightest `B`, in normalised depths).
-const SHARPENING: (f32, f32) = (30.0, 20.0);
-/// Mip levels a chain may have (a 4096² map has 13).
-const MAX_LEVELS: usize = 16;
+/// Mip levels a chain may have.
+const MAX_LEVELS: usize = crate::budget::MAX_BASIS_LEVELS;
 /// Bytes between two downsampling dispatches' level uniforms (the largest
 /// dynamic-offset alignment a device may ask).
 const LEVEL_STRIDE: u64 = 256;
@@ -72,6 +70,7 @@ pub(super) fn finish(app: &mut App) {
 struct ConvolutionPipelines {
     maps_layout: BindGroupLayoutDescriptor,
     view_layout: BindGroupLayoutDescriptor,
+    reset_near: CachedComputePipelineId,
     find_near: CachedComputePipelineId,
     first_level: CachedComputePipelineId,
     downsample: CachedComputePipelineId,
@@ -115,6 +114,7 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
     let compute =
         |label, layout: &_, shader: &_, entry| super::queue_compute(&pipeline_cache, label, layout, shader, entry);
     commands.insert_resource(ConvolutionPipelines {
+        reset_near: compute("fin_convolution_reset_near", &maps_layout, &maps_shader, "reset_near"),
         find_near: compute("fin_convolution_find_near", &maps_layout, &maps_shader, "find_near"),
         first_level: compute("fin_convolution_first_level", &maps_layout, &maps_shader, "first_level"),
         downsample: compute("fin_convolution_downsample", &maps_layout, &maps_shader, "downsample"),
@@ -136,50 +136,6 @@ struct ConvolutionUniform {
     empty: [[f32; 4]; 17],
 }
 
-/// The basis images' mip chain of one frame: which levels are stored, where.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub(crate) struct BasisLayout {
-    /// Floats per texel, `1 + 4M`.
-    pub channels: u32,
-    /// The first stored level (0 unless the budget dropped the finest).
-    pub first: u32,
-    /// Levels of the full chain, from the map's resolution down to 1.
-    pub chain: u32,
-    /// Per stored level: (resolution, offset in floats).
-    pub stored: Vec<(u32, u32)>,
-}
-
-impl BasisLayout {
-    /// The chain of a `resolution`² map at order `order`, without as many of
-    /// its finest levels as it takes to fit in `limit_bytes` (each dropped
-    /// level quarters the memory and blurs penumbrae narrower than two of its
-    /// texels; `None` when even one texel's basis does not fit).
-    pub fn new(resolution: u32, order: u32, limit_bytes: u64) -> Option<Self> {
-        let channels = 1 + 4 * order.clamp(1, 16);
-        let mut sizes = vec![resolution.max(1)];
-        while *sizes.last().expect("one level") > 1 && sizes.len() < MAX_LEVELS {
-            sizes.push(sizes.last().expect("one level").div_ceil(2));
-        }
-        let bytes_from =
-            |first: usize| -> u64 { sizes[first..].iter().map(|r| *r as u64 * *r as u64 * channels as u64 * 4).sum() };
-        let first = (0..sizes.len()).find(|f| bytes_from(*f) <= limit_bytes)?;
-        let mut offset = 0u64;
-        let stored = sizes[first..]
-            .iter()
-            .map(|r| {
-                let at = offset;
-                offset += *r as u64 * *r as u64 * channels as u64;
-                (*r, at as u32)
-            })
-            .collect();
-        Some(Self { channels, first: first as u32, chain: sizes.len() as u32, stored })
-    }
-
-    pub fn bytes(&self) -> u64 {
-        self.stored.iter().map(|(r, _)| *r as u64 * *r as u64 * self.channels as u64 * 4).sum()
-    }
-}
-
 fn uniform_of(f: &FinFrameData, layout: &BasisLayout) -> ConvolutionUniform {
     let order = f.settings.convolution_order.clamp(1, 16);
     let span = depth_span(order);
@@ -196,11 +152,16 @@ fn uniform_of(f: &FinFrameData, layout: &BasisLayout) -> ConvolutionUniform {
     for (i, v) in empty_basis.iter().enumerate() {
         empty[i / 4][i % 4] = *v;
     }
+    // Sharpening (eq. 9) as the core's default: their Figure 4's `A`, its
+    // tightest `B`, in normalised depths.
+    let (a, b) = ConvolutionSettings::default().sharpening.unwrap_or((0.0, 0.0));
     ConvolutionUniform {
         counts: [order, layout.channels, layout.first, layout.chain],
-        series: [ringing_scale(order), step_shift(order), span, SHARPENING.0],
-        kernel: [SHARPENING.1, shape.x, shape.y, if rect { 1.0 } else { 0.0 }],
-        lookup: [VARIANCE_MATCHED_MIP_BIAS, 0.0, 0.0, 0.0],
+        series: [ringing_scale(order), step_shift(order), span, a],
+        kernel: [b, shape.x, shape.y, if rect { 1.0 } else { 0.0 }],
+        // A map that is a window onto casters going on past it (a sun fitted
+        // to the views) reads its border off the map, else the empty plane.
+        lookup: [VARIANCE_MATCHED_MIP_BIAS, if f.windowed { 1.0 } else { 0.0 }, 0.0, 0.0],
         levels,
         empty,
     }
@@ -266,25 +227,20 @@ fn prepare_light(
     if f.generation == gpu.generation && gpu.bind_group.is_some() {
         return;
     }
-    let limit = device.limits().max_storage_buffer_binding_size.min(f.limit_bytes);
-    let order = f.settings.convolution_order.clamp(1, 16);
-    let Some(layout) = BasisLayout::new(f.region.resolution, order, limit) else {
-        warn_once!("fin shadows: no convolution basis fits this GPU's storage binding limit; no convolution shadows");
+    // The main world sized the chain to its budget (`BasisLayout`, said in
+    // the light's stats when it had to drop levels or could not fit).
+    let (Some(layout), Some(params), Some(map_buffer)) =
+        (f.convolution.clone(), maps.params.clone(), maps.maps.clone())
+    else {
         *gpu = ConvolutionGpu::default();
         return;
     };
-    if layout.first > 0 {
-        warn_once!(
-            "fin shadows: the convolution basis of {}² maps at order {order} exceeds the storage limit; its {} finest mip level(s) are not stored",
-            f.region.resolution,
-            layout.first
-        );
-    }
+    let limit = device.limits().max_storage_buffer_binding_size.min(f.limit_bytes).max(layout.bytes());
     let storage = BufferUsages::STORAGE | BufferUsages::COPY_DST;
     let uniform = BufferUsages::UNIFORM | BufferUsages::COPY_DST;
     ensure(&mut gpu.basis, device, "fin_convolution_basis", layout.bytes().max(64), storage, limit);
     ensure(&mut gpu.uniform, device, "fin_convolution_params", size_of::<ConvolutionUniform>() as u64, uniform, limit);
-    ensure(&mut gpu.state, device, "fin_convolution_state", 16, storage, limit);
+    ensure(&mut gpu.state, device, "fin_convolution_near", 16, storage, limit);
     let stride = LEVEL_STRIDE.max(device.limits().min_uniform_buffer_offset_alignment as u64);
     ensure(&mut gpu.levels, device, "fin_convolution_levels", stride * MAX_LEVELS as u64, uniform, u64::MAX);
     queue.write_buffer(gpu.uniform.as_ref().unwrap(), 0, bytemuck::bytes_of(&uniform_of(f, &layout)));
@@ -293,7 +249,6 @@ fn prepare_light(
         levels[l * stride as usize..][..4].copy_from_slice(&(l as u32).to_le_bytes());
     }
     queue.write_buffer(gpu.levels.as_ref().unwrap(), 0, &levels);
-    let (Some(params), Some(map_buffer)) = (maps.params.as_ref(), maps.maps.as_ref()) else { return };
     gpu.bind_group = Some(device.create_bind_group(
         "fin_convolution_maps_bind_group",
         &pipeline_cache.get_bind_group_layout(&pipelines.maps_layout),
@@ -322,7 +277,8 @@ fn render_basis(
     mut ctx: RenderContext,
 ) {
     let Some(pipelines) = pipelines else { return };
-    let (Some(find_near), Some(first_level), Some(downsample)) = (
+    let (Some(reset_near), Some(find_near), Some(first_level), Some(downsample)) = (
+        pipeline_cache.get_compute_pipeline(pipelines.reset_near),
         pipeline_cache.get_compute_pipeline(pipelines.find_near),
         pipeline_cache.get_compute_pipeline(pipelines.first_level),
         pipeline_cache.get_compute_pipeline(pipelines.downsample),
@@ -346,8 +302,12 @@ fn render_basis(
                 timestamp_writes: None,
             });
             pass.set_bind_group(0, bind_group, &[0]);
-            pass.set_pipeline(find_near);
+            pass.set_pipeline(reset_near);
             pass.dispatch_workgroups(1, 1, 1);
+            pass.set_pipeline(find_near);
+            let texels = frame.data.region.resolution * frame.data.region.resolution;
+            let (x, y) = workgroups(texels.div_ceil(256));
+            pass.dispatch_workgroups(x, y, 1);
             let groups = |r: u32| r.div_ceil(8);
             pass.set_pipeline(first_level);
             let r0 = layout.stored[0].0;
@@ -481,30 +441,5 @@ fn convolution_visibility(
         span.end(ctx.command_encoder());
         written.0.insert((entity, slot));
         super::copy_to_targets(&mut ctx, settings, texture, &images, &frames, slot);
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_basis_chain_runs_down_to_one_texel_and_drops_its_finest_levels_to_fit() {
-        let full = BasisLayout::new(1000, 4, u64::MAX).expect("fits");
-        // 1000, 500, 250, 125, 63, 32, 16, 8, 4, 2, 1.
-        assert_eq!(full.chain, 11);
-        assert_eq!(full.stored.iter().map(|s| s.0).collect::<Vec<_>>(), [1000, 500, 250, 125, 63, 32, 16, 8, 4, 2, 1]);
-        assert_eq!(full.channels, 17);
-        assert_eq!(full.stored[1].1, 1000 * 1000 * 17, "level 1 starts after level 0");
-        assert_eq!(full.first, 0);
-        // Under a quarter of that, the finest level goes (and only it).
-        let fitted = BasisLayout::new(1000, 4, full.bytes() / 3).expect("fits");
-        assert_eq!((fitted.first, fitted.stored[0].0, fitted.chain), (1, 500, 11));
-        assert!(fitted.bytes() <= full.bytes() / 3);
-        assert_eq!(fitted.stored[0].1, 0);
-        // Not even one texel's basis: none.
-        assert!(BasisLayout::new(16, 16, 64).is_none());
-        // The order is clamped to 1..=16 (65 channels at most).
-        assert_eq!(BasisLayout::new(16, 99, u64::MAX).expect("fits").channels, 65);
     }
 }

@@ -195,7 +195,8 @@ enum OffMap {
     /// casters on its edge spread outwards.
     Empty,
     /// The map's border texels: the map is a window onto casters that go on
-    /// past it (`ConvolutionModel::fitted`, padded by the kernels' reach).
+    /// past it (`ConvolutionModel::new` and `fitted`, padded by the kernels'
+    /// reach; a plugin sun fitted to the views, [`ConvolutionModel::windowed`]).
     Border,
 }
 
@@ -464,7 +465,8 @@ impl ConvolutionModel {
         let far = light_space.reference_depth * (1.0 + 1e-4);
         let near = if near.is_finite() && near < far { near } else { far * 0.5 };
         let span = depth_span(order);
-        let normalise = |z: f32| ((z - near) / (far - near)).clamp(0.0, 1.0) * span;
+        // An empty range (L0 at 0) reads 1, not NaN.
+        let normalise = |z: f32| ((z - near) / (far - near).max(1e-30)).clamp(0.0, 1.0) * span;
         let mut texels = vec![0.0f32; res * res * channels];
         for (i, &d) in depth.iter().enumerate() {
             // Empty texels hold the far plane: nothing in front of any receiver.
@@ -495,6 +497,13 @@ impl ConvolutionModel {
             extent: light_space.extent,
             reference_depth: light_space.reference_depth,
         }
+    }
+
+    /// The same model on a map that is a window onto casters going on past
+    /// it (the plugin's sun fitted to its views): a tap off the map reads its
+    /// border, not the empty plane.
+    pub fn windowed(self) -> Self {
+        Self { off_map: OffMap::Border, ..self }
     }
 
     /// `(f̄, numerator of z_avg)` over the map-space rectangle `q ± half`
@@ -542,7 +551,7 @@ impl ConvolutionModel {
             return 0.0;
         }
         let q = self.frame.map(p);
-        let d = ((p.z - self.near) / (self.far - self.near)).clamp(0.0, 1.0) * self.span;
+        let d = ((p.z - self.near) / (self.far - self.near).max(1e-30)).clamp(0.0, 1.0) * self.span;
         let mut scratch = [0.0f64; 1 + 4 * 16];
         // 1. The search rectangle: the cone to the light at the near plane,
         // the light's shape (a rectangle's sides, the disk's square).

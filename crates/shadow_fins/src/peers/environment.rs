@@ -127,10 +127,12 @@ pub struct EnvLight {
 
 impl EnvLight {
     /// The distant disk light of its solid angle: a cap of angular radius
-    /// `θ`, `2π(1 − cos θ) = Ω` (clamped to the sun's 1.4 rad).
-    pub fn light(&self) -> Light {
-        let theta = (1.0 - self.solid_angle / std::f32::consts::TAU).clamp(-1.0, 1.0).acos().min(1.4);
-        Light::Sun(SunLight::new(-self.direction, theta).expect("a unit direction and θ ≤ 1.4"))
+    /// `θ`, `2π(1 − cos θ) = Ω` (clamped to the sun's 1.4 rad); `None` for a
+    /// direction that is zero or not finite.
+    pub fn light(&self) -> Option<Light> {
+        let theta = (1.0 - self.solid_angle / std::f32::consts::TAU).clamp(-1.0, 1.0).acos();
+        let theta = if theta.is_finite() { theta.min(1.4) } else { 0.0 };
+        SunLight::new(-self.direction, theta).ok().map(Light::Sun)
     }
 }
 
@@ -154,7 +156,16 @@ pub fn fit_area_lights(map: &CubeMap, threshold: f32) -> Vec<EnvLight> {
         let square_energy = |e: &[f32], (x0, y0, s): (usize, usize, usize)| -> f32 {
             (y0..y0 + s).flat_map(|y| (x0..x0 + s).map(move |x| (x, y))).map(|(x, y)| e[y * n + x]).sum()
         };
-        while let Some(seed) = (0..n * n).filter(|k| !covered[*k]).max_by(|a, b| e[*a].total_cmp(&e[*b])) {
+        // Texels not yet covered keep their energy: one sort finds each
+        // next seed (the brightest uncovered).
+        let mut by_energy: Vec<usize> = (0..n * n).collect();
+        by_energy.sort_by(|a, b| e[*b].total_cmp(&e[*a]));
+        let mut next = 0;
+        loop {
+            while next < by_energy.len() && covered[by_energy[next]] {
+                next += 1;
+            }
+            let Some(&seed) = by_energy.get(next) else { break };
             let mut sq = (seed % n, seed / n, 1usize);
             let mut energy = e[seed];
             loop {
@@ -288,84 +299,83 @@ pub enum LightShadows {
     Exact { samples: u32 },
 }
 
-/// The scene under the fitted lights, each shadowed as `shadows` says.
-pub struct EnvironmentLights {
-    lights: Vec<(EnvLight, LightSpaceScene)>,
-    models: Vec<Option<ConvolutionModel>>,
+/// The shadowed irradiance `Σ energy · max(0, n·ω) · V` of the fitted
+/// `lights` at each receiver, each light shadowed as `shadows` says. One
+/// light at a time (a light's maps are made, used over every receiver on
+/// `threads` threads, and dropped: 450 lights' summed-area tables would
+/// not fit in memory at once); lights with no valid direction are skipped.
+pub fn shade(
+    scene: &Scene,
+    lights: &[EnvLight],
     shadows: LightShadows,
-    bvh: Option<Bvh>,
-    size: f32,
-}
-
-impl EnvironmentLights {
-    pub fn new(scene: &Scene, lights: &[EnvLight], shadows: LightShadows) -> Self {
-        let lights: Vec<(EnvLight, LightSpaceScene)> =
-            lights.iter().map(|l| (*l, LightSpaceScene::new(scene, l.light()))).collect();
-        let models = lights
-            .iter()
-            .map(|(_, ls)| match shadows {
-                LightShadows::Convolution(s) => Some(ConvolutionModel::new(ls, s)),
-                _ => None,
-            })
-            .collect();
-        let bvh =
-            matches!(shadows, LightShadows::Hard | LightShadows::Exact { .. }).then(|| Bvh::new(&world_casters(scene)));
-        let size = scene.bounds().map_or(1.0, |(lo, hi)| (hi - lo).length());
-        Self { lights, models, shadows, bvh, size }
-    }
-
-    /// Irradiance with shadows at a receiver: `Σ energy · max(0, n·ω) · V`.
-    pub fn irradiance(&self, r: WorldReceiver) -> f32 {
-        let mut sum = 0.0;
-        for ((light, ls), model) in self.lights.iter().zip(&self.models) {
-            let c = r.normal.dot(light.direction);
-            if c <= 0.0 {
-                continue;
-            }
-            let v = match (self.shadows, model, &self.bvh) {
+    receivers: &[WorldReceiver],
+    threads: usize,
+) -> Vec<f32> {
+    let size = scene.bounds().map_or(1.0, |(lo, hi)| (hi - lo).length());
+    let bvh =
+        matches!(shadows, LightShadows::Hard | LightShadows::Exact { .. }).then(|| Bvh::new(&world_casters(scene)));
+    let mut sum = vec![0.0f32; receivers.len()];
+    let chunk = receivers.len().div_ceil(threads.max(1)).max(1);
+    for light in lights {
+        let Some(as_light) = light.light() else { continue };
+        let ls = LightSpaceScene::new(scene, as_light);
+        let model = match shadows {
+            LightShadows::Convolution(s) => Some(ConvolutionModel::new(&ls, s)),
+            _ => None,
+        };
+        let visibility = |r: &WorldReceiver| -> f32 {
+            match (shadows, &model, &bvh) {
                 (LightShadows::Convolution(_), Some(m), _) => m.visibility(Receiver {
                     position: ls.frame.to_frame(r.position),
                     normal: ls.frame.dir_to_frame(r.normal),
                 }),
                 (LightShadows::Hard, _, Some(bvh)) => {
-                    let o = r.position + r.normal * lift(self.size);
-                    if bvh.any_hit(o, light.direction, 0.0, 4.0 * self.size + o.length()) { 0.0 } else { 1.0 }
+                    let o = r.position + r.normal * lift(size);
+                    if bvh.any_hit(o, light.direction, 0.0, 4.0 * size + o.length()) { 0.0 } else { 1.0 }
                 }
-                (LightShadows::Exact { samples }, _, Some(bvh)) => self.disk_visibility(bvh, r, light, samples),
+                (LightShadows::Exact { samples }, _, Some(bvh)) => disk_visibility(bvh, size, *r, light, samples),
                 _ => 1.0,
-            };
-            sum += light.energy * c * v;
-        }
-        sum
-    }
-
-    pub fn light_count(&self) -> usize {
-        self.lights.len()
-    }
-
-    /// The share of `light`'s disk a receiver sees: `samples` rays through
-    /// a golden-angle spiral over the disk (equal areas of the tangent
-    /// plane, equal solid angles for a small cap).
-    fn disk_visibility(&self, bvh: &Bvh, r: WorldReceiver, light: &EnvLight, samples: u32) -> f32 {
-        let (u, v) = crate::peers::across(light.direction);
-        let tan = match light.light() {
-            Light::Sun(s) => s.angular_radius.tan(),
-            _ => 0.0,
+            }
         };
-        let o = r.position + r.normal * lift(self.size);
-        let far = 4.0 * self.size + o.length();
-        let n = samples.max(1);
-        let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
-        let seen = (0..n)
-            .filter(|k| {
-                let radius = ((*k as f32 + 0.5) / n as f32).sqrt() * tan;
-                let (s, c) = (*k as f32 * golden).sin_cos();
-                let w = (light.direction + u * (radius * c) + v * (radius * s)).normalize();
-                !bvh.any_hit(o, w, 0.0, far)
-            })
-            .count();
-        seen as f32 / n as f32
+        std::thread::scope(|scope| {
+            for (out, rs) in sum.chunks_mut(chunk).zip(receivers.chunks(chunk)) {
+                let visibility = &visibility;
+                scope.spawn(move || {
+                    for (o, r) in out.iter_mut().zip(rs) {
+                        let c = r.normal.dot(light.direction);
+                        if c > 0.0 {
+                            *o += light.energy * c * visibility(r);
+                        }
+                    }
+                });
+            }
+        });
     }
+    sum
+}
+
+/// The share of `light`'s disk a receiver sees: `samples` rays through a
+/// golden-angle spiral over the disk (equal areas of the tangent plane,
+/// equal solid angles for a small cap).
+fn disk_visibility(bvh: &Bvh, size: f32, r: WorldReceiver, light: &EnvLight, samples: u32) -> f32 {
+    let (u, v) = crate::peers::across(light.direction);
+    let tan = match light.light() {
+        Some(Light::Sun(s)) => s.angular_radius.tan(),
+        _ => 0.0,
+    };
+    let o = r.position + r.normal * lift(size);
+    let far = 4.0 * size + o.length();
+    let n = samples.max(1);
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    let seen = (0..n)
+        .filter(|k| {
+            let radius = ((*k as f32 + 0.5) / n as f32).sqrt() * tan;
+            let (s, c) = (*k as f32 * golden).sin_cos();
+            let w = (light.direction + u * (radius * c) + v * (radius * s)).normalize();
+            !bvh.any_hit(o, w, 0.0, far)
+        })
+        .count();
+    seen as f32 / n as f32
 }
 
 #[cfg(test)]
@@ -418,8 +428,8 @@ mod tests {
         let errors: Vec<f32> = [0.15, 0.4, 0.8]
             .iter()
             .map(|t| {
-                let lights = EnvironmentLights::new(&scene, &fit_area_lights(&map, *t), LightShadows::Hard);
-                (lights.irradiance(r) - open).abs() / open
+                let fitted = shade(&scene, &fit_area_lights(&map, *t), LightShadows::Hard, &[r], 1)[0];
+                (fitted - open).abs() / open
             })
             .collect();
         println!("relative error of the fitted lights' open irradiance: {errors:?}");
