@@ -4,8 +4,8 @@
 // and the filtered shadow test over it — function for function
 // `ConvolutionModel::visibility` with the mipmap prefilter.
 #import bevy_render::view::View
-#import bevy_shadow_fins::fin_types::{FinParams, orthographic, in_face, penumbra_half_width}
-#import bevy_shadow_fins::fin_view::{FinView, dir_to_frame, in_viewport, pixel_position}
+#import bevy_shadow_fins::fin_types::{FinParams, orthographic, penumbra_half_width}
+#import bevy_shadow_fins::fin_view::{FinView, PIXEL_BACKGROUND, PIXEL_OTHER_FACE, pixel_receiver}
 #import bevy_shadow_fins::convolution_types::{
     ConvolutionParams, ConvolutionState, c_k, level_resolution, level_offset, empty_channel, far_depth, near_depth,
     normalised,
@@ -122,17 +122,16 @@ fn convolution_pass(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let pixel = vec2<i32>(id.xy);
-    let depth = textureLoad(depth_prepass, pixel, 0);
-    if (depth <= 0.0 || !in_viewport(view, id.xy)) {
+    let r = pixel_receiver(view, fin_view, params, id.xy, textureLoad(depth_prepass, pixel, 0), textureLoad(normal_prepass, pixel, 0));
+    if (r.kind == PIXEL_BACKGROUND) {
         textureStore(visibility, pixel, vec4<f32>(1.0));
         return;
     }
-    let position = pixel_position(view, fin_view, id.xy, depth);
-    // A point light's cube face shades the receivers in its frustum only.
-    if (params.flags.w == 2u && !in_face(position)) {
+    if (r.kind == PIXEL_OTHER_FACE) {
         return;
     }
-    let normal = dir_to_frame(params, normalize(textureLoad(normal_prepass, pixel, 0).xyz * 2.0 - 1.0));
+    let position = r.position;
+    let normal = r.normal;
     // Lifted by the surface epsilon and 1.5 texels (the core's CSM lift).
     let ortho = orthographic(params);
     let texel_world = select(params.map.z * position.z, params.map.z, ortho);

@@ -5,7 +5,7 @@
 // shares the view transform.
 #define_import_path bevy_shadow_fins::fin_view
 #import bevy_render::view::View
-#import bevy_shadow_fins::fin_types::FinParams
+#import bevy_shadow_fins::fin_types::{FinParams, in_face}
 
 // The camera's view space → the light frame, composed on the CPU in f64
 // (columns of the linear part, and the translation). Positions are rebuilt in
@@ -42,4 +42,44 @@ fn pixel_position(view: View, fin_view: FinView, id: vec2<u32>, depth: f32) -> v
     let ndc = vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
     let in_view = view.view_from_clip * ndc;
     return view_to_frame(fin_view, in_view.xyz / in_view.w);
+}
+
+// What a pass does at a target pixel: background or outside the viewport
+// (fully lit: the light's own half-space test is the compositing pass's),
+// a receiver another cube face's pass shades (a point light's six passes
+// fill its one layer between them: `in_face`), or a receiver to shade.
+const PIXEL_BACKGROUND: u32 = 0u;
+const PIXEL_OTHER_FACE: u32 = 1u;
+const PIXEL_RECEIVER: u32 = 2u;
+
+struct PixelReceiver {
+    kind: u32,
+    // Light frame.
+    position: vec3<f32>,
+    normal: vec3<f32>,
+}
+
+// The receiver at target pixel `id`, from its prepass depth (reverse Z: 0 is
+// the far plane) and encoded normal.
+fn pixel_receiver(
+    view: View,
+    fin_view: FinView,
+    params: FinParams,
+    id: vec2<u32>,
+    depth: f32,
+    encoded_normal: vec4<f32>,
+) -> PixelReceiver {
+    var r: PixelReceiver;
+    r.kind = PIXEL_BACKGROUND;
+    if (depth <= 0.0 || !in_viewport(view, id)) {
+        return r;
+    }
+    r.position = pixel_position(view, fin_view, id, depth);
+    if (params.flags.w == 2u && !in_face(r.position)) {
+        r.kind = PIXEL_OTHER_FACE;
+        return r;
+    }
+    r.normal = dir_to_frame(params, normalize(encoded_normal.xyz * 2.0 - 1.0));
+    r.kind = PIXEL_RECEIVER;
+    return r;
 }

@@ -5,8 +5,8 @@
 // oracle's hard shadow, evaluated at each pixel instead of drawn into a
 // texture (the same values at the pixels' own points, no texel grid).
 #import bevy_render::view::View
-#import bevy_shadow_fins::fin_types::{FinParams, CHANNELS, orthographic, in_face}
-#import bevy_shadow_fins::fin_view::{FinView, dir_to_frame, in_viewport, pixel_position}
+#import bevy_shadow_fins::fin_types::{FinParams, CHANNELS, orthographic}
+#import bevy_shadow_fins::fin_view::{FinView, PIXEL_BACKGROUND, PIXEL_OTHER_FACE, pixel_receiver}
 
 // `PlateauUniform` in `plateau_frame.rs`.
 struct PlateauParams {
@@ -153,17 +153,16 @@ fn plateaus_pass(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let pixel = vec2<i32>(id.xy);
-    let depth = textureLoad(depth_prepass, pixel, 0);
-    if (depth <= 0.0 || !in_viewport(view, id.xy)) {
+    let r = pixel_receiver(view, fin_view, params, id.xy, textureLoad(depth_prepass, pixel, 0), textureLoad(normal_prepass, pixel, 0));
+    if (r.kind == PIXEL_BACKGROUND) {
         textureStore(visibility, pixel, vec4<f32>(1.0));
         return;
     }
-    let position = pixel_position(view, fin_view, id.xy, depth);
-    // A point light's cube face shades the receivers in its frustum only.
-    if (params.flags.w == 2u && !in_face(position)) {
+    if (r.kind == PIXEL_OTHER_FACE) {
         return;
     }
-    let normal = dir_to_frame(params, normalize(textureLoad(normal_prepass, pixel, 0).xyz * 2.0 - 1.0));
+    let position = r.position;
+    let normal = r.normal;
     var v = 1.0;
     if (params.counts.y > 0u && hard_blocked(position, normal)) {
         v = 0.0;

@@ -5,9 +5,9 @@
 #import bevy_render::view::View
 #import bevy_shadow_fins::fin_types::{
     FinParams, FinSample, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, texel_index, decode_min_key, decode_max_key,
-    orthographic, in_face, penumbra_half_width,
+    orthographic, penumbra_half_width,
 }
-#import bevy_shadow_fins::fin_view::{FinView, dir_to_frame, in_viewport, pixel_position}
+#import bevy_shadow_fins::fin_view::{FinView, PIXEL_BACKGROUND, PIXEL_OTHER_FACE, pixel_receiver}
 
 @group(0) @binding(0) var<uniform> params: FinParams;
 @group(0) @binding(1) var<storage, read> maps: array<u32>;
@@ -93,27 +93,21 @@ fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let pixel = vec2<i32>(id.xy);
-    let depth = textureLoad(depth_prepass, pixel, 0);
-    // Background (reverse-Z far plane): fully lit. The light's own
-    // half-space test is the compositing pass's.
-    if (depth <= 0.0 || !in_viewport(view, id.xy)) {
+    let r = pixel_receiver(view, fin_view, params, id.xy, textureLoad(depth_prepass, pixel, 0), textureLoad(normal_prepass, pixel, 0));
+    if (r.kind == PIXEL_BACKGROUND) {
         textureStore(visibility, pixel, vec4<f32>(1.0));
         return;
     }
-    let position = pixel_position(view, fin_view, id.xy, depth);
-    // A point light's cube face shades the receivers in its frustum only;
-    // the six faces' passes fill the light's one layer between them
-    // (`CubeFace::of`, a hair wider so no pixel between two is left: `in_face`).
-    if (params.flags.w == 2u && !in_face(position)) {
+    if (r.kind == PIXEL_OTHER_FACE) {
         return;
     }
+    let position = r.position;
+    let normal = r.normal;
     // No layer: nothing casts.
     if (params.counts.y == 0u) {
         textureStore(visibility, pixel, vec4<f32>(1.0));
         return;
     }
-    let normal_world = normalize(textureLoad(normal_prepass, pixel, 0).xyz * 2.0 - 1.0);
-    let normal = dir_to_frame(params, normal_world);
 
     // Lift by one texel's world size along the normal (as the raster oracle:
     // a perspective texel grows with depth, an orthographic one does not).

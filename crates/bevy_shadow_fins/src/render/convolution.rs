@@ -413,7 +413,6 @@ fn convolution_visibility(
 ) {
     let (entity, settings, texture, bind_groups, offset) = view.into_inner();
     let Some(pipeline) = pipelines.and_then(|p| pipeline_cache.get_compute_pipeline(p.visibility)) else { return };
-    let size = texture.texture.texture.size();
     for (slot, bind_group) in bind_groups.0.iter().enumerate() {
         let Some(bind_group) = bind_group else { continue };
         // Only over a basis built from the map as it is now (a frame whose
@@ -426,20 +425,17 @@ fn convolution_visibility(
         if !built {
             continue;
         }
-        let diagnostics = ctx.diagnostic_recorder();
-        let diagnostics = diagnostics.as_deref();
-        let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/visibility");
-        {
-            let mut pass = ctx.command_encoder().begin_compute_pass(&ComputePassDescriptor {
-                label: Some("fin_convolution_visibility"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, bind_group, &[offset.offset]);
-            pass.dispatch_workgroups(size.width.div_ceil(8), size.height.div_ceil(8), 1);
-        }
-        span.end(ctx.command_encoder());
-        written.0.insert((entity, slot));
-        super::copy_to_targets(&mut ctx, settings, texture, &images, &frames, slot);
+        let view = super::ViewPass { entity, settings, texture, offset: offset.offset };
+        super::run_view_pass(
+            &mut ctx,
+            &view,
+            "fin_convolution_visibility",
+            pipeline,
+            bind_group,
+            slot,
+            &images,
+            &frames,
+            &mut written,
+        );
     }
 }

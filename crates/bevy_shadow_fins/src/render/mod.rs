@@ -787,24 +787,52 @@ fn fin_visibility(
 ) {
     let (entity, settings, texture, bind_groups, offset) = view.into_inner();
     let Some(pipeline) = pipelines.and_then(|p| pipeline_cache.get_compute_pipeline(p.visibility)) else { return };
-    let size = texture.texture.texture.size();
     for (slot, bind_group) in bind_groups.0.iter().enumerate() {
         let Some(bind_group) = bind_group else { continue };
-        let diagnostics = ctx.diagnostic_recorder();
-        let diagnostics = diagnostics.as_deref();
-        let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/visibility");
-        {
-            let mut pass = ctx
-                .command_encoder()
-                .begin_compute_pass(&ComputePassDescriptor { label: Some("fin_visibility"), timestamp_writes: None });
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, bind_group, &[offset.offset]);
-            pass.dispatch_workgroups(size.width.div_ceil(8), size.height.div_ceil(8), 1);
-        }
-        span.end(ctx.command_encoder());
-        written.0.insert((entity, slot));
-        copy_to_targets(&mut ctx, settings, texture, &images, &frames, slot);
+        let view = ViewPass { entity, settings, texture, offset: offset.offset };
+        run_view_pass(&mut ctx, &view, "fin_visibility", pipeline, bind_group, slot, &images, &frames, &mut written);
     }
+}
+
+/// The camera a per-pixel visibility pass runs for.
+pub(super) struct ViewPass<'a> {
+    pub entity: Entity,
+    pub settings: &'a FinShadowView,
+    pub texture: &'a FinViewTexture,
+    /// Its `ViewUniformOffset`.
+    pub offset: u32,
+}
+
+/// One light slot's per-pixel pass (fins', convolution's or plateaus'): one
+/// dispatch over the camera's target, timed as `fin_shadows/visibility`, the
+/// slot marked as written and its layer copied to the camera's targets.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn run_view_pass(
+    ctx: &mut RenderContext,
+    view: &ViewPass,
+    label: &'static str,
+    pipeline: &ComputePipeline,
+    bind_group: &BindGroup,
+    slot: usize,
+    images: &RenderAssets<GpuImage>,
+    frames: &FinFrames,
+    written: &mut ViewsWithVisibility,
+) {
+    let size = view.texture.texture.texture.size();
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/visibility");
+    {
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor { label: Some(label), timestamp_writes: None });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, bind_group, &[view.offset]);
+        pass.dispatch_workgroups(size.width.div_ceil(8), size.height.div_ceil(8), 1);
+    }
+    span.end(ctx.command_encoder());
+    written.0.insert((view.entity, slot));
+    copy_to_targets(ctx, view.settings, view.texture, images, frames, slot);
 }
 
 /// Copies the visibility layer of frame slot `slot`'s light into the

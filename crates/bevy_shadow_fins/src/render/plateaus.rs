@@ -14,7 +14,6 @@ use bevy::{
     prelude::*,
     render::{
         Render, RenderApp, RenderSystems,
-        diagnostic::RecordDiagnostics,
         render_resource::{
             binding_types::{
                 storage_buffer_read_only_sized, texture_2d, texture_depth_2d, texture_storage_2d, uniform_buffer,
@@ -246,27 +245,23 @@ fn plateaus_visibility(
 ) {
     let (entity, settings, texture, bind_groups, offset) = view.into_inner();
     let Some(pipeline) = pipelines.and_then(|p| pipeline_cache.get_compute_pipeline(p.visibility)) else { return };
-    let size = texture.texture.texture.size();
     for (slot, bind_group) in bind_groups.0.iter().enumerate() {
         let Some(bind_group) = bind_group else { continue };
         // Only over a hard shadow map the passes have drawn for this frame.
         if maps.0.get(&frames.0[slot].key()).is_none_or(|m| m.dirty || m.renders == 0) {
             continue;
         }
-        let diagnostics = ctx.diagnostic_recorder();
-        let diagnostics = diagnostics.as_deref();
-        let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/visibility");
-        {
-            let mut pass = ctx.command_encoder().begin_compute_pass(&ComputePassDescriptor {
-                label: Some("fin_plateaus_visibility"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, bind_group, &[offset.offset]);
-            pass.dispatch_workgroups(size.width.div_ceil(8), size.height.div_ceil(8), 1);
-        }
-        span.end(ctx.command_encoder());
-        written.0.insert((entity, slot));
-        super::copy_to_targets(&mut ctx, settings, texture, &images, &frames, slot);
+        let view = super::ViewPass { entity, settings, texture, offset: offset.offset };
+        super::run_view_pass(
+            &mut ctx,
+            &view,
+            "fin_plateaus_visibility",
+            pipeline,
+            bind_group,
+            slot,
+            &images,
+            &frames,
+            &mut written,
+        );
     }
 }
