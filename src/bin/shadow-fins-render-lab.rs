@@ -73,7 +73,8 @@ enum Command {
         /// Ground-truth samples on the disk (0: no error column).
         #[arg(long, default_value_t = 1024)]
         samples: u32,
-        /// The plugin's method: fins (16-layer, the cases' own settings) or coverage.
+        /// The plugin's method: fins (16-layer, the cases' own settings),
+        /// coverage, convolution or plateaus.
         #[arg(long, default_value = "fins")]
         method: String,
         /// Also write the report table here.
@@ -476,10 +477,9 @@ fn run_measure(args: MeasureArgs) -> Result<(), LabError> {
 }
 
 fn run_stability(cases: &str, samples: u32, method: &str, out: Option<PathBuf>) -> Result<ExitCode, LabError> {
-    let coverage = match method {
-        "fins" => false,
-        "coverage" => true,
-        m => return Err(usage(format!("unknown method '{m}': use fins or coverage"))),
+    let Some((_, method)) = stability::METHODS.iter().find(|(name, _)| *name == method) else {
+        let names: Vec<&str> = stability::METHODS.iter().map(|(name, _)| *name).collect();
+        return Err(usage(format!("unknown method '{method}': use {}", names.join(", "))));
     };
     let wanted: Vec<&str> = cases.split(',').map(str::trim).filter(|s| !s.is_empty()).collect();
     let all = stability::cases();
@@ -494,7 +494,7 @@ fn run_stability(cases: &str, samples: u32, method: &str, out: Option<PathBuf>) 
     for (i, case) in selected.iter().enumerate() {
         eprint!("\r[{}/{}] {:<40}", i + 1, selected.len(), case.name);
         std::io::stderr().flush().ok();
-        outcomes.push(stability::run(case, samples, coverage));
+        outcomes.push(stability::run(case, samples, *method));
     }
     eprintln!();
     let table = stability::markdown(&outcomes);

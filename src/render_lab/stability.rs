@@ -1,6 +1,6 @@
 //! `stability`: the numerical extremes, each rendered by Bevy with the plugin
-//! (16-layer fins unless the case says otherwise, or the coverage method) and
-//! read back. Per case:
+//! (16-layer fins unless the case says otherwise, or another of its methods:
+//! coverage, convolution, plateaus) and read back. Per case:
 //! NaN/Inf and out-of-range counts over the whole visibility buffer, and the
 //! error against the ground truth over the scored pixels (hit surfaces the
 //! light's centre faces).
@@ -19,6 +19,10 @@ use shadow_fins::{
     mesh::Mesh,
     metrics::ErrorMetrics,
     oracle::{FinSettings, FinShadowModel, Method, Receiver},
+    peers::{
+        PlateauModel,
+        convolution::{ConvolutionModel, ConvolutionSettings},
+    },
     scene::{LightSpaceScene, Scene, SceneObject},
     scenes::SceneId,
     shapes,
@@ -280,11 +284,21 @@ fn truth_frame(setup: &Setup) -> LightSpaceScene {
     }
 }
 
+/// The plugin's methods `stability` runs: the case's own fins, or another.
+pub const METHODS: [(&str, Option<FinMethod>); 4] = [
+    ("fins", None),
+    ("coverage", Some(FinMethod::Coverage)),
+    ("convolution", Some(FinMethod::Convolution)),
+    ("plateaus", Some(FinMethod::Plateaus)),
+];
+
 /// Runs one case with `samples` ground-truth samples (0: no truth), by the
-/// fins (the case's own settings) or, with `coverage`, the coverage method
-/// (256 light samples, depth lists at the case's map size; its row shows
-/// potential silhouette edges / 0 / 0).
-pub fn run(case: &Case, samples: u32, coverage: bool) -> Outcome {
+/// fins (`None`: the case's own settings) or another of the plugin's methods
+/// (coverage: 256 light samples, depth lists at the case's map size, its row
+/// showing potential silhouette edges / 0 / 0). The oracle cases run the
+/// core's model of that method (convolution: the CPU peer, summed-area
+/// tables; plateaus: the CPU peer).
+pub fn run(case: &Case, samples: u32, method: Option<FinMethod>) -> Outcome {
     let mut outcome = Outcome {
         name: case.name,
         what: case.what.clone(),
@@ -303,8 +317,8 @@ pub fn run(case: &Case, samples: u32, coverage: bool) -> Outcome {
     match &case.kind {
         CaseKind::Rendered(setup) => {
             let mut setup = setup.clone();
-            if coverage {
-                setup.settings.method = FinMethod::Coverage;
+            if let Some(m) = method {
+                setup.settings.method = m;
             }
             let setup = &setup;
             let shot = match Session::new(setup).settle(6) {
@@ -342,16 +356,28 @@ pub fn run(case: &Case, samples: u32, coverage: bool) -> Outcome {
             let mut ls = LightSpaceScene::new(scene, *light);
             // The plugin's L0 covers every surface it draws; given points must be covered too.
             ls.cover_receivers(receivers.iter().map(|r| r.position));
-            let values: Vec<f32> = if coverage {
-                let reference = ReferenceCount::Raster { resolution: 512, depths: DEPTH_LIST_LENGTH };
-                let model = CoverageModel::new(scene, &ls, CoverageSettings { reference, ..Default::default() });
-                outcome.modelled = Some((model.edges.len(), 0, 0));
-                receivers.iter().map(|r| model.visibility(*r)).collect()
-            } else {
-                let model = FinShadowModel::new(scene, &ls, Method::MultiLayer, FinSettings::default());
-                let maps = model.raster(512);
-                outcome.modelled = Some((model.silhouettes.len(), model.fins.len(), model.plan.len()));
-                receivers.iter().map(|r| maps.visibility(*r)).collect()
+            let values: Vec<f32> = match method {
+                Some(FinMethod::Coverage) => {
+                    let reference = ReferenceCount::Raster { resolution: 512, depths: DEPTH_LIST_LENGTH };
+                    let model = CoverageModel::new(scene, &ls, CoverageSettings { reference, ..Default::default() });
+                    outcome.modelled = Some((model.edges.len(), 0, 0));
+                    receivers.iter().map(|r| model.visibility(*r)).collect()
+                }
+                Some(FinMethod::Convolution) => {
+                    let model = ConvolutionModel::new(&ls, ConvolutionSettings::default());
+                    receivers.iter().map(|r| model.visibility(*r)).collect()
+                }
+                Some(FinMethod::Plateaus) => {
+                    let model = PlateauModel::new(scene, &ls);
+                    outcome.modelled = Some((model.sheet_count(), 0, 0));
+                    receivers.iter().map(|r| model.visibility(*r)).collect()
+                }
+                _ => {
+                    let model = FinShadowModel::new(scene, &ls, Method::MultiLayer, FinSettings::default());
+                    let maps = model.raster(512);
+                    outcome.modelled = Some((model.silhouettes.len(), model.fins.len(), model.plan.len()));
+                    receivers.iter().map(|r| maps.visibility(*r)).collect()
+                }
             };
             count(&values, &mut outcome);
             if samples > 0 {

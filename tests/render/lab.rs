@@ -85,16 +85,21 @@ fn stability_extremes_put_no_nan_in_the_visibility_buffer() {
         ["radius-0", "touching", "nan-and-empty-meshes", "scale-1e-4", "receiver-beyond-reference", "far-plane-1e6"];
     let cases: Vec<_> = stability::cases().into_iter().filter(|c| wanted.contains(&c.name)).collect();
     assert_eq!(cases.len(), wanted.len());
-    for (case, coverage) in cases.iter().flat_map(|c| [(c, false), (c, true)]) {
-        let o = stability::run(case, 64, coverage);
-        assert!(o.error.is_none(), "{} (coverage {coverage}): {:?}", o.name, o.error);
+    for (case, (label, method)) in cases.iter().flat_map(|c| stability::METHODS.iter().map(move |m| (c, *m))) {
+        let o = stability::run(case, 64, method);
+        let coverage = method == Some(bevy_shadow_fins::FinMethod::Coverage);
+        assert!(o.error.is_none(), "{} ({label}): {:?}", o.name, o.error);
         assert!(o.values > 0, "{}: nothing checked", o.name);
-        assert_eq!((o.non_finite, o.out_of_range), (0, 0), "{}", o.name);
+        assert_eq!((o.non_finite, o.out_of_range), (0, 0), "{} ({label})", o.name);
         let m = o.metrics.expect("ground truth was on");
-        assert!(m.mae.is_finite(), "{}", o.name);
-        if o.name == "radius-0" || o.name == "touching" {
-            // Both are (nearly) hard shadows, which the method reproduces.
-            assert!(m.mae < 0.1, "{}: MAE {}", o.name, m.mae);
+        println!("{} ({label}): MAE {:.4}", o.name, m.mae);
+        assert!(m.mae.is_finite(), "{} ({label})", o.name);
+        // Both are (nearly) hard shadows, which every method reproduces — but
+        // plateaus, which draw a tall box's whole penumbra outwards from its
+        // hard shadow where the truth splits it about the edge (MAE 0.37).
+        let plateaus = method == Some(bevy_shadow_fins::FinMethod::Plateaus);
+        if o.name == "radius-0" || (o.name == "touching" && !plateaus) {
+            assert!(m.mae < 0.1, "{} ({label}): MAE {}", o.name, m.mae);
         }
         if coverage && o.name != "receiver-beyond-reference" {
             // Exact up to its samples at every extreme (a 2e6-wide ground: the
