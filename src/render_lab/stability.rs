@@ -297,7 +297,8 @@ pub const METHODS: [(&str, Option<FinMethod>); 4] = [
 /// (coverage: 256 light samples, depth lists at the case's map size, its row
 /// showing potential silhouette edges / 0 / 0). The oracle cases run the
 /// core's model of that method (convolution: the CPU peer, summed-area
-/// tables; plateaus: the CPU peer).
+/// tables; plateaus: the CPU peer; any other method: the fins' oracle, so
+/// pass one of [`METHODS`]).
 pub fn run(case: &Case, samples: u32, method: Option<FinMethod>) -> Outcome {
     let mut outcome = Outcome {
         name: case.name,

@@ -92,7 +92,8 @@ pub enum FinDegradation {
     /// two of the finest kept texels blur.
     ConvolutionLevels { dropped: u32, limit_bytes: u64 },
     /// Not even the convolution basis of the coarsest allowed level fits:
-    /// the light has no convolution shadow (Bevy's own, where it has one).
+    /// the light's visibility is not computed, so it shines unshadowed (a
+    /// Bevy light's own shadow map stays off; a `FinLight` is not lit).
     ConvolutionBasis { bytes: u64, limit_bytes: u64 },
     /// A plateau cell lists more sheets than one shader invocation walks
     /// (the rest are skipped there: lighter penumbrae in that cell).
@@ -140,7 +141,7 @@ impl std::fmt::Display for FinDegradation {
             ),
             FinDegradation::ConvolutionBasis { bytes, limit_bytes } => write!(
                 f,
-                "convolution basis needs {:.3} MiB at its coarsest, over the {:.3} MiB allowed: no convolution shadow",
+                "convolution basis needs {:.3} MiB at its coarsest, over the {:.3} MiB allowed: the light casts no shadow",
                 mib(bytes),
                 mib(limit_bytes)
             ),

@@ -238,7 +238,10 @@ fn prepare_light(
     let limit = device.limits().max_storage_buffer_binding_size.min(f.limit_bytes).max(layout.bytes());
     let storage = BufferUsages::STORAGE | BufferUsages::COPY_DST;
     let uniform = BufferUsages::UNIFORM | BufferUsages::COPY_DST;
-    ensure(&mut gpu.basis, device, "fin_convolution_basis", layout.bytes().max(64), storage, limit);
+    // Exactly the chain's size: the main world fitted it to the light's map
+    // budget beside the maps (no growth headroom; a new layout re-sizes it).
+    let bytes = layout.bytes().max(64);
+    ensure(&mut gpu.basis, device, "fin_convolution_basis", bytes, storage, bytes);
     ensure(&mut gpu.uniform, device, "fin_convolution_params", size_of::<ConvolutionUniform>() as u64, uniform, limit);
     ensure(&mut gpu.state, device, "fin_convolution_near", 16, storage, limit);
     let stride = LEVEL_STRIDE.max(device.limits().min_uniform_buffer_offset_alignment as u64);

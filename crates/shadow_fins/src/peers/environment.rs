@@ -315,7 +315,7 @@ pub fn shade(
     let bvh =
         matches!(shadows, LightShadows::Hard | LightShadows::Exact { .. }).then(|| Bvh::new(&world_casters(scene)));
     let mut sum = vec![0.0f32; receivers.len()];
-    let chunk = receivers.len().div_ceil(threads.max(1)).max(1);
+    const CHUNK: usize = 256;
     for light in lights {
         let Some(as_light) = light.light() else { continue };
         let ls = LightSpaceScene::new(scene, as_light);
@@ -337,14 +337,24 @@ pub fn shade(
                 _ => 1.0,
             }
         };
+        // Small chunks handed out by a counter: receivers' costs differ a lot
+        // (facing away: nothing; exact: 64 rays), fixed halves would wait on
+        // the slower one at every light.
+        let next = std::sync::atomic::AtomicUsize::new(0);
+        let chunks: Vec<std::sync::Mutex<&mut [f32]>> = sum.chunks_mut(CHUNK).map(std::sync::Mutex::new).collect();
         std::thread::scope(|scope| {
-            for (out, rs) in sum.chunks_mut(chunk).zip(receivers.chunks(chunk)) {
-                let visibility = &visibility;
+            for _ in 0..threads.max(1) {
+                let (visibility, next, chunks) = (&visibility, &next, &chunks);
                 scope.spawn(move || {
-                    for (o, r) in out.iter_mut().zip(rs) {
-                        let c = r.normal.dot(light.direction);
-                        if c > 0.0 {
-                            *o += light.energy * c * visibility(r);
+                    loop {
+                        let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(out) = chunks.get(k) else { break };
+                        let mut out = out.lock().unwrap_or_else(|e| e.into_inner());
+                        for (o, r) in out.iter_mut().zip(&receivers[k * CHUNK..]) {
+                            let c = r.normal.dot(light.direction);
+                            if c > 0.0 {
+                                *o += light.energy * c * visibility(r);
+                            }
                         }
                     }
                 });
