@@ -147,6 +147,14 @@ pub enum FinMethod {
     Plateaus,
 }
 
+impl FinMethod {
+    /// Whether the fins' visibility pass (`visibility.wgsl`) shades this
+    /// method's pixels; coverage, convolution and plateaus have their own.
+    pub(crate) fn shaded_by_fin_pass(self) -> bool {
+        matches!(self, FinMethod::Hard | FinMethod::OuterFins | FinMethod::SingleLayer | FinMethod::MultiLayer)
+    }
+}
+
 impl From<FinMethod> for Method {
     /// The core's fin method. `Coverage`, `Convolution` and `Plateaus` have
     /// no fins: they map to the hard shadow map (the one convolution filters

@@ -173,9 +173,9 @@ struct ConvolutionLightsGpu(std::collections::HashMap<FrameKey, ConvolutionGpu>)
 
 #[derive(Default)]
 struct ConvolutionGpu {
-    /// The frame generation the layout and uniform were made for.
+    /// The frame generation the uniform and bind group were made for (the
+    /// frame's own `convolution` layout sized them).
     generation: u64,
-    layout: Option<BasisLayout>,
     basis: Option<Buffer>,
     uniform: Option<Buffer>,
     state: Option<Buffer>,
@@ -230,7 +230,7 @@ fn prepare_light(
     // The main world sized the chain to its budget (`BasisLayout`, said in
     // the light's stats when it had to drop levels or could not fit).
     let (Some(layout), Some(params), Some(map_buffer)) =
-        (f.convolution.clone(), maps.params.clone(), maps.maps.clone())
+        (f.convolution.as_ref(), maps.params.clone(), maps.maps.clone())
     else {
         *gpu = ConvolutionGpu::default();
         return;
@@ -246,7 +246,7 @@ fn prepare_light(
     ensure(&mut gpu.state, device, "fin_convolution_near", 16, storage, limit);
     let stride = LEVEL_STRIDE.max(device.limits().min_uniform_buffer_offset_alignment as u64);
     ensure(&mut gpu.levels, device, "fin_convolution_levels", stride * MAX_LEVELS as u64, uniform, u64::MAX);
-    queue.write_buffer(gpu.uniform.as_ref().unwrap(), 0, bytemuck::bytes_of(&uniform_of(f, &layout)));
+    queue.write_buffer(gpu.uniform.as_ref().unwrap(), 0, bytemuck::bytes_of(&uniform_of(f, layout)));
     let mut levels = vec![0u8; (stride * MAX_LEVELS as u64) as usize];
     for l in 0..MAX_LEVELS {
         levels[l * stride as usize..][..4].copy_from_slice(&(l as u32).to_le_bytes());
@@ -264,7 +264,6 @@ fn prepare_light(
             BufferBinding { buffer: gpu.levels.as_ref().unwrap(), offset: 0, size: std::num::NonZeroU64::new(16) },
         )),
     ));
-    gpu.layout = Some(layout);
     gpu.generation = f.generation;
     gpu.built_from = None;
 }
@@ -295,7 +294,9 @@ fn render_basis(
         if m.dirty || gpu.built_from == Some(m.renders) {
             continue;
         }
-        let (Some(bind_group), Some(layout)) = (gpu.bind_group.as_ref(), gpu.layout.as_ref()) else { continue };
+        let (Some(bind_group), Some(layout)) = (gpu.bind_group.as_ref(), frame.data.convolution.as_ref()) else {
+            continue;
+        };
         let diagnostics = ctx.diagnostic_recorder();
         let diagnostics = diagnostics.as_deref();
         let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/convolution_basis");

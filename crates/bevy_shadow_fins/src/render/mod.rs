@@ -741,9 +741,7 @@ fn prepare_view_bind_groups(
             .iter()
             .enumerate()
             .map(|(slot, frame)| {
-                // Convolution and plateaus read the maps through their own passes.
-                use crate::light::FinMethod;
-                if matches!(frame.data.settings.method, FinMethod::Convolution | FinMethod::Plateaus) {
+                if !frame.data.settings.method.shaded_by_fin_pass() {
                     return None;
                 }
                 let gpu = lights.0.get(&frame.key())?;
