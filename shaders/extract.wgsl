@@ -2,6 +2,9 @@
 // the same semantics as the core crate's `FinExtractor` (silhouette.rs,
 // fins.rs, layers.rs), stage for stage:
 //
+//  0. reset, forget_footprints, reset_footprints
+//                          counters; the moved instances' old footprints
+//                          into the dirty rectangle, every footprint anew
 //  1. transform_vertices   every vertex into the light frame; deepest depth → L0
 //  2. classify_faces       facing test against the light in object space
 //  3. join_patches         patches = connected light-facing regions: lock-free
@@ -18,10 +21,25 @@
 //                          quantiles; map region; the maps' parameters and
 //                          indirect arguments
 // 11. assign_*_layers      every fin and caster to its patch_id's layer
+// 12. gather_redraw_*      on a partial redraw, the casters and fins that
+//     redraw_args          reach the redrawn rectangle, and the maps'
+//                          dispatch sizes for them
 //
 // Caster geometry (`geometry`) is uploaded once per mesh; only `instances`
 // (object → light-frame transforms) change when something moves.
-#import bevy_shadow_fins::fin_types::{Caster, Fin, cross2}
+//
+// Partial redraw (issue 16, item 3: only what depends on a moved caster is
+// redone). Every instance's footprint — the map-space bounds of the casters
+// and fins it emitted — is kept in `history` from frame to frame. When the
+// CPU lists the instances whose records changed (`H_DIRTY_COUNT`, at most
+// `MAX_DIRTY`) and the maps' plan comes out as last frame's (the same
+// `FinParams` but for the counts, the same layer planes, nothing past a
+// capacity), only the texels under those instances' old and new footprints
+// are cleared and redrawn, from the casters and fins that reach them:
+// texel for texel what a full redraw writes there, and the rest of the maps
+// is what it was. Otherwise (`H_DIRTY_COUNT` = `FULL`, the plan moved) the
+// maps are redrawn whole.
+#import bevy_shadow_fins::fin_types::{Caster, Fin, cross2, fin_bounds}
 
 struct ExtractParams {
     // (instances, instance vertices, caster faces, caster edges)
@@ -109,16 +127,36 @@ const C_REGION: u32 = 6u; // min x, min y (ordered-key minima), max x, max y (ma
 const C_LAYERS_WANTED: u32 = 10u;
 const C_GENERATION: u32 = 11u;
 const C_LAYERS: u32 = 12u;
+const C_PARTIAL: u32 = 13u; // 1: this update redraws the maps in part
+const C_REDRAWN: u32 = 14u; // texels (all layers) this update cleared and redrew
+const C_UNBOUNDED: u32 = 15u; // 1: a primitive with bounds not finite (it may reach any texel)
 const C_HEADER: u32 = 16u;
-const C_PARAMS: u32 = 16u; // 32 words: the maps' `FinParams`
-const C_ARGS_CLEAR: u32 = 48u;
-const C_ARGS_CASTERS: u32 = 51u;
-const C_ARGS_FINS: u32 = 54u;
-const C_ARGS_SILHOUETTES: u32 = 57u;
-const C_ARGS_FIN_THREADS: u32 = 60u;
-const C_ARGS_CASTER_THREADS: u32 = 63u;
-const C_PLANES: u32 = 66u; // count, then up to 31 planes
+const C_PARAMS: u32 = 16u; // 36 words: the maps' `FinParams`
+const PARAMS_WORDS: u32 = 36u;
+const C_ARGS_CLEAR: u32 = 56u;
+const C_ARGS_CASTERS: u32 = 59u;
+const C_ARGS_FINS: u32 = 62u;
+const C_ARGS_SILHOUETTES: u32 = 65u;
+const C_ARGS_FIN_THREADS: u32 = 68u;
+const C_ARGS_CASTER_THREADS: u32 = 71u;
+const C_PLANES: u32 = 74u; // count, then up to 31 planes
 const C_HISTOGRAM: u32 = 128u;
+
+const C_LIST_CASTERS: u32 = 106u; // where a partial redraw's caster list starts (for maps.wgsl)
+const C_LIST_FINS: u32 = 107u; // and its fin list
+
+// After the histogram, `control` keeps what a partial redraw needs from
+// frame to frame (`history`, words relative to C_HISTOGRAM + sub-layers);
+// keep in sync with `render/extract_gpu.rs`:
+const H_PLAN: u32 = 0u; // last frame's FinParams words 0..32, then its planes (count + 31)
+const H_DIRTY_COUNT: u32 = 64u; // written by the CPU: dirty instances listed, or FULL
+const H_VALID: u32 = 65u; // 1 once a plan is kept
+const H_DIRTY_RECT: u32 = 68u; // union of the dirty footprints (ordered keys: min x, min y, max x, max y)
+const H_REDRAW_AREA: u32 = 72u; // the redrawn texel centres' map-space bounds (f32 bits)
+const H_FOOTPRINTS: u32 = 76u; // 4 words (ordered keys) per instance, then MAX_DIRTY
+                               // dirty instances, then the redraw lists
+const FULL: u32 = 0xffffffffu;
+const MAX_DIRTY: u32 = 256u;
 
 // `state` per caster face: parent (union-find), flags (1 facing, 2 in the
 // maps), and the patch_id's silhouette-depth sum (64-bit fixed point) and count
@@ -307,14 +345,69 @@ fn valid(d: vec2<f32>) -> bool {
     return dot(d, d) > 0.0;
 }
 
-fn grow_region(lo: vec2<f32>, hi: vec2<f32>) {
+// Grows the maps' region and the footprint of the instance that emitted
+// the primitive (patch_id: a face of it) by the primitive's bounds.
+fn grow_region(lo: vec2<f32>, hi: vec2<f32>, patch_id: u32) {
     if (!(finite(lo.x) && finite(lo.y) && finite(hi.x) && finite(hi.y))) {
+        // No footprint holds it: this frame and the next redraw whole.
+        atomicStore(&control[C_UNBOUNDED], 1u);
         return;
     }
     atomicMin(&control[C_REGION], order_key(lo.x));
     atomicMin(&control[C_REGION + 1u], order_key(lo.y));
     atomicMax(&control[C_REGION + 2u], order_key(hi.x));
     atomicMax(&control[C_REGION + 3u], order_key(hi.y));
+    grow_keys(H_FOOTPRINTS + 4u * instance_of(patch_id, 2u), order_key(lo.x), order_key(lo.y), order_key(hi.x), order_key(hi.y));
+}
+
+// `history` word i's index in `control`.
+fn h(i: u32) -> u32 {
+    return C_HISTOGRAM + params.layering.x + i;
+}
+
+// A partial redraw's caster list (count, then indices), and its fin list.
+fn list_casters() -> u32 {
+    return h(H_FOOTPRINTS + 4u * params.totals.x + MAX_DIRTY);
+}
+
+fn list_fins() -> u32 {
+    return list_casters() + 1u + params.capacity.z;
+}
+
+// Grows the bounds at `history[at..at + 4]` (ordered keys) by another's.
+fn grow_keys(at: u32, lo_x: u32, lo_y: u32, hi_x: u32, hi_y: u32) {
+    atomicMin(&control[h(at)], lo_x);
+    atomicMin(&control[h(at + 1u)], lo_y);
+    atomicMax(&control[h(at + 2u)], hi_x);
+    atomicMax(&control[h(at + 3u)], hi_y);
+}
+
+fn clear_keys(at: u32) {
+    atomicStore(&control[h(at)], 0xffffffffu);
+    atomicStore(&control[h(at + 1u)], 0xffffffffu);
+    atomicStore(&control[h(at + 2u)], 0u);
+    atomicStore(&control[h(at + 3u)], 0u);
+}
+
+fn dirty_count() -> u32 {
+    let n = atomicLoad(&control[h(H_DIRTY_COUNT)]);
+    return select(min(n, MAX_DIRTY), 0u, n == FULL);
+}
+
+// The i-th dirty instance (the list follows the footprints).
+fn dirty_instance(i: u32) -> u32 {
+    return atomicLoad(&control[h(H_FOOTPRINTS + 4u * params.totals.x + i)]);
+}
+
+fn grow_dirty_rect(instance: u32) {
+    let at = H_FOOTPRINTS + 4u * instance;
+    grow_keys(
+        H_DIRTY_RECT,
+        atomicLoad(&control[h(at)]),
+        atomicLoad(&control[h(at + 1u)]),
+        atomicLoad(&control[h(at + 2u)]),
+        atomicLoad(&control[h(at + 3u)]),
+    );
 }
 
 // ---------------------------------------------------------------- 0. reset
@@ -328,8 +421,33 @@ fn reset(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
             value = 0xffffffffu;
         }
         atomicStore(&control[i], value);
+        if (i == 0u) {
+            clear_keys(H_DIRTY_RECT);
+        }
     } else if (i < C_HISTOGRAM + params.layering.x) {
         atomicStore(&control[i], 0u);
+    }
+}
+
+// Before anything is emitted: the dirty instances' old footprints go into
+// the dirty rectangle (what they covered must be redrawn without them) ...
+@compute @workgroup_size(64, 1, 1)
+fn forget_footprints(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (i < dirty_count()) {
+        let instance = dirty_instance(i);
+        if (instance < params.totals.x) {
+            grow_dirty_rect(instance);
+        }
+    }
+}
+
+// ... and every footprint starts anew (each instance emits again every frame).
+@compute @workgroup_size(64, 1, 1)
+fn reset_footprints(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (i < params.totals.x) {
+        clear_keys(H_FOOTPRINTS + 4u * i);
     }
 }
 
@@ -590,7 +708,7 @@ fn emit_fin(kind: u32, outer: bool, patch_id: u32, data: array<f32, 12>, lo: vec
     let index = atomicAdd(&control[C_FINS], 1u);
     if (index < params.capacity.y) {
         fins[index] = Fin(vec4<u32>(kind, select(0u, 1u, outer), patch_id, 0u), data);
-        grow_region(lo, hi);
+        grow_region(lo, hi, patch_id);
     }
 }
 
@@ -872,7 +990,7 @@ fn emit_caster(p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, normal: vec3<f32>, o
         patch_id,
         0u, // solid: frames with alpha-masked casters extract on the CPU
     );
-    grow_region(min(c0, min(c1, c2)), max(c0, max(c1, c2)));
+    grow_region(min(c0, min(c1, c2)), max(c0, max(c1, c2)), patch_id);
 }
 
 @compute @workgroup_size(64, 1, 1)
@@ -1022,7 +1140,8 @@ fn plan_layers() {
     let resolution = params.layering.w;
     let l0 = reference_depth();
 
-    // The maps' `FinParams` (fin_types.wgsl), copied into their uniform.
+    // The maps' `FinParams` (fin_types.wgsl), copied into their uniform; its
+    // last four words, the texels redrawn, are `plan_redraw`'s.
     let p = array<u32, 32>(
         bitcast<u32>(region_min.x), bitcast<u32>(region_min.y), bitcast<u32>(size / f32(resolution)), bitcast<u32>(l0),
         resolution, used, n_casters, n_fins,
@@ -1036,11 +1155,86 @@ fn plan_layers() {
     for (var i = 0u; i < 32u; i++) {
         atomicStore(&control[C_PARAMS + i], p[i]);
     }
-    write_args(C_ARGS_CLEAR, used * resolution * resolution, WORKGROUP);
+    let rect = plan_redraw(p, region_min, size / f32(resolution), resolution);
+    let redrawn = (rect.y - rect.x + 1u) * (rect.w - rect.z + 1u) * used;
+    atomicStore(&control[C_REDRAWN], select(0u, redrawn, rect.x <= rect.y && rect.z <= rect.w));
+    write_args(C_ARGS_CLEAR, atomicLoad(&control[C_REDRAWN]), WORKGROUP);
+    // A partial redraw's raster arguments are `redraw_args`'.
     write_args(C_ARGS_CASTERS, n_casters, 1u);
     write_args(C_ARGS_FINS, n_fins, 1u);
     write_args(C_ARGS_FIN_THREADS, n_fins, WORKGROUP);
     write_args(C_ARGS_CASTER_THREADS, n_casters, WORKGROUP);
+}
+
+// Full or partial redraw (see the top of this file): writes the texels to
+// redraw, inclusive (x0, x1, y0, y1), into the maps' `FinParams.redraw`, and
+// keeps this frame's plan for the next. `p`: the plan's first 32 words.
+fn plan_redraw(p: array<u32, 32>, region_min: vec2<f32>, texel: f32, resolution: u32) -> vec4<u32> {
+    let full_rect = vec4<u32>(0u, resolution - 1u, 0u, resolution - 1u);
+    var partial = atomicLoad(&control[h(H_DIRTY_COUNT)]) != FULL && atomicLoad(&control[h(H_VALID)]) == 1u;
+    // The same plan: every word but the caster and fin counts (6, 7), the same planes.
+    for (var i = 0u; i < 32u; i++) {
+        let same = atomicLoad(&control[h(H_PLAN + i)]) == p[i];
+        partial = partial && (same || i == 6u || i == 7u);
+        atomicStore(&control[h(H_PLAN + i)], p[i]);
+    }
+    for (var i = 0u; i < 32u; i++) {
+        let plane = atomicLoad(&control[C_PLANES + i]);
+        partial = partial && atomicLoad(&control[h(H_PLAN + 32u + i)]) == plane;
+        atomicStore(&control[h(H_PLAN + 32u + i)], plane);
+    }
+    // Nothing dropped for want of room (which primitives are dropped may
+    // differ frame to frame) and every primitive inside a footprint: else
+    // this frame is redrawn whole, and its maps are no base for the next.
+    let complete = atomicLoad(&control[C_SILHOUETTES]) <= params.capacity.x
+        && atomicLoad(&control[C_FINS]) <= params.capacity.y
+        && atomicLoad(&control[C_CASTERS]) <= params.capacity.z
+        && atomicLoad(&control[C_LAYERS_WANTED]) <= params.layering.z
+        && atomicLoad(&control[C_UNBOUNDED]) == 0u;
+    atomicStore(&control[h(H_VALID)], select(0u, 1u, complete));
+    partial = partial && complete;
+    var rect = full_rect;
+    if (partial) {
+        // The dirty instances' new footprints join their old ones.
+        for (var i = 0u; i < dirty_count(); i++) {
+            let instance = dirty_instance(i);
+            if (instance < params.totals.x) {
+                grow_dirty_rect(instance);
+            }
+        }
+        let lo = vec2<f32>(order_value(atomicLoad(&control[h(H_DIRTY_RECT)])), order_value(atomicLoad(&control[h(H_DIRTY_RECT + 1u)])));
+        let hi = vec2<f32>(order_value(atomicLoad(&control[h(H_DIRTY_RECT + 2u)])), order_value(atomicLoad(&control[h(H_DIRTY_RECT + 3u)])));
+        // Texels whose centres may lie in [lo, hi] (`texel_range` in maps.wgsl), one more each side.
+        let r = f32(resolution) - 1.0;
+        let a = clamp(ceil((lo - region_min) / texel - 0.5) - 1.0, vec2<f32>(0.0), vec2<f32>(r + 1.0));
+        let b = clamp(floor((hi - region_min) / texel - 0.5) + 1.0, vec2<f32>(-1.0), vec2<f32>(r));
+        if (!(lo.x <= hi.x && lo.y <= hi.y)) {
+            rect = vec4<u32>(1u, 0u, 1u, 0u); // nothing dirty covered a texel, before or now
+        } else if (a.x <= b.x && a.y <= b.y) {
+            rect = vec4<u32>(u32(a.x), u32(b.x), u32(a.y), u32(b.y));
+        } else {
+            rect = vec4<u32>(1u, 0u, 1u, 0u); // wholly off the maps
+        }
+        partial = any(rect != full_rect);
+    }
+    for (var i = 0u; i < 4u; i++) {
+        atomicStore(&control[C_PARAMS + 32u + i], rect[i]);
+    }
+    atomicStore(&control[C_PARTIAL], select(0u, 1u, partial));
+    // The redrawn texel centres' map-space bounds, for `gather_redraw_*`,
+    // widened by half a texel: `texel_range` divides where this multiplies,
+    // and a primitive gathered in excess is clipped by the raster anyway.
+    let area_lo = region_min + vec2<f32>(f32(rect.x), f32(rect.z)) * texel;
+    let area_hi = region_min + (vec2<f32>(f32(rect.y), f32(rect.w)) + 1.0) * texel;
+    atomicStore(&control[h(H_REDRAW_AREA)], bitcast<u32>(area_lo.x));
+    atomicStore(&control[h(H_REDRAW_AREA + 1u)], bitcast<u32>(area_lo.y));
+    atomicStore(&control[h(H_REDRAW_AREA + 2u)], bitcast<u32>(area_hi.x));
+    atomicStore(&control[h(H_REDRAW_AREA + 3u)], bitcast<u32>(area_hi.y));
+    atomicStore(&control[list_casters()], 0u);
+    atomicStore(&control[list_fins()], 0u);
+    atomicStore(&control[C_LIST_CASTERS], list_casters());
+    atomicStore(&control[C_LIST_FINS], list_fins());
+    return rect;
 }
 
 // ---------------------------------------------------------------- 11. layers
@@ -1081,4 +1275,54 @@ fn assign_caster_layers(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_inv
         return;
     }
     casters[i].layer = patch_layer(casters[i].layer);
+}
+
+// ---------------------------------------------------------------- 12. partial redraw
+
+fn partial_redraw() -> bool {
+    return atomicLoad(&control[C_PARTIAL]) == 1u;
+}
+
+// Whether bounds [lo, hi] reach the centre of a redrawn texel.
+fn reaches_redraw_area(lo: vec2<f32>, hi: vec2<f32>) -> bool {
+    let a = vec2<f32>(bitcast<f32>(atomicLoad(&control[h(H_REDRAW_AREA)])), bitcast<f32>(atomicLoad(&control[h(H_REDRAW_AREA + 1u)])));
+    let b = vec2<f32>(bitcast<f32>(atomicLoad(&control[h(H_REDRAW_AREA + 2u)])), bitcast<f32>(atomicLoad(&control[h(H_REDRAW_AREA + 3u)])));
+    // Not finite bounds reach everything (the raster clips them to the area).
+    return !(hi.x < a.x || hi.y < a.y || lo.x > b.x || lo.y > b.y);
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn gather_redraw_fins(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (!partial_redraw() || i >= min(atomicLoad(&control[C_FINS]), params.capacity.y)) {
+        return;
+    }
+    let bounds = fin_bounds(fins[i]);
+    if (reaches_redraw_area(bounds.xy, bounds.zw)) {
+        atomicStore(&control[list_fins() + 1u + atomicAdd(&control[list_fins()], 1u)], i);
+    }
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn gather_redraw_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (!partial_redraw() || i >= min(atomicLoad(&control[C_CASTERS]), params.capacity.z)) {
+        return;
+    }
+    let c = casters[i];
+    let a = vec2<f32>(c.corners[0], c.corners[1]);
+    let b = vec2<f32>(c.corners[2], c.corners[3]);
+    let d = vec2<f32>(c.corners[4], c.corners[5]);
+    if (reaches_redraw_area(min(a, min(b, d)), max(a, max(b, d)))) {
+        atomicStore(&control[list_casters() + 1u + atomicAdd(&control[list_casters()], 1u)], i);
+    }
+}
+
+// A partial redraw rasters the gathered casters and fins only.
+@compute @workgroup_size(1, 1, 1)
+fn redraw_args() {
+    if (partial_redraw()) {
+        write_args(C_ARGS_CASTERS, atomicLoad(&control[list_casters()]), 1u);
+        write_args(C_ARGS_FINS, atomicLoad(&control[list_fins()]), 1u);
+    }
 }

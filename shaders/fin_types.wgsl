@@ -17,6 +17,15 @@ struct FinParams {
     axis_u: vec4<f32>,
     axis_v: vec4<f32>,
     axis_n: vec4<f32>,
+    // The texels the map passes redraw, inclusive (x0, x1, y0, y1); the
+    // whole maps but on a partial redraw (`extract.wgsl`'s `plan_redraw`).
+    redraw: vec4<u32>,
+}
+
+// A partial redraw: `redraw` is not the whole maps.
+fn partial_redraw(params: FinParams) -> bool {
+    let last = max(params.counts.x, 1u) - 1u;
+    return any(params.redraw != vec4<u32>(0u, last, 0u, last));
 }
 
 // One caster triangle in light-map space (`GpuCaster`, the core's `MapTriangle`):
@@ -142,4 +151,18 @@ fn texel_center(params: FinParams, x: u32, y: u32) -> vec2<f32> {
 
 fn cross2(a: vec2<f32>, b: vec2<f32>) -> f32 {
     return a.x * b.y - a.y * b.x;
+}
+
+// A fin's map-space bounds (min x, min y, max x, max y).
+fn fin_bounds(f: Fin) -> vec4<f32> {
+    if (f.header.x == 0u) {
+        let m0 = vec2<f32>(f.data[0], f.data[1]);
+        let m1 = vec2<f32>(f.data[2], f.data[3]);
+        let p2 = m0 + vec2<f32>(f.data[4], f.data[5]) * f.data[8];
+        let p3 = m1 + vec2<f32>(f.data[6], f.data[7]) * f.data[9];
+        return vec4<f32>(min(min(m0, m1), min(p2, p3)), max(max(m0, m1), max(p2, p3)));
+    }
+    let c = vec2<f32>(f.data[0], f.data[1]);
+    let r = f.data[6];
+    return vec4<f32>(c - r, c + r);
 }

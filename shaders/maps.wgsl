@@ -3,7 +3,7 @@
 // One workgroup per primitive; its threads stride over the primitive's texels.
 #import bevy_shadow_fins::fin_types::{
     FinParams, Caster, Fin, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, INF_BITS, texel_index, min_key, max_key,
-    texel_center, cross2, orthographic, caster_depth_at,
+    texel_center, cross2, orthographic, caster_depth_at, fin_bounds, partial_redraw,
 }
 #import bevy_shadow_fins::cutout::caster_opaque
 
@@ -11,18 +11,29 @@
 @group(0) @binding(1) var<storage, read_write> maps: array<atomic<u32>>;
 @group(0) @binding(2) var<storage, read> casters: array<Caster>;
 @group(0) @binding(3) var<storage, read> fins: array<Fin>;
+// The GPU extraction's `control`: a partial redraw's caster and fin lists
+// (count, then indices) at the offsets in its words 106 and 107
+// (`extract.wgsl`). Not read on a full redraw (a stand-in on the CPU path).
+@group(0) @binding(6) var<storage, read> control: array<u32>;
 
 const WORKGROUP: u32 = 64u;
 
+// Clears the texels `params.redraw` names (the whole maps but on a partial
+// redraw) in every layer.
 @compute @workgroup_size(64, 1, 1)
 fn clear_maps(@builtin(global_invocation_id) id: vec3<u32>) {
-    let res = params.counts.x;
-    let texels = params.counts.y * res * res;
-    let t = id.x + id.y * 65535u * WORKGROUP;
-    if (t >= texels) {
+    let r = params.redraw;
+    if (r.x > r.y || r.z > r.w) {
         return;
     }
-    let base = t * CHANNELS;
+    let width = r.y - r.x + 1u;
+    let per_layer = width * (r.w - r.z + 1u);
+    let t = id.x + id.y * 65535u * WORKGROUP;
+    if (t >= params.counts.y * per_layer) {
+        return;
+    }
+    let k = t % per_layer;
+    let base = texel_index(params, t / per_layer, r.x + k % width, r.z + k / width);
     atomicStore(&maps[base + 0u], INF_BITS);
     atomicStore(&maps[base + 1u], NO_MIN);
     atomicStore(&maps[base + 2u], NO_MAX);
@@ -33,21 +44,44 @@ fn clear_maps(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// Inclusive texel range whose centres may lie in [lo, hi]; empty when x0 > x1.
+// Inclusive texel range whose centres may lie in [lo, hi], within the
+// texels redrawn (`params.redraw`); empty when x0 > x1.
 fn texel_range(lo: vec2<f32>, hi: vec2<f32>) -> vec4<i32> {
-    let r = f32(params.counts.x) - 1.0;
+    let r = vec4<f32>(params.redraw);
     let a = ceil((lo - params.map.xy) / params.map.z - 0.5);
     let b = floor((hi - params.map.xy) / params.map.z - 0.5);
-    return vec4<i32>(i32(max(a.x, 0.0)), i32(min(b.x, r)), i32(max(a.y, 0.0)), i32(min(b.y, r)));
+    return vec4<i32>(i32(max(a.x, r.x)), i32(min(b.x, r.y)), i32(max(a.y, r.z)), i32(min(b.y, r.w)));
 }
 
 fn primitive_index(wg: vec3<u32>) -> u32 {
     return wg.x + wg.y * 65535u;
 }
 
+// The caster the workgroup draws: every one on a full redraw, the gathered
+// ones on a partial (`NONE` past them).
+fn caster_index(wg: vec3<u32>) -> u32 {
+    let i = primitive_index(wg);
+    if (!partial_redraw(params)) {
+        return i;
+    }
+    let list = control[106u];
+    return select(NONE, control[list + 1u + i], i < control[list]);
+}
+
+fn fin_index(wg: vec3<u32>) -> u32 {
+    let i = primitive_index(wg);
+    if (!partial_redraw(params)) {
+        return i;
+    }
+    let list = control[107u];
+    return select(NONE, control[list + 1u + i], i < control[list]);
+}
+
+const NONE: u32 = 0xffffffffu;
+
 @compute @workgroup_size(64, 1, 1)
 fn raster_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let i = primitive_index(wg);
+    let i = caster_index(wg);
     if (i >= params.counts.z) {
         return;
     }
@@ -171,23 +205,10 @@ fn fin_sample(f: Fin, q: vec2<f32>) -> vec2<f32> {
     return vec2<f32>(0.5 * (1.0 - sqrt(r2) / radius), f.data[7]);
 }
 
-fn fin_bounds(f: Fin) -> vec4<f32> {
-    if (f.header.x == 0u) {
-        let m0 = vec2<f32>(f.data[0], f.data[1]);
-        let m1 = vec2<f32>(f.data[2], f.data[3]);
-        let p2 = m0 + vec2<f32>(f.data[4], f.data[5]) * f.data[8];
-        let p3 = m1 + vec2<f32>(f.data[6], f.data[7]) * f.data[9];
-        return vec4<f32>(min(min(m0, m1), min(p2, p3)), max(max(m0, m1), max(p2, p3)));
-    }
-    let c = vec2<f32>(f.data[0], f.data[1]);
-    let r = f.data[6];
-    return vec4<f32>(c - r, c + r);
-}
-
 // Pass 1 of the fins: every fin's key into its side's min and max channels.
 @compute @workgroup_size(64, 1, 1)
 fn raster_fins(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    raster_fin(primitive_index(wg), lane, false);
+    raster_fin(fin_index(wg), lane, false);
 }
 
 // Pass 2: the exact depth of the fins whose key won in pass 1 (the nearest,
@@ -195,7 +216,7 @@ fn raster_fins(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
 // so the comparison sees the final keys: deterministic whatever the order.
 @compute @workgroup_size(64, 1, 1)
 fn raster_fin_depths(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    raster_fin(primitive_index(wg), lane, true);
+    raster_fin(fin_index(wg), lane, true);
 }
 
 fn raster_fin(i: u32, lane: u32, depths: bool) {

@@ -1,15 +1,17 @@
 //! Big scenes (issue 16): the frame cost against the number of objects —
 //! 10, 100, 1000, 10 000 cubes sharing one mesh over the box-over-plane
 //! scene, under one fin-shadowed `SpotLight` — static and with one object
-//! moving every frame, split into the main world's and the render world's
-//! time (`shadow-fins-render-lab scaling`).
+//! moving every frame (maps redrawn in part, then with
+//! [`FinPartialRedraw`] off, whole), split into the main world's and the
+//! render world's time (`shadow-fins-render-lab scaling`).
 //!
 //! The app renders sequentially (no pipelined rendering), so each frame is
 //! the main schedule, then extraction and the render world's schedule, timed
 //! apart (wall time: the render world's includes what it waits on the GPU
 //! for); last, the same app with `FinShadows` removed, Bevy's own map back,
 //! is timed static as the baseline (still with the `FinShadowView` camera's
-//! depth, normal and deferred prepasses, which the plugin's tests need). Static, the plugin's per-frame main-world work must not grow with
+//! depth, normal and deferred prepasses, which the plugin's tests need).
+//! Static, the plugin's per-frame main-world work must not grow with
 //! the object count (change detection, no walk of the meshes,
 //! [`bevy_shadow_fins::FinCasterScans`] unchanged); what still grows is
 //! Bevy's own per-entity work (visibility, extraction, draws).
@@ -17,7 +19,9 @@
 use std::time::Instant;
 
 use bevy::prelude::*;
-use bevy_shadow_fins::{FinCasterScans, FinCasterUpdates, FinShadowSettings, FinShadows};
+use bevy_shadow_fins::{
+    FinCasterScans, FinCasterUpdates, FinPartialRedraw, FinShadowSettings, FinShadowStats, FinShadows,
+};
 use shadow_fins::scenes::SceneId;
 use shadow_fins_lab::results::Spread;
 
@@ -49,6 +53,16 @@ pub struct ScalingRow {
     /// (walks should be 0, records one per frame).
     pub moving_scans: u64,
     pub moving_records: u64,
+    /// The last move's map update (read once the GPU's counts of it came
+    /// back, a few still frames later): a partial redraw
+    /// (`FinFrameStats::partial_redraw`), and the share of the maps' texels
+    /// it redrew.
+    pub moving_partial: bool,
+    pub moving_redrawn: f64,
+    /// One moving again with [`FinPartialRedraw`] off (every update redraws
+    /// the maps whole): main, render world ms.
+    pub whole_main_ms: f64,
+    pub whole_render_ms: f64,
     /// The same app static with `FinShadows` removed (Bevy's own spot shadow
     /// map back): what Bevy alone costs at this object count.
     pub bevy_main_ms: f64,
@@ -60,23 +74,27 @@ pub struct ScalingRow {
 struct ScalingCube;
 
 /// `n` cubes of one shared mesh on a grid over the ground, each floating
-/// its own size above it (so each casts), within the spot light's cone.
-fn spawn_cubes(world: &mut World, n: usize) {
+/// its own size above it (so each casts), within the spot light's cone, row
+/// by row from (−3, −3); their entities in that order.
+pub fn spawn_cubes(world: &mut World, n: usize) -> Vec<Entity> {
     let side = (n as f32).sqrt().ceil().max(1.0);
     let spacing = 6.0 / side;
     let size = spacing * 0.4;
     let mesh = world.resource_mut::<Assets<Mesh>>().add(Cuboid::from_length(size));
     let material = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial::default());
+    let mut cubes = Vec::with_capacity(n);
     for k in 0..n {
         let (i, j) = ((k as f32 % side), (k as f32 / side).floor());
         let at = Vec3::new(-3.0 + (i + 0.5) * spacing, size * 1.5, -3.0 + (j + 0.5) * spacing);
-        world.spawn((
+        let cube = world.spawn((
             Mesh3d(mesh.clone()),
             MeshMaterial3d(material.clone()),
             Transform::from_translation(at),
             ScalingCube,
         ));
+        cubes.push(cube.id());
     }
+    cubes
 }
 
 /// One frame, main world and render world timed apart (ms of wall time on
@@ -95,9 +113,20 @@ fn split_frame(app: &mut App) -> (f64, f64) {
     (main, start.elapsed().as_secs_f64() * 1e3)
 }
 
-/// Median (main, render, frame) ms over `frames` frames; when `moving`, the
-/// first cube moves a hair every frame.
-fn time(session: &mut Session, frames: u32, moving: bool) -> (f64, f64, f64) {
+/// Median ms of frames (main world, render world, whole frame), and the
+/// last map update: partial or not, the share of texels redrawn.
+#[derive(Debug, Clone, Copy, Default)]
+struct Medians {
+    main: f64,
+    render: f64,
+    frame: f64,
+    partial: bool,
+    redrawn: f64,
+}
+
+/// Medians over `frames` frames; when `moving`, the first cube moves a hair
+/// every frame.
+fn time(session: &mut Session, frames: u32, moving: bool) -> Medians {
     let (mut main, mut render, mut frame) = (vec![], vec![], vec![]);
     let mover = {
         let world = session.app.world_mut();
@@ -115,8 +144,21 @@ fn time(session: &mut Session, frames: u32, moving: bool) -> (f64, f64, f64) {
         render.push(r);
         frame.push(m + r);
     }
+    // A frame's counts come back a frame or two late, and only count for the
+    // frame still current: a few still frames, then the last update's stats.
+    for _ in 0..4 {
+        split_frame(&mut session.app);
+    }
+    let stats = session.app.world().resource::<FinShadowStats>().0;
+    let whole = stats.layers as f64 * (stats.map_resolution as f64).powi(2);
     let median = |v: &[f64]| Spread::of(v).median;
-    (median(&main), median(&render), median(&frame))
+    Medians {
+        main: median(&main),
+        render: median(&render),
+        frame: median(&frame),
+        partial: stats.partial_redraw,
+        redrawn: if whole > 0.0 { stats.redrawn_texels as f64 / whole } else { 0.0 },
+    }
 }
 
 /// One row per object count, each in its own app.
@@ -133,33 +175,40 @@ pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
         session.settle(6)?;
         let scans = |s: &Session| s.app.world().resource::<FinCasterScans>().0;
         let before = scans(&session);
-        let (static_main_ms, static_render_ms, static_frame_ms) = time(&mut session, run.frames, false);
+        let still = time(&mut session, run.frames, false);
         let static_scans = scans(&session) - before;
         let (scans_before, records_before) =
             (scans(&session), session.app.world().resource::<FinCasterUpdates>().records);
-        let (moving_main_ms, moving_render_ms, moving_frame_ms) = time(&mut session, run.frames, true);
+        let moving = time(&mut session, run.frames, true);
         let moving_scans = scans(&session) - scans_before;
         let moving_records = session.app.world().resource::<FinCasterUpdates>().records - records_before;
+        session.app.insert_resource(FinPartialRedraw(false));
+        let whole = time(&mut session, run.frames, true);
+        session.app.insert_resource(FinPartialRedraw(true));
         let world = session.app.world_mut();
         let fin_lights: Vec<Entity> = world.query_filtered::<Entity, With<FinShadows>>().iter(world).collect();
         for e in fin_lights {
             world.entity_mut(e).remove::<FinShadows>();
         }
         session.settle(6)?;
-        let (bevy_main_ms, bevy_render_ms, _) = time(&mut session, run.frames, false);
+        let bevy = time(&mut session, run.frames, false);
         rows.push(ScalingRow {
             objects: n,
-            static_main_ms,
-            static_render_ms,
-            static_frame_ms,
+            static_main_ms: still.main,
+            static_render_ms: still.render,
+            static_frame_ms: still.frame,
             static_scans,
-            moving_main_ms,
-            moving_render_ms,
-            moving_frame_ms,
+            moving_main_ms: moving.main,
+            moving_render_ms: moving.render,
+            moving_frame_ms: moving.frame,
             moving_scans,
             moving_records,
-            bevy_main_ms,
-            bevy_render_ms,
+            moving_partial: moving.partial,
+            moving_redrawn: moving.redrawn,
+            whole_main_ms: whole.main,
+            whole_render_ms: whole.render,
+            bevy_main_ms: bevy.main,
+            bevy_render_ms: bevy.render,
         });
     }
     Ok(rows)
@@ -170,12 +219,14 @@ pub fn markdown(rows: &[ScalingRow]) -> String {
     let mut out = String::from(
         "| objects | static main ms | static render ms | static frame ms | mesh walks while static | \
          one moving: main ms | render ms | frame ms | mesh walks | records rebuilt | \
+         last update partial | texels it redrew | \
+         one moving, maps redrawn whole: main ms | render ms | \
          FinShadows removed (Bevy's map), static: main ms | render ms |\n\
-         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         out += &format!(
-            "| {} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {} | {} | {:.1} | {:.1} |\n",
+            "| {} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {:.2}% | {:.1} | {:.1} | {:.1} | {:.1} |\n",
             r.objects,
             r.static_main_ms,
             r.static_render_ms,
@@ -186,6 +237,10 @@ pub fn markdown(rows: &[ScalingRow]) -> String {
             r.moving_frame_ms,
             r.moving_scans,
             r.moving_records,
+            r.moving_partial,
+            r.moving_redrawn * 100.0,
+            r.whole_main_ms,
+            r.whole_render_ms,
             r.bevy_main_ms,
             r.bevy_render_ms,
         );

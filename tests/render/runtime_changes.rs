@@ -298,3 +298,68 @@ fn a_still_scene_is_not_walked_again_and_a_moved_caster_moves_its_shadow() {
     assert!(changed > 0.005, "the shadow stayed ({changed})");
     assert!(mad <= 1e-3, "the box out of reach shadows otherwise than in a fresh render ({mad})");
 }
+
+#[test]
+fn one_cube_of_many_moving_redraws_only_its_part_of_the_maps_and_shadows_as_a_fresh_app() {
+    // Partial redraw (`extract.wgsl`): 100 cubes over the ground under the
+    // spot; one moved sideways leaves the maps' region, reference depth and
+    // layer planes as they were, so the update clears and redraws only the
+    // texels under its old and new footprints — and the visibility is the
+    // one a fresh app renders with the cube already there.
+    use shadow_fins_app::render_lab::scaling::spawn_cubes;
+    let setup = setup(SceneId::BoxOverPlane, settings());
+    let (mover, offset) = (66, Vec3::new(0.12, 0.0, 0.05));
+    let mut session = harness::Session::new(&setup);
+    let cubes = spawn_cubes(session.app.world_mut(), 100);
+    let before = session.settle(6).expect("render").visibility;
+    assert_visibility_not_trivial(&before);
+    let stats = |session: &harness::Session| session.app.world().resource::<bevy_shadow_fins::FinShadowStats>().0;
+    let full = stats(&session);
+    assert!(!full.partial_redraw, "the first update must draw the maps whole");
+    let whole = full.layers as u64 * (full.map_resolution as u64).pow(2);
+    assert_eq!(full.redrawn_texels, whole, "a full redraw clears every texel of every layer");
+    session.app.world_mut().get_mut::<Transform>(cubes[mover]).expect("a transform").translation += offset;
+    let after = session.settle(6).expect("render").visibility;
+    let partial = stats(&session);
+    println!(
+        "one cube of 100 moved: partial {}, {} of {whole} texels redrawn",
+        partial.partial_redraw, partial.redrawn_texels
+    );
+    assert!(partial.partial_redraw, "one cube of 100 moved sideways redrew the maps whole");
+    assert!(
+        partial.redrawn_texels > 0 && partial.redrawn_texels * 20 < whole,
+        "a partial redraw of one small cube redrew {} of {whole} texels",
+        partial.redrawn_texels
+    );
+
+    let mut fresh = harness::Session::new(&setup);
+    let fresh_cubes = spawn_cubes(fresh.app.world_mut(), 100);
+    fresh.app.world_mut().get_mut::<Transform>(fresh_cubes[mover]).expect("a transform").translation += offset;
+    let expected = fresh.settle(6).expect("render").visibility;
+    let (mad, _) = compare(&after, &expected);
+    let worst = after.iter().zip(&expected).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    let (changed, _) = compare(&after, &before);
+    println!("partial redraw: |V − V fresh| mean {mad:.2e}, max {worst:.2e}; |V − V before| {changed:.4}");
+    assert!(changed > 1e-4, "the moved cube's shadow did not move ({changed})");
+    assert!(worst <= 1e-4, "the partial redraw differs from a fresh app's maps (max {worst})");
+
+    // Again, the same cube back over where it was and its neighbour onto its
+    // old place: footprints kept from a partial update are as good as a full one's.
+    let (neighbour, second) = (mover + 1, Vec3::new(-0.3, 0.0, 0.0));
+    let world = session.app.world_mut();
+    world.get_mut::<Transform>(cubes[mover]).expect("a transform").translation -= offset * 0.5;
+    world.get_mut::<Transform>(cubes[neighbour]).expect("a transform").translation += second;
+    let again = session.settle(6).expect("render").visibility;
+    assert!(stats(&session).partial_redraw, "two cubes of 100 moved redrew the maps whole");
+    let mut fresh = harness::Session::new(&setup);
+    let fresh_cubes = spawn_cubes(fresh.app.world_mut(), 100);
+    let world = fresh.app.world_mut();
+    world.get_mut::<Transform>(fresh_cubes[mover]).expect("a transform").translation += offset * 0.5;
+    world.get_mut::<Transform>(fresh_cubes[neighbour]).expect("a transform").translation += second;
+    let expected = fresh.settle(6).expect("render").visibility;
+    let worst = again.iter().zip(&expected).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    let (changed, _) = compare(&again, &after);
+    println!("second partial redraw: |V − V fresh| max {worst:.2e}; |V − V before| {changed:.4}");
+    assert!(changed > 1e-4, "the second move changed no shadow ({changed})");
+    assert!(worst <= 1e-4, "the second partial redraw differs from a fresh app's maps (max {worst})");
+}

@@ -77,6 +77,16 @@ pub struct FinFrameStats {
     /// Where the fins were extracted: the settings' choice, or the CPU when
     /// the scene's geometry did not fit a GPU buffer (see `degraded`).
     pub extraction: FinExtraction,
+    /// The GPU extraction's last map update redrew only the texels under the
+    /// casters that moved (their old and new footprints): a few casters of
+    /// many moved, and the maps' plan (region, reference depth, layer
+    /// planes) stayed. `false`: redrawn whole, or extracted on the CPU.
+    pub partial_redraw: bool,
+    /// Texels (all layers) of the penumbra maps the last update cleared and
+    /// drew again: all of them on a full redraw (every update of the CPU
+    /// extraction), a partial redraw's few; 0 for the coverage method (no
+    /// penumbra maps).
+    pub redrawn_texels: u64,
 }
 
 /// What the first fin-shadowed light's shadows currently model (see
@@ -1073,6 +1083,8 @@ impl FinFrameStats {
             degraded: a.degraded.or(b.degraded),
             map_resolution: a.map_resolution.min(b.map_resolution),
             extraction: a.extraction,
+            partial_redraw: a.partial_redraw && b.partial_redraw,
+            redrawn_texels: a.redrawn_texels + b.redrawn_texels,
         })
     }
 }
@@ -1397,6 +1409,8 @@ fn coverage_data(
         degraded,
         map_resolution: coverage.region.resolution,
         extraction: FinExtraction::Cpu,
+        partial_redraw: false,
+        redrawn_texels: 0,
     };
     FinFrameData {
         generation,
@@ -1587,6 +1601,8 @@ fn cpu_frame(
         degraded,
         map_resolution: region.resolution,
         extraction: FinExtraction::Cpu,
+        partial_redraw: false,
+        redrawn_texels: (model.plan.len() as u64) * (region.resolution as u64).pow(2),
     };
     FinFrameData {
         generation,

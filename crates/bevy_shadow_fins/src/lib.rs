@@ -214,7 +214,7 @@ pub use light::{
     NotFinShadowReceiver,
 };
 pub use receivers::FinReceivers;
-pub use render::FinForwardShading;
+pub use render::{FinForwardShading, FinPartialRedraw};
 pub use shadow_fins;
 pub use snapshot::{FinSceneSnapshot, FinSnapshotApproximation, FinSnapshotSkip, scene_snapshot};
 

@@ -30,13 +30,30 @@ use shadow_fins::light::Aperture;
 
 /// `control` buffer layout (u32 words), as in `extract.wgsl`.
 pub(super) const C_PARAMS: u64 = 16;
-pub(super) const C_ARGS_CLEAR: u64 = 48;
-pub(super) const C_ARGS_CASTERS: u64 = 51;
-pub(super) const C_ARGS_FINS: u64 = 54;
-const C_ARGS_SILHOUETTES: u64 = 57;
-const C_ARGS_FIN_THREADS: u64 = 60;
-const C_ARGS_CASTER_THREADS: u64 = 63;
+/// The maps' `FinParams`, bytes.
+const PARAMS_BYTES: u64 = 36 * 4;
+pub(super) const C_ARGS_CLEAR: u64 = 56;
+pub(super) const C_ARGS_CASTERS: u64 = 59;
+pub(super) const C_ARGS_FINS: u64 = 62;
+const C_ARGS_SILHOUETTES: u64 = 65;
+const C_ARGS_FIN_THREADS: u64 = 68;
+const C_ARGS_CASTER_THREADS: u64 = 71;
 const C_HISTOGRAM: u64 = 128;
+/// Stats words: whether the last update redrew the maps in part, and the
+/// texels it cleared and drew again.
+const C_PARTIAL: usize = 13;
+const C_REDRAWN: usize = 14;
+/// After the histogram, what a partial redraw keeps between frames
+/// (`history` in `extract.wgsl`, words relative to its start): the dirty
+/// list's length (or [`FULL`]), then per instance its footprint, then the
+/// dirty instances, then the redraw lists.
+const H_DIRTY_COUNT: u64 = 64;
+const H_FOOTPRINTS: u64 = 76;
+/// Redraw the maps whole.
+const FULL: u32 = u32::MAX;
+/// The most moved instances a partial redraw takes; past it the maps are
+/// redrawn whole (many moved: their footprints would cover much of the maps).
+pub(crate) const MAX_REDRAWN_INSTANCES: usize = 256;
 /// Words 0..16 of `control` go back to the main world: counts, generation, layers.
 const STATS_WORDS: u64 = 16;
 const FACE_WORDS: u64 = crate::gpu_scene::FACE_STATE_WORDS;
@@ -46,8 +63,10 @@ use crate::gpu_scene::SILHOUETTE_BYTES;
 pub(super) use crate::gpu_scene::{CASTER_BYTES, FIN_BYTES};
 
 /// The entry points, in the order they run.
-const ENTRY_POINTS: [&str; 13] = [
+const ENTRY_POINTS: [&str; 18] = [
     "reset",
+    "forget_footprints",
+    "reset_footprints",
     "transform_vertices",
     "classify_faces",
     "join_patches",
@@ -60,6 +79,9 @@ const ENTRY_POINTS: [&str; 13] = [
     "plan_layers",
     "assign_fin_layers",
     "assign_caster_layers",
+    "gather_redraw_fins",
+    "gather_redraw_casters",
+    "redraw_args",
 ];
 
 pub(super) fn build(app: &mut App) {
@@ -146,6 +168,8 @@ fn stats_of_readback(f: &FinFrameData, w: &[u32], state: &mut crate::extract::Li
         silhouettes: w[0].min(gpu.capacity.silhouettes) as usize,
         fins: w[1].min(gpu.capacity.fins) as usize,
         layers: w[12] as usize,
+        redrawn_texels: w[C_REDRAWN] as u64,
+        partial_redraw: w[C_PARTIAL] == 1,
         up_to_date: grown.is_none(),
         degraded: if grown.is_none() { shortfall.or(f.stats.degraded) } else { f.stats.degraded },
         ..f.stats
@@ -156,7 +180,7 @@ fn stats_of_readback(f: &FinFrameData, w: &[u32], state: &mut crate::extract::Li
 
 /// `ExtractParams` in `extract.wgsl`.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 struct ExtractParams {
     totals: [u32; 4],
     layering: [u32; 4],
@@ -238,6 +262,16 @@ pub(super) struct ExtractBuffers {
     bind_group: Option<BindGroup>,
     /// (instance vertices, caster faces, caster edges, sub-layers)
     sizes: [u32; 4],
+    /// Instances whose records changed this frame: how many (`FULL` when
+    /// the maps must be redrawn whole), the dispatch of `forget_footprints`.
+    dirty: u32,
+    /// The last parameters uploaded, generation zeroed: a partial redraw
+    /// needs the same light, settings and capacities.
+    last_params: Option<ExtractParams>,
+    /// The last map update was this extraction's, recorded (else its dirty
+    /// list never reached the GPU, or another path drew the maps since, and
+    /// the next update must redraw whole).
+    recorded: bool,
 }
 
 /// Allocates `buf` (half again as large, so a growing scene does not reallocate
@@ -284,6 +318,9 @@ fn changed_runs(old: &[u8], new: &[u8], record: usize) -> Vec<std::ops::Range<us
 
 /// Uploads what changed (the instance records that differ, geometry when its key changed) and
 /// binds the work buffers; `fins` and `casters` are the maps' input buffers.
+/// `maps_kept`: the maps buffer still holds the last update's maps and
+/// [`FinPartialRedraw`](super::FinPartialRedraw) is on (a partial redraw may
+/// keep them; see the top of `extract.wgsl`).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn prepare(
     buffers: &mut ExtractBuffers,
@@ -292,6 +329,7 @@ pub(super) fn prepare(
     resolution: u32,
     fins: &Buffer,
     casters: &Buffer,
+    maps_kept: bool,
     pipelines: &ExtractPipelines,
     pipeline_cache: &PipelineCache,
     device: &RenderDevice,
@@ -343,30 +381,66 @@ pub(super) fn prepare(
     let old_instances = buffers.instances.as_ref().map(|b| b.id());
     ensure(&mut buffers.instances, device, "fin_extract_instances", instance_bytes.len() as u64, storage, cap);
     // One caster of many moved: only its record goes up.
-    let kept = old_instances == buffers.instances.as_ref().map(|b| b.id());
+    let kept = old_instances == buffers.instances.as_ref().map(|b| b.id())
+        && buffers.uploaded_instances.len() == instance_bytes.len();
     let old = if kept { buffers.uploaded_instances.as_slice() } else { &[] };
-    for run in changed_runs(old, instance_bytes, size_of::<GpuInstance>()) {
-        queue.write_buffer(buffers.instances.as_ref().unwrap(), run.start as u64, &instance_bytes[run]);
+    let runs = changed_runs(old, instance_bytes, size_of::<GpuInstance>());
+    for run in &runs {
+        queue.write_buffer(buffers.instances.as_ref().unwrap(), run.start as u64, &instance_bytes[run.clone()]);
     }
+    // The instances that moved, for a partial redraw of the maps.
+    let record = size_of::<GpuInstance>();
+    let moved: Vec<u32> = runs.iter().flat_map(|r| (r.start / record..r.end / record).map(|i| i as u32)).collect();
+    let same_params = {
+        let mut now = params;
+        now.flags[3] = 0;
+        let same = buffers.last_params == Some(now);
+        buffers.last_params = Some(now);
+        same
+    };
     buffers.uploaded_instances.clear();
     buffers.uploaded_instances.extend_from_slice(instance_bytes);
     let geometry_bytes: &[u8] = bytemuck::cast_slice(scene.geometry.as_slice());
     let old_geometry = buffers.geometry.as_ref().map(|b| b.id());
     ensure(&mut buffers.geometry, device, "fin_extract_geometry", geometry_bytes.len() as u64, storage, cap);
     // Caster geometry goes up once per set of meshes; moving casters only change instances.
-    if buffers.geometry_key != scene.geometry_key || old_geometry != buffers.geometry.as_ref().map(|b| b.id()) {
+    let same_geometry =
+        buffers.geometry_key == scene.geometry_key && old_geometry == buffers.geometry.as_ref().map(|b| b.id());
+    if !same_geometry {
         queue.write_buffer(buffers.geometry.as_ref().unwrap(), 0, geometry_bytes);
         buffers.geometry_key = scene.geometry_key;
     }
-    let control_words = C_HISTOGRAM + s.sub_layers as u64;
+    let instances = scene.instances.len() as u64;
+    let history = C_HISTOGRAM + s.sub_layers as u64;
+    let dirty_list = history + H_FOOTPRINTS + 4 * instances;
+    // ... then the dirty list and the redraw lists (a count, then indices).
+    let control_words =
+        dirty_list + MAX_REDRAWN_INSTANCES as u64 + 2 + scene.capacity.casters as u64 + scene.capacity.fins as u64;
+    let old_control = buffers.control.as_ref().map(|b| b.id());
     ensure(
         &mut buffers.control,
         device,
         "fin_extract_control",
         control_words * 4,
-        BufferUsages::STORAGE | BufferUsages::COPY_SRC,
+        BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST,
         cap,
     );
+    // Partial when the last update reached the GPU, the same maps, light,
+    // settings, geometry and history are there, and few instances moved.
+    let partial = buffers.recorded
+        && maps_kept
+        && kept
+        && same_params
+        && same_geometry
+        && old_control == buffers.control.as_ref().map(|b| b.id())
+        && moved.len() <= MAX_REDRAWN_INSTANCES;
+    buffers.dirty = if partial { moved.len() as u32 } else { FULL };
+    let control = buffers.control.as_ref().unwrap();
+    queue.write_buffer(control, (history + H_DIRTY_COUNT) * 4, bytemuck::bytes_of(&buffers.dirty));
+    if partial && !moved.is_empty() {
+        queue.write_buffer(control, dirty_list * 4, bytemuck::cast_slice(&moved));
+    }
+    buffers.recorded = false;
     ensure(
         &mut buffers.indirect,
         device,
@@ -407,7 +481,7 @@ pub(super) fn prepare(
 /// Records the extraction passes; then copies the maps' parameters into their
 /// uniform and the counts into the read-back buffer. `false`: not ready yet.
 pub(super) fn record(
-    buffers: &ExtractBuffers,
+    buffers: &mut ExtractBuffers,
     pipelines: &ExtractPipelines,
     pipeline_cache: &PipelineCache,
     maps_params: &Buffer,
@@ -422,6 +496,8 @@ pub(super) fn record(
     let [vertices, faces, edges, sub_layers] = buffers.sizes;
     let Some(args) = buffers.indirect.as_ref() else { return false };
     let threads = |n: u32| super::workgroups(n.div_ceil(WORKGROUP));
+    let instances = buffers.uploaded_instances.len() / size_of::<GpuInstance>();
+    let dirty = if buffers.dirty == FULL { 0 } else { buffers.dirty };
     // Dispatch sizes known here: the scene's vertices, faces, edges.
     fn direct(pass: &mut ComputePass, pipeline: &ComputePipeline, (x, y): (u32, u32)) {
         if x > 0 {
@@ -430,8 +506,9 @@ pub(super) fn record(
         }
     }
     // Sizes only the GPU knows (silhouettes, fins, casters), written into
-    // `control` by `silhouette_args` / `plan_layers` and copied to `indirect`
-    // (a buffer may not be indirect arguments and writable storage in one dispatch).
+    // `control` by `silhouette_args` / `plan_layers` / `redraw_args` and
+    // copied to `indirect` (a buffer may not be indirect arguments and
+    // writable storage in one dispatch).
     fn indirect(pass: &mut ComputePass, pipeline: &ComputePipeline, args: &Buffer, at: u64) {
         pass.set_pipeline(pipeline);
         pass.dispatch_workgroups_indirect(args, at * 4);
@@ -442,39 +519,58 @@ pub(super) fn record(
         pass.set_bind_group(0, bind_group, &[]);
         f(&mut pass);
     };
+    let copy_args = |encoder: &mut CommandEncoder, from: u64, to: u64| {
+        encoder.copy_buffer_to_buffer(control, from * 4, args, from * 4, (to - from) * 4);
+    };
+    let entry = |name: &str| ready[ENTRY_POINTS.iter().position(|e| *e == name).expect("an entry point")];
     begin(encoder, &mut |pass| {
-        direct(pass, ready[0], threads(C_HISTOGRAM as u32 + sub_layers));
-        direct(pass, ready[1], threads(vertices));
-        direct(pass, ready[2], threads(faces));
-        direct(pass, ready[3], threads(edges));
-        direct(pass, ready[4], threads(faces));
-        direct(pass, ready[5], threads(edges));
-        direct(pass, ready[6], (1, 1));
+        direct(pass, entry("reset"), threads(C_HISTOGRAM as u32 + sub_layers));
+        direct(pass, entry("forget_footprints"), threads(dirty));
+        direct(pass, entry("reset_footprints"), threads(instances as u32));
+        direct(pass, entry("transform_vertices"), threads(vertices));
+        direct(pass, entry("classify_faces"), threads(faces));
+        direct(pass, entry("join_patches"), threads(edges));
+        direct(pass, entry("flatten_patches"), threads(faces));
+        direct(pass, entry("find_silhouettes"), threads(edges));
+        direct(pass, entry("silhouette_args"), (1, 1));
     });
-    encoder.copy_buffer_to_buffer(control, C_ARGS_SILHOUETTES * 4, args, C_ARGS_SILHOUETTES * 4, 12);
+    copy_args(encoder, C_ARGS_SILHOUETTES, C_ARGS_SILHOUETTES + 3);
     begin(encoder, &mut |pass| {
-        indirect(pass, ready[7], args, C_ARGS_SILHOUETTES);
-        indirect(pass, ready[8], args, C_ARGS_SILHOUETTES);
-        direct(pass, ready[9], threads(faces));
-        direct(pass, ready[10], (1, 1));
+        indirect(pass, entry("silhouette_vertices"), args, C_ARGS_SILHOUETTES);
+        indirect(pass, entry("silhouette_quads"), args, C_ARGS_SILHOUETTES);
+        direct(pass, entry("map_casters"), threads(faces));
+        direct(pass, entry("plan_layers"), (1, 1));
     });
-    encoder.copy_buffer_to_buffer(
-        control,
-        C_ARGS_CLEAR * 4,
-        args,
-        C_ARGS_CLEAR * 4,
-        (C_ARGS_SILHOUETTES - C_ARGS_CLEAR) * 4,
-    );
-    encoder.copy_buffer_to_buffer(control, C_ARGS_FIN_THREADS * 4, args, C_ARGS_FIN_THREADS * 4, 6 * 4);
+    copy_args(encoder, C_ARGS_FIN_THREADS, C_ARGS_CASTER_THREADS + 3);
     begin(encoder, &mut |pass| {
-        indirect(pass, ready[11], args, C_ARGS_FIN_THREADS);
-        indirect(pass, ready[12], args, C_ARGS_CASTER_THREADS);
+        indirect(pass, entry("assign_fin_layers"), args, C_ARGS_FIN_THREADS);
+        indirect(pass, entry("assign_caster_layers"), args, C_ARGS_CASTER_THREADS);
+        indirect(pass, entry("gather_redraw_fins"), args, C_ARGS_FIN_THREADS);
+        indirect(pass, entry("gather_redraw_casters"), args, C_ARGS_CASTER_THREADS);
+        direct(pass, entry("redraw_args"), (1, 1));
     });
-    encoder.copy_buffer_to_buffer(control, C_PARAMS * 4, maps_params, 0, 128);
+    // The maps' clear and raster arguments: a partial redraw's, or all.
+    copy_args(encoder, C_ARGS_CLEAR, C_ARGS_FINS + 3);
+    encoder.copy_buffer_to_buffer(control, C_PARAMS * 4, maps_params, 0, PARAMS_BYTES);
     if let Some((stats, offset)) = stats {
         encoder.copy_buffer_to_buffer(control, 0, stats, offset, STATS_WORDS * 4);
     }
+    buffers.recorded = true;
     true
+}
+
+impl ExtractBuffers {
+    /// The extraction's `control` buffer (the maps passes read a partial
+    /// redraw's lists from it).
+    pub(super) fn control(&self) -> Option<&Buffer> {
+        self.control.as_ref()
+    }
+
+    /// The maps were drawn by another path (the CPU extraction, or none):
+    /// the next GPU update redraws them whole.
+    pub(super) fn forget_history(&mut self) {
+        self.recorded = false;
+    }
 }
 
 /// The read-back buffer's GPU copy, once its asset is prepared.

@@ -53,8 +53,9 @@ pub(crate) fn build(app: &mut App) {
     load_shader_library!(app, "shaders/fin_view.wgsl");
     embedded_asset!(app, "shaders/maps.wgsl");
     embedded_asset!(app, "shaders/visibility.wgsl");
-    app.add_plugins((
+    app.init_resource::<FinPartialRedraw>().add_plugins((
         ExtractResourcePlugin::<FinFrames>::default(),
+        ExtractResourcePlugin::<FinPartialRedraw>::default(),
         ExtractResourcePlugin::<crate::BevyShadowMapsKept>::default(),
         ExtractComponentPlugin::<FinShadowView>::default(),
     ));
@@ -64,6 +65,21 @@ pub(crate) fn build(app: &mut App) {
     convolution::build(app);
     plateaus::build(app);
     extract_gpu::build(app);
+}
+
+/// Whether the GPU extraction may redraw the penumbra maps in part when a few
+/// casters of many moved (only the texels under their old and new
+/// footprints; see `FinFrameStats::partial_redraw`). On by default: the
+/// result is texel for texel a full redraw's. Off, every update redraws the
+/// maps whole — for measuring what the partial redraw saves
+/// (`shadow-fins-render-lab scaling`).
+#[derive(Resource, Clone, Copy, Debug, PartialEq, Eq, bevy::render::extract_resource::ExtractResource)]
+pub struct FinPartialRedraw(pub bool);
+
+impl Default for FinPartialRedraw {
+    fn default() -> Self {
+        Self(true)
+    }
 }
 
 pub(crate) fn finish(app: &mut App) {
@@ -149,6 +165,9 @@ struct FinParams {
     axis_u: [f32; 4],
     axis_v: [f32; 4],
     axis_n: [f32; 4],
+    /// The texels the map passes redraw, inclusive (x0, x1, y0, y1): the
+    /// whole maps, but on the GPU extraction's partial redraw.
+    redraw: [u32; 4],
 }
 
 /// Words per layer texel (`CHANNELS` in `fin_types.wgsl`).
@@ -196,6 +215,8 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
                 storage_buffer_read_only_sized(false, None),
                 // The casters' cut-outs and alpha masks (`cutout.wgsl`).
                 storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                // The GPU extraction's `control`: a partial redraw's lists.
                 storage_buffer_read_only_sized(false, None),
             ),
         ),
@@ -247,6 +268,9 @@ struct FinMapsGpu {
     fins: Option<Buffer>,
     cutouts: Option<Buffer>,
     mask_words: Option<Buffer>,
+    /// Bound where the GPU extraction's `control` is on its path (never read:
+    /// a CPU-extracted frame is always redrawn whole).
+    no_control: Option<Buffer>,
     bind_group: Option<BindGroup>,
     counts: (u32, u32, u64),
     /// How many times the map passes have drawn these maps (what the
@@ -302,6 +326,10 @@ fn params_of(f: &FinFrameData) -> FinParams {
         axis_u: v4(f.axes[0]),
         axis_v: v4(f.axes[1]),
         axis_n: v4(f.axes[2]),
+        redraw: {
+            let last = f.region.resolution.max(1) - 1;
+            [0, last, 0, last]
+        },
     }
 }
 
@@ -314,7 +342,9 @@ fn prepare_maps(
     queue: Res<RenderQueue>,
     pipelines: Option<Res<FinPipelines>>,
     pipeline_cache: Res<PipelineCache>,
+    partial: Option<Res<FinPartialRedraw>>,
 ) {
+    let partial = partial.is_none_or(|p| p.0);
     lights.0.retain(|key, _| frames.on_coverage(false).any(|f| f.key() == *key));
     let Some(pipelines) = pipelines else {
         lights.0.clear();
@@ -322,7 +352,7 @@ fn prepare_maps(
     };
     for frame in frames.on_coverage(false) {
         let gpu = lights.0.entry(frame.key()).or_default();
-        prepare_light_maps(&frame.data, gpu, &device, &queue, &pipelines, &pipeline_cache);
+        prepare_light_maps(&frame.data, gpu, &device, &queue, &pipelines, &pipeline_cache, partial);
     }
 }
 
@@ -334,6 +364,7 @@ fn prepare_light_maps(
     queue: &RenderQueue,
     pipelines: &FinPipelines,
     pipeline_cache: &PipelineCache,
+    partial: bool,
 ) {
     if f.generation == gpu.generation && gpu.bind_group.is_some() {
         return;
@@ -352,9 +383,13 @@ fn prepare_light_maps(
     let storage = BufferUsages::STORAGE | BufferUsages::COPY_DST;
     use extract_gpu::ensure;
     let cap = f.limit_bytes;
-    ensure(&mut gpu.params, device, "fin_params", 128, BufferUsages::UNIFORM | BufferUsages::COPY_DST, cap);
+    let params_bytes = size_of::<FinParams>() as u64;
+    ensure(&mut gpu.params, device, "fin_params", params_bytes, BufferUsages::UNIFORM | BufferUsages::COPY_DST, cap);
     // The maps grow to their budget at most (their size is already within it).
+    let old_maps = gpu.maps.as_ref().map(|b| b.id());
     ensure(&mut gpu.maps, device, "fin_maps", maps_size, storage | BufferUsages::COPY_SRC, cap.min(f.map_limit_bytes));
+    // New maps hold nothing a partial redraw could keep.
+    let maps_kept = partial && old_maps == gpu.maps.as_ref().map(|b| b.id());
     let (caster_bytes, fin_bytes) = match &f.gpu {
         Some(scene) => (
             scene.capacity.casters as u64 * extract_gpu::CASTER_BYTES,
@@ -388,6 +423,7 @@ fn prepare_light_maps(
                 resolution,
                 fins.as_ref().unwrap(),
                 casters.as_ref().unwrap(),
+                maps_kept,
                 &pipelines.extract,
                 pipeline_cache,
                 device,
@@ -395,6 +431,8 @@ fn prepare_light_maps(
             );
         }
         _ => {
+            // The maps are another path's now: no base for a partial redraw.
+            gpu.extraction.forget_history();
             // CPU extraction (or nothing to extract): the parameters are known here.
             if gpu.mode == MapsSource::Nothing {
                 params.counts = [resolution, 0, 0, 0];
@@ -418,6 +456,13 @@ fn prepare_light_maps(
             gpu.fins.as_ref().unwrap().as_entire_binding(),
             gpu.cutouts.as_ref().unwrap().as_entire_binding(),
             gpu.mask_words.as_ref().unwrap().as_entire_binding(),
+            match gpu.mode {
+                MapsSource::Gpu => gpu.extraction.control().unwrap().as_entire_binding(),
+                _ => {
+                    ensure(&mut gpu.no_control, device, "fin_no_control", 64, storage, cap);
+                    gpu.no_control.as_ref().unwrap().as_entire_binding()
+                }
+            },
         )),
     ));
     gpu.counts = (f.casters.len() as u32, f.fins.len() as u32, texels);
@@ -481,13 +526,13 @@ fn render_light_maps(
             return;
         }
         MapsSource::Gpu => {
-            let (Some(params), Some(control)) = (gpu.params.as_ref(), gpu.extraction.indirect.as_ref()) else { return };
+            let (Some(params), Some(control)) = (gpu.params.clone(), gpu.extraction.indirect.clone()) else { return };
             let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/extraction");
             let recorded = extract_gpu::record(
-                &gpu.extraction,
+                &mut gpu.extraction,
                 &pipelines.extract,
                 pipeline_cache,
-                params,
+                &params,
                 stats,
                 ctx.command_encoder(),
             );
@@ -509,7 +554,7 @@ fn render_light_maps(
                     (fin_depths, extract_gpu::C_ARGS_FINS),
                 ] {
                     pass.set_pipeline(pipeline);
-                    pass.dispatch_workgroups_indirect(control, args * 4);
+                    pass.dispatch_workgroups_indirect(&control, args * 4);
                 }
             }
             span.end(ctx.command_encoder());
