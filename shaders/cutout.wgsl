@@ -17,8 +17,9 @@ struct CasterCutout {
 
 @group(0) @binding(4) var<storage, read> cutouts: array<CasterCutout>;
 // Per mask: width, height, threshold (f32 bits: `AlphaMask::threshold`, the
-// cutoff over the base alpha less the core's tie), wrap modes (u | v << 8: 0 repeat, 1 mirrored repeat, 2 clamp), then
-// the alphas, four 8-bit texels a word, row-major from v = 0.
+// cutoff over the base alpha less the core's tie), wrap modes and filter
+// (u | v << 8 | nearest << 16; modes 0 repeat, 1 mirrored repeat, 2 clamp),
+// then the alphas, four 8-bit texels a word, row-major from v = 0.
 @group(0) @binding(5) var<storage, read> mask_words: array<u32>;
 
 fn wrap_texel(i: i32, n: i32, mode: u32) -> i32 {
@@ -41,9 +42,14 @@ fn mask_texel(m: u32, x: i32, y: i32) -> f32 {
     return f32((word >> ((i % 4u) * 8u)) & 0xffu) / 255.0;
 }
 
-// `AlphaMask::alpha_at`: bilinear between texel centres.
+// `AlphaMask::alpha_at`: bilinear between texel centres, or the texel's own
+// (nearest filter).
 fn mask_alpha(m: u32, uv: vec2<f32>) -> f32 {
     let size = vec2<f32>(f32(mask_words[m]), f32(mask_words[m + 1u]));
+    if (((mask_words[m + 3u] >> 16u) & 1u) == 1u) {
+        let t = vec2<i32>(floor(uv * size));
+        return mask_texel(m, t.x, t.y);
+    }
     let p = uv * size - 0.5;
     let p0 = floor(p);
     let f = p - p0;

@@ -49,6 +49,21 @@ fn solid_cards(setup: &Setup) -> Setup {
     solid
 }
 
+/// `setup` with every mask read nearest-filtered (square texels, outlined
+/// along their borders); the harness gives Bevy the same filter.
+fn nearest_cards(setup: &Setup) -> Setup {
+    use shadow_fins::cutout::{Cutout, Filter};
+    let mut nearest = setup.clone();
+    for o in nearest.scene.objects.iter_mut() {
+        if let Some(c) = &o.cutout {
+            let mask = (*c.mask).clone().with_filter(Filter::Nearest);
+            let rebuilt = Cutout::new(std::sync::Arc::new(mask), &c.vertex_uvs, &o.mesh, &o.topology);
+            o.cutout = Some(rebuilt.expect("the same UVs"));
+        }
+    }
+    nearest
+}
+
 #[test]
 fn leaf_cards_as_bevy_loads_them_cast_through_their_holes() {
     let setup = leaf_cards_gltf();
@@ -107,6 +122,21 @@ fn gpu_coverage_and_fins_cut_a_core_scenes_masked_cards_as_the_oracles_do() {
     println!("leaf-cards fins: gpu vs the solid cards' oracle {gpu_apart:.4}");
     assert!(gpu_apart > 0.01 && gpu_apart > 10.0 * mad, "the cut-outs hardly mattered: {gpu_apart}");
 
+    // Nearest-filtered masks (a pixel-art texture): the GPU reads each
+    // texel square as the oracle does, and the shadow is not the bilinear one.
+    let nearest = nearest_cards(&fins);
+    let nearest_shot = render(&nearest);
+    save(&nearest_shot, "alpha_leaf_cards_fins_nearest");
+    let (gpu_nearest, expected) = on_ground(&nearest, &nearest_shot.visibility, &oracle(&nearest, Method::MultiLayer));
+    let (mad, far) = compare(&gpu_nearest, &expected);
+    let (filters_apart, _) = compare(&gpu_nearest, &gpu);
+    println!(
+        "leaf-cards fins, nearest: mean |gpu − oracle| = {mad:.5}, share > 0.1 = {:.2}%; vs bilinear {filters_apart:.5}",
+        far * 100.0
+    );
+    assert!(mad <= 0.01 && far <= 0.03, "fins, nearest: {mad} / {far}");
+    assert!(filters_apart > 0.0005, "the nearest filter changed nothing: {filters_apart}");
+
     let coverage = setup(SceneId::LeafCards, coverage_settings());
     let shot = render(&coverage);
     save(&shot, "alpha_leaf_cards_coverage");
@@ -115,4 +145,10 @@ fn gpu_coverage_and_fins_cut_a_core_scenes_masked_cards_as_the_oracles_do() {
     let (mad, far) = compare(&gpu, &expected);
     println!("leaf-cards coverage: mean |gpu − oracle| = {mad:.5}, share > 0.1 = {:.2}%", far * 100.0);
     assert!(mad <= 0.002 && far <= 0.005, "coverage: {mad} / {far}");
+    let nearest = nearest_cards(&coverage);
+    let shot = render(&nearest);
+    let (gpu, expected) = on_ground(&nearest, &shot.visibility, &coverage_oracle(&nearest));
+    let (mad, far) = compare(&gpu, &expected);
+    println!("leaf-cards coverage, nearest: mean |gpu − oracle| = {mad:.5}, share > 0.1 = {:.2}%", far * 100.0);
+    assert!(mad <= 0.002 && far <= 0.005, "coverage, nearest: {mad} / {far}");
 }

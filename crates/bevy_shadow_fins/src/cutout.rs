@@ -12,12 +12,16 @@
 //! in the render world only (no main-world texels to read), a mesh without
 //! the UV channel the material reads. A mask every texel of which passes
 //! the cutoff is solid (no cut-out to pay for). Materials other than
-//! `StandardMaterial` (`ExtendedMaterial`, custom) cast solid. Approximated:
-//! the texture's filter is taken as linear (a nearest-filtered mask's
-//! outline is smoothed), `ImageSampler::Default` as clamping (the
-//! `ImagePlugin` default; an app that changed it is not read), vertex colour
-//! alpha is not applied, and a posed (skinned, morphed) masked mesh builds
-//! its outline again at every new pose.
+//! `StandardMaterial` (`ExtendedMaterial`, custom) cast solid. The sampler
+//! read is the image's own, or for `ImageSampler::Default` the app's
+//! (`ImagePlugin::default_sampler`, [`FinDefaultImageSampler`]): its wrap
+//! modes and its magnification filter (nearest: the mask's square texels,
+//! [`shadow_fins::cutout::Filter`]). Approximated: the minification filter
+//! and mip levels are not modelled (the shadow is the texture's at its own
+//! resolution, box-filtered down past 256 texels a side:
+//! [`shadow_fins::cutout::MAX_MASK_SIDE`]), vertex colour alpha is not
+//! applied, and a posed (skinned, morphed) masked mesh builds its outline
+//! again at every new pose.
 
 use std::{collections::HashMap, sync::Arc};
 
@@ -29,7 +33,7 @@ use bevy::{
     prelude::*,
 };
 use shadow_fins::{
-    cutout::{Address, AlphaMask, Cutout},
+    cutout::{Address, AlphaMask, Cutout, Filter},
     glam::Vec2,
     mesh::{Mesh as CoreMesh, Topology},
 };
@@ -110,10 +114,40 @@ impl CutoutCache {
     }
 }
 
+/// The sampler an image with `ImageSampler::Default` is drawn with: the
+/// app's `ImagePlugin::default_sampler` (read when the plugin finishes,
+/// unless the app inserted this resource itself; Bevy's linear, clamping
+/// default without an `ImagePlugin`). Alpha masks read their wrap modes and
+/// filter from it when they are built: a change later reaches masks built
+/// after it (a material or texture changed), not those already cached.
+#[derive(Resource, Clone, Debug)]
+pub struct FinDefaultImageSampler(pub bevy::image::ImageSamplerDescriptor);
+
+impl Default for FinDefaultImageSampler {
+    fn default() -> Self {
+        Self(bevy::image::ImageSamplerDescriptor::linear())
+    }
+}
+
+/// Keeps the app's default image sampler for the masks (called from the
+/// plugin's `finish`, once every plugin is added).
+pub(crate) fn finish(app: &mut App) {
+    if app.world().contains_resource::<FinDefaultImageSampler>() {
+        return;
+    }
+    let sampler = app
+        .get_added_plugins::<bevy::image::ImagePlugin>()
+        .first()
+        .map(|p| FinDefaultImageSampler(p.default_sampler.clone()))
+        .unwrap_or_default();
+    app.insert_resource(sampler);
+}
+
 /// What the frame builder reads of the casters' materials.
 #[derive(bevy::ecs::system::SystemParam)]
 pub(crate) struct CasterMaterials<'w, 's> {
     of: Query<'w, 's, &'static MeshMaterial3d<StandardMaterial>>,
+    default_sampler: Option<Res<'w, FinDefaultImageSampler>>,
     materials: Option<Res<'w, Assets<StandardMaterial>>>,
     images: Option<Res<'w, Assets<Image>>>,
     // Optional: a world without Bevy's PBR or image plugins has none.
@@ -229,7 +263,8 @@ impl CasterMaterials<'_, '_> {
                 waiting_for = Some(texture.id());
                 return None;
             };
-            match mask_of_image(image, base_alpha, cutoff) {
+            let default_sampler = self.default_sampler.as_deref().cloned().unwrap_or_default();
+            match mask_of_image(image, base_alpha, cutoff, &default_sampler.0) {
                 // Every texel passes: solid, and no cut-out to pay for.
                 Ok(mask) if mask.is_solid() => None,
                 Ok(mask) => Some(Arc::new(mask)),
@@ -245,8 +280,14 @@ impl CasterMaterials<'_, '_> {
 }
 
 /// The alpha channel of `image` (its first layer and mip level) as a mask,
-/// with its sampler's wrap modes.
-pub fn mask_of_image(image: &Image, base_alpha: f32, cutoff: f32) -> Result<AlphaMask, String> {
+/// with its sampler's wrap modes and magnification filter (`default_sampler`
+/// for `ImageSampler::Default`: the app's, [`FinDefaultImageSampler`]).
+pub fn mask_of_image(
+    image: &Image,
+    base_alpha: f32,
+    cutoff: f32,
+    default_sampler: &bevy::image::ImageSamplerDescriptor,
+) -> Result<AlphaMask, String> {
     use bevy::render::render_resource::TextureFormat as F;
     let (w, h) = (image.width(), image.height());
     let Some(data) = image.data.as_ref() else {
@@ -281,12 +322,18 @@ pub fn mask_of_image(image: &Image, base_alpha: f32, cutoff: f32) -> Result<Alph
         // The border colour is not known here: clamped, as is the default.
         ImageAddressMode::ClampToEdge | ImageAddressMode::ClampToBorder => Address::ClampToEdge,
     };
-    let modes = match &image.sampler {
-        ImageSampler::Descriptor(d) => [address(d.address_mode_u), address(d.address_mode_v)],
-        // `ImagePlugin`'s default sampler clamps.
-        ImageSampler::Default => [Address::ClampToEdge; 2],
+    let d = match &image.sampler {
+        ImageSampler::Descriptor(d) => d,
+        ImageSampler::Default => default_sampler,
     };
-    Ok(AlphaMask::new(w, h, alpha, base_alpha, cutoff).map_err(|e| e.to_string())?.with_address(modes))
+    let filter = match d.mag_filter {
+        bevy::image::ImageFilterMode::Nearest => Filter::Nearest,
+        bevy::image::ImageFilterMode::Linear => Filter::Linear,
+    };
+    Ok(AlphaMask::new(w, h, alpha, base_alpha, cutoff)
+        .map_err(|e| e.to_string())?
+        .with_address([address(d.address_mode_u), address(d.address_mode_v)])
+        .with_filter(filter))
 }
 
 /// The cut-out of `mesh` under `material`'s mask, from the UV channel the
@@ -324,7 +371,7 @@ fn build_cutout(
 }
 
 /// An RGBA image whose alpha is `mask`'s texture's (white elsewhere),
-/// sampled with its wrap modes and linear filtering: what shows a core
+/// sampled with its wrap modes and filter: what shows a core
 /// scene's masked object in Bevy as the core models it (`mesh_from_core`
 /// with its UVs, a material with `AlphaMode::Mask(mask.cutoff())` and base
 /// colour alpha `mask.base_alpha()`).
@@ -351,7 +398,10 @@ pub fn image_of_mask(mask: &AlphaMask) -> Image {
     image.sampler = ImageSampler::Descriptor(ImageSamplerDescriptor {
         address_mode_u: address(u),
         address_mode_v: address(v),
-        ..ImageSamplerDescriptor::linear()
+        ..match mask.filter() {
+            Filter::Linear => ImageSamplerDescriptor::linear(),
+            Filter::Nearest => ImageSamplerDescriptor::nearest(),
+        }
     });
     image
 }
@@ -387,6 +437,7 @@ mod tests {
 
     #[test]
     fn a_textures_first_row_is_v_0_and_its_sampler_wraps_the_mask() {
+        let linear = ImageSamplerDescriptor::linear();
         // The first texel of the data (top-left, u and v < 0.5) is the hole.
         let repeat = ImageSampler::Descriptor(ImageSamplerDescriptor {
             address_mode_u: ImageAddressMode::Repeat,
@@ -394,26 +445,71 @@ mod tests {
             ..ImageSamplerDescriptor::linear()
         });
         for format in [TextureFormat::Rgba8UnormSrgb, TextureFormat::Bgra8Unorm] {
-            let m = mask_of_image(&image(format, &[10, 20, 30, 0], repeat.clone()), 1.0, 0.5).unwrap();
+            let m = mask_of_image(&image(format, &[10, 20, 30, 0], repeat.clone()), 1.0, 0.5, &linear).unwrap();
             assert!(!m.opaque(Vec2::new(0.25, 0.25)), "{format:?}: the hole is at the top left");
             assert!(
                 m.opaque(Vec2::new(0.75, 0.25)) && m.opaque(Vec2::new(0.25, 0.75)) && m.opaque(Vec2::new(0.75, 0.75))
             );
             assert_eq!(m.address(), [Address::Repeat, Address::MirroredRepeat]);
         }
-        // Bevy's default sampler clamps; the base alpha scales the texels.
+        // Bevy's default sampler (as `ImagePlugin::default()`'s) clamps; the base alpha scales the texels.
         let m =
-            mask_of_image(&image(TextureFormat::Rgba8Unorm, &[0, 0, 0, 0], ImageSampler::Default), 0.4, 0.5).unwrap();
+            mask_of_image(&image(TextureFormat::Rgba8Unorm, &[0, 0, 0, 0], ImageSampler::Default), 0.4, 0.5, &linear)
+                .unwrap();
         assert_eq!(m.address(), [Address::ClampToEdge; 2]);
         assert!(!m.opaque(Vec2::new(0.75, 0.75)), "alpha 1 × base 0.4 < 0.5");
         // Another format by its colours; no alpha channel: opaque.
         let float = image(TextureFormat::R8Unorm, &[0], ImageSampler::Default);
-        assert!(mask_of_image(&float, 1.0, 0.5).unwrap().is_solid());
+        assert!(mask_of_image(&float, 1.0, 0.5, &linear).unwrap().is_solid());
         let mut empty = image(TextureFormat::Rgba8Unorm, &[0, 0, 0, 0], ImageSampler::Default);
         empty.data = None;
-        assert!(mask_of_image(&empty, 1.0, 0.5).is_err(), "no main-world data is an error, not a panic");
+        assert!(mask_of_image(&empty, 1.0, 0.5, &linear).is_err(), "no main-world data is an error, not a panic");
         let mut short = image(TextureFormat::Rgba8Unorm, &[0, 0, 0, 0], ImageSampler::Default);
         short.data.as_mut().unwrap().truncate(5);
-        assert!(mask_of_image(&short, 1.0, 0.5).is_err(), "too few bytes is an error, not a panic");
+        assert!(mask_of_image(&short, 1.0, 0.5, &linear).is_err(), "too few bytes is an error, not a panic");
+    }
+
+    #[test]
+    fn the_plugin_keeps_the_apps_default_sampler_unless_one_was_given() {
+        let mut app = App::new();
+        app.add_plugins((bevy::asset::AssetPlugin::default(), bevy::image::ImagePlugin::default_nearest()));
+        finish(&mut app);
+        let kept = &app.world().resource::<FinDefaultImageSampler>().0;
+        assert_eq!(kept.mag_filter, bevy::image::ImageFilterMode::Nearest);
+        // One the app inserted itself stays.
+        let mut app = App::new();
+        app.add_plugins((bevy::asset::AssetPlugin::default(), bevy::image::ImagePlugin::default_nearest()));
+        app.insert_resource(FinDefaultImageSampler(ImageSamplerDescriptor::linear()));
+        finish(&mut app);
+        assert_eq!(app.world().resource::<FinDefaultImageSampler>().0.mag_filter, bevy::image::ImageFilterMode::Linear);
+        // No ImagePlugin: Bevy's default, linear.
+        let mut app = App::new();
+        finish(&mut app);
+        assert_eq!(app.world().resource::<FinDefaultImageSampler>().0.mag_filter, bevy::image::ImageFilterMode::Linear);
+    }
+
+    #[test]
+    fn the_apps_default_sampler_and_a_nearest_filter_are_read() {
+        let hole = image(TextureFormat::Rgba8Unorm, &[0, 0, 0, 0], ImageSampler::Default);
+        // A pixel-art app: `ImagePlugin::default_nearest()`, repeating.
+        let nearest = ImageSamplerDescriptor {
+            address_mode_u: ImageAddressMode::Repeat,
+            address_mode_v: ImageAddressMode::Repeat,
+            ..ImageSamplerDescriptor::nearest()
+        };
+        let m = mask_of_image(&hole, 1.0, 0.5, &nearest).unwrap();
+        assert_eq!((m.address(), m.filter()), ([Address::Repeat; 2], Filter::Nearest));
+        // Nearest: the hole's square ends at the texel border (bilinear: half way to the next centre).
+        assert!(!m.opaque(Vec2::new(0.49, 0.25)) && m.opaque(Vec2::new(0.51, 0.25)));
+        // Repeated: u = −0.25 is the opaque texel at 0.75 (clamped, the hole).
+        assert!(m.opaque(Vec2::new(-0.25, 0.25)));
+        let clamped = mask_of_image(&hole, 1.0, 0.5, &ImageSamplerDescriptor::linear()).unwrap();
+        assert_eq!((clamped.address(), clamped.filter()), ([Address::ClampToEdge; 2], Filter::Linear));
+        assert!(!clamped.opaque(Vec2::new(-0.25, 0.25)));
+        // The image's own sampler wins over the default; the mask's image keeps its filter.
+        let own = image(TextureFormat::Rgba8Unorm, &[0, 0, 0, 0], ImageSampler::linear());
+        assert_eq!(mask_of_image(&own, 1.0, 0.5, &nearest).unwrap().filter(), Filter::Linear);
+        let round_trip = mask_of_image(&image_of_mask(&m), 1.0, 0.5, &ImageSamplerDescriptor::linear()).unwrap();
+        assert_eq!((round_trip.address(), round_trip.filter()), ([Address::Repeat; 2], Filter::Nearest));
     }
 }

@@ -174,7 +174,13 @@ pub(crate) fn gpu_casters(
                             shadow_fins::cutout::Address::ClampToEdge => 2,
                         };
                         let [u, v] = m.address();
-                        mask_words.extend([m.width(), m.height(), m.threshold().to_bits(), code(u) | code(v) << 8]);
+                        let nearest = (m.filter() == shadow_fins::cutout::Filter::Nearest) as u32;
+                        mask_words.extend([
+                            m.width(),
+                            m.height(),
+                            m.threshold().to_bits(),
+                            code(u) | code(v) << 8 | nearest << 16,
+                        ]);
                         mask_words.extend(
                             m.alpha()
                                 .chunks(4)

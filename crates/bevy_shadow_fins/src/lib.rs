@@ -200,7 +200,7 @@ mod sun_fit;
 pub use bevy_shadow_maps::BevyShadowMapsKept;
 pub use budget::{FinDegradation, FinShadowBudget};
 pub use casters::FinCasterUpdates;
-pub use cutout::{image_of_mask, mask_of_image};
+pub use cutout::{FinDefaultImageSampler, image_of_mask, mask_of_image};
 pub use extract::{
     FinCasterScans, FinFrameStats, FinFrames, FinLightFrame, FinLightStats, FinSceneError, FinShadowStats,
     MAX_FIN_LIGHTS,
@@ -272,6 +272,7 @@ impl Plugin for ShadowFinsPlugin {
     }
 
     fn finish(&self, app: &mut App) {
+        cutout::finish(app);
         render::finish(app);
     }
 }

@@ -4,8 +4,9 @@
 //!
 //! Semantics, the same for the ground truth, the CPU oracle and the GPU:
 //! - the alpha at a UV is the texture's bilinear interpolation between
-//!   texel centres, the texture read by its sampler's wrap modes (repeat,
-//!   mirrored repeat, clamp; Bevy's default filter is linear), times the
+//!   texel centres — or, for a nearest-filtered texture ([`Filter`]), the
+//!   alpha of the texel the UV falls in —, the texture read by its
+//!   sampler's wrap modes (repeat, mirrored repeat, clamp), times the
 //!   material's base alpha; a masked triangle blocks a ray (the ground
 //!   truth's) or a texel's centre ray (a light-space map's) where that alpha
 //!   is at least the cutoff (ties opaque, as Bevy's `alpha < cutoff →
@@ -16,7 +17,8 @@
 //! - the outline of the opaque region is geometry: per masked face, the
 //!   iso-line `alpha = cutoff` by marching squares over the texel-centre
 //!   grid (exact at the grid's cell edges, a chord of the bilinear curve
-//!   inside a cell), clipped to the face's UV triangle, and the opaque
+//!   inside a cell) — a nearest-filtered mask's, exactly, the texel borders
+//!   between opaque and clear texels —, clipped to the face's UV triangle, and the opaque
 //!   stretches of the face's own edges ([`Outline`]). A masked object's
 //!   silhouettes (the fins') and potential silhouette edges (the coverage
 //!   method's) are its outline's edges instead of its mesh edges, so a hole
@@ -88,10 +90,22 @@ impl Address {
     }
 }
 
+/// How the texture is read between texels (Bevy's sampler's magnification
+/// filter, glTF's `magFilter`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+pub enum Filter {
+    /// Bilinear between texel centres (Bevy's default).
+    #[default]
+    Linear,
+    /// The texel a UV falls in: a pixel-art mask's square texels.
+    Nearest,
+}
+
 /// Ties go to opaque (Bevy's `alpha < cutoff → discard`): an alpha within
-/// this of the cutoff counts as reaching it, everywhere alike, so that an
-/// iso-line never runs exactly along a texel border (where a texture's
-/// 0-to-255 steps interpolate to 0.5, glTF's default cutoff).
+/// this of the cutoff counts as reaching it, everywhere alike, so that a
+/// bilinear iso-line never runs exactly along a texel border (where a
+/// texture's 0-to-255 steps interpolate to 0.5, glTF's default cutoff). A
+/// nearest-filtered mask's outline runs along texel borders by design.
 const TIE: f32 = 1.0 / 8192.0;
 
 /// A material's alpha, texel by texel, and its cutoff.
@@ -107,6 +121,8 @@ pub struct AlphaMask {
     base_alpha: f32,
     /// How `u` and `v` outside `[0, 1]` read the texture.
     address: [Address; 2],
+    /// How the texture is read between texels.
+    filter: Filter,
 }
 
 impl AlphaMask {
@@ -126,7 +142,15 @@ impl AlphaMask {
         let base_alpha = if base_alpha.is_finite() { base_alpha.clamp(0.0, 1.0) } else { 1.0 };
         let (alpha, width, height) = if alpha.is_empty() { (vec![255], 1, 1) } else { (alpha, width, height) };
         let (alpha, width, height) = box_filter(alpha, width, height);
-        Ok(Self { width, height, alpha, cutoff: cutoff.clamp(0.0, 1.0), base_alpha, address: [Address::Repeat; 2] })
+        Ok(Self {
+            width,
+            height,
+            alpha,
+            cutoff: cutoff.clamp(0.0, 1.0),
+            base_alpha,
+            address: [Address::Repeat; 2],
+            filter: Filter::Linear,
+        })
     }
 
     pub fn base_alpha(&self) -> f32 {
@@ -147,6 +171,18 @@ impl AlphaMask {
 
     pub fn address(&self) -> [Address; 2] {
         self.address
+    }
+
+    /// The mask read with this filter (default: linear). A mask box-filtered
+    /// down from a larger texture ([`MAX_MASK_SIDE`]) is read nearest from
+    /// the filtered texels.
+    pub fn with_filter(mut self, filter: Filter) -> Self {
+        self.filter = filter;
+        self
+    }
+
+    pub fn filter(&self) -> Filter {
+        self.filter
     }
 
     /// How close to a face's edge an iso-line counts as on it, in UV: a
@@ -198,9 +234,14 @@ impl AlphaMask {
     }
 
     /// The texture's alpha at `uv` (before the base alpha): bilinear between
-    /// texel centres, read by the wrap modes.
+    /// texel centres, or the texel's own under [`Filter::Nearest`], read by
+    /// the wrap modes.
     #[inline]
     pub fn alpha_at(&self, uv: Vec2) -> f32 {
+        if self.filter == Filter::Nearest {
+            let (i, j) = self.texel_of(uv);
+            return self.texel(i, j);
+        }
         let x = uv.x as f64 * self.width as f64 - 0.5;
         let y = uv.y as f64 * self.height as f64 - 0.5;
         let (x0, y0) = (x.floor(), y.floor());
@@ -209,6 +250,13 @@ impl AlphaMask {
         let top = self.texel(i, j) * (1.0 - fx) + self.texel(i + 1, j) * fx;
         let bottom = self.texel(i, j + 1) * (1.0 - fx) + self.texel(i + 1, j + 1) * fx;
         top * (1.0 - fy) + bottom * fy
+    }
+
+    /// The texel `uv` falls in (before wrapping): texel `i` spans
+    /// `[i/w, (i+1)/w)`.
+    #[inline]
+    fn texel_of(&self, uv: Vec2) -> (i64, i64) {
+        ((uv.x as f64 * self.width as f64).floor() as i64, (uv.y as f64 * self.height as f64).floor() as i64)
     }
 
     /// True when the caster blocks light at `uv`: the alpha there is at
@@ -636,8 +684,10 @@ fn iso_segments(mask: &AlphaMask, uv: &[Vec2; 3], budget: &mut u64) -> Option<Ve
     let (w, h) = (mask.width as f64, mask.height as f64);
     let lo = uv[0].min(uv[1]).min(uv[2]);
     let hi = uv[0].max(uv[1]).max(uv[2]);
-    let (i0, i1) = ((lo.x as f64 * w - 0.5).floor() as i64, (hi.x as f64 * w - 0.5).floor() as i64);
-    let (j0, j1) = ((lo.y as f64 * h - 0.5).floor() as i64, (hi.y as f64 * h - 0.5).floor() as i64);
+    // Cells: between texel centres (linear), or the texels themselves (nearest).
+    let shift = if mask.filter == Filter::Nearest { 0.0 } else { 0.5 };
+    let (i0, i1) = ((lo.x as f64 * w - shift).floor() as i64, (hi.x as f64 * w - shift).floor() as i64);
+    let (j0, j1) = ((lo.y as f64 * h - shift).floor() as i64, (hi.y as f64 * h - shift).floor() as i64);
     let cells = ((i1 - i0 + 1) as u64).saturating_mul((j1 - j0 + 1) as u64);
     if cells > MAX_CELLS_PER_FACE || cells > *budget {
         return None;
@@ -663,7 +713,12 @@ fn iso_segments(mask: &AlphaMask, uv: &[Vec2; 3], budget: &mut u64) -> Option<Ve
 
 /// The iso-line's chords in grid cell `(i, j)` (between texel centres `i`,
 /// `i + 1` and `j`, `j + 1`), opaque side on the left: marching squares.
+/// Under [`Filter::Nearest`] the cell is texel `(i, j)` and its chords the
+/// sides it shares with a texel of the other state, if it is opaque.
 fn cell_chords(mask: &AlphaMask, i: i64, j: i64) -> impl Iterator<Item = (Vec2, Vec2)> {
+    if mask.filter == Filter::Nearest {
+        return texel_border_chords(mask, i, j).into_iter();
+    }
     let (w, h) = (mask.width as f64, mask.height as f64);
     let cutoff = mask.threshold();
     let at = |i: i64, j: i64| Vec2::new(((i as f64 + 0.5) / w) as f32, ((j as f64 + 0.5) / h) as f32);
@@ -703,10 +758,30 @@ fn cell_chords(mask: &AlphaMask, i: i64, j: i64) -> impl Iterator<Item = (Vec2, 
     chords.into_iter()
 }
 
+/// An opaque texel's sides facing a clear texel, counter-clockwise in
+/// `(u, v)` (the opaque texel on their left): the nearest-filtered mask's
+/// outline, each border drawn once (by its opaque texel).
+fn texel_border_chords(mask: &AlphaMask, i: i64, j: i64) -> Vec<(Vec2, Vec2)> {
+    let t = mask.threshold();
+    if mask.texel(i, j) < t {
+        return Vec::new();
+    }
+    let (w, h) = (mask.width as f64, mask.height as f64);
+    let at = |i: i64, j: i64| Vec2::new((i as f64 / w) as f32, (j as f64 / h) as f32);
+    let corners = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
+    // Across each side (bottom, right, top, left): the neighbour it borders.
+    let across = [(i, j - 1), (i + 1, j), (i, j + 1), (i - 1, j)];
+    (0..4).filter(|&k| mask.texel(across[k].0, across[k].1) < t).map(|k| (corners[k], corners[(k + 1) % 4])).collect()
+}
+
 /// Whether `uv` lies in the opaque region the iso-line's chords bound (the
 /// outline's own region, a hair from the bilinear test's near the line):
 /// the side of the nearest chord of its cell, or its cell's state.
 fn chord_opaque(mask: &AlphaMask, uv: Vec2) -> bool {
+    if mask.filter == Filter::Nearest {
+        // The outline runs along texel borders: the region is the texels'.
+        return mask.opaque(uv);
+    }
     let i = (uv.x as f64 * mask.width as f64 - 0.5).floor() as i64;
     let j = (uv.y as f64 * mask.height as f64 - 0.5).floor() as i64;
     let nearest = cell_chords(mask, i, j)
@@ -808,6 +883,22 @@ mod tests {
         assert!(!big.opaque(Vec2::new(0.2, 0.5)) && big.opaque(Vec2::new(0.8, 0.5)));
     }
 
+    #[test]
+    fn a_nearest_filtered_mask_is_its_texels_squares() {
+        let m = AlphaMask::new(2, 2, vec![0, 255, 255, 255], 1.0, 0.5).unwrap().with_filter(Filter::Nearest);
+        // Up to the texel border the hole's alpha, from it on the neighbour's (bilinear: 0.5 there).
+        assert_eq!(m.alpha_at(Vec2::new(0.499, 0.25)), 0.0);
+        assert_eq!(m.alpha_at(Vec2::new(0.5, 0.25)), 1.0);
+        assert!(!m.opaque(Vec2::new(0.01, 0.49)) && m.opaque(Vec2::new(0.01, 0.51)));
+        // Wrapped as the linear mask is: −0.25 repeats to 0.75.
+        assert!(m.opaque(Vec2::new(-0.25, 0.25)) && !m.opaque(Vec2::new(1.25, 0.25)));
+        // Its outline is the hole's two inner sides on a card (u, v in [0, 1]):
+        // a 0.5 × 0.5 square hole, the rest of the card opaque.
+        let (_, c) = card_cutout(m, 0.0, false);
+        assert!(unbalanced_vertices(&c.outline).is_empty());
+        assert!((enclosed_area(&c.outline) - 0.54 * 0.75).abs() < 1e-5, "{}", enclosed_area(&c.outline));
+    }
+
     /// A 0.6 × 0.9 card with its UVs turned by `uv_turn` about the
     /// texture's centre, and mirrored in u when `mirror` (the UV triangles
     /// then turn the way the faces wind; unmirrored, against it).
@@ -885,14 +976,17 @@ mod tests {
     #[test]
     fn the_leafs_outline_is_closed_and_encloses_its_opaque_area_at_any_uv_rotation() {
         let alpha = crate::shapes::leaf_alpha(128);
-        // The opaque area by the bilinear test on a fine grid, against the
-        // area the outline encloses.
-        for (turn, mirror) in [(0.0, false), (0.3, false), (1.9, false), (0.0, true), (0.7, true)] {
-            let (_, c) = card_cutout(AlphaMask::new(128, 128, alpha.clone(), 1.0, 0.5).unwrap(), turn, mirror);
+        // The opaque area by the mask's test on a fine grid, against the
+        // area the outline encloses; bilinear and nearest (whose texel
+        // corners the card's diagonal runs through, unturned).
+        let cases = [(0.0, false), (0.3, false), (1.9, false), (0.0, true), (0.7, true)];
+        for ((turn, mirror), filter) in cases.into_iter().flat_map(|c| [(c, Filter::Linear), (c, Filter::Nearest)]) {
+            let mask = AlphaMask::new(128, 128, alpha.clone(), 1.0, 0.5).unwrap().with_filter(filter);
+            let (_, c) = card_cutout(mask, turn, mirror);
             let o = &c.outline;
             let open = unbalanced_vertices(o);
-            assert!(open.is_empty(), "turn {turn}, mirror {mirror}: open outline: {open:#?}");
-            assert_eq!(o.joined_ends, 0, "turn {turn}, mirror {mirror}: closed without joining ends");
+            assert!(open.is_empty(), "turn {turn}, mirror {mirror}, {filter:?}: open outline: {open:#?}");
+            assert_eq!(o.joined_ends, 0, "turn {turn}, mirror {mirror}, {filter:?}: closed without joining ends");
             let n = 600;
             let mut opaque = 0;
             for y in 0..n {
@@ -908,7 +1002,7 @@ mod tests {
             let area = enclosed_area(o);
             assert!(
                 (area - sampled).abs() < 0.01 * 0.54,
-                "turn {turn}, mirror {mirror}: outline encloses {area}, opaque {sampled}"
+                "turn {turn}, mirror {mirror}, {filter:?}: outline encloses {area}, opaque {sampled}"
             );
             // Holes and blade: many more edges than the card's four.
             assert!(o.edges.len() > 100, "{}", o.edges.len());
@@ -927,10 +1021,11 @@ mod tests {
             seed
         };
         let mut joined = 0;
-        for _ in 0..1000 {
+        for k in 0..2000 {
             let alpha: Vec<u8> = (0..64).map(|_| (rnd() % 256) as u8).collect();
             let cutoff = (rnd() % 100) as f32 / 100.0;
-            let mask = AlphaMask::new(8, 8, alpha, 1.0, cutoff).unwrap();
+            let filter = if k % 2 == 0 { Filter::Linear } else { Filter::Nearest };
+            let mask = AlphaMask::new(8, 8, alpha, 1.0, cutoff).unwrap().with_filter(filter);
             let (mut positions, mut uvs, mut indices) = (Vec::new(), Vec::new(), Vec::new());
             for i in 0..5u32 {
                 let x = i as f32 * 0.25;
@@ -954,7 +1049,7 @@ mod tests {
                 assert!(a.is_finite() && b.is_finite() && a != b);
             }
         }
-        // Joins mend the rare corner case only (a few in 8000 faces).
-        assert!(joined <= 20, "{joined} dangling ends joined");
+        // Joins mend the rare corner case only (a few in 16 000 faces).
+        assert!(joined <= 40, "{joined} dangling ends joined");
     }
 }
