@@ -275,11 +275,22 @@ fn a_still_scene_is_not_walked_again_and_a_moved_caster_moves_its_shadow() {
     }
     assert_eq!(scans(&session), settled, "a still scene was walked again");
     assert_eq!(updates(&session), updated, "a still scene was updated");
+    // Nor is anything read back from the GPU (the counts are back already).
+    let reading_back = |session: &mut harness::Session| {
+        let world = session.app.world_mut();
+        // The plugin's own (the harness reads its images back too).
+        let mut q = world.query_filtered::<&Name, With<bevy::render::gpu_readback::Readback>>();
+        q.iter(world).filter(|n| n.as_str() == "fin shadow stats read-back").count()
+    };
+    assert_eq!(reading_back(&mut session), 0, "a still scene runs a read-back");
     let world = session.app.world_mut();
     let the_box = the_box(world);
     world.get_mut::<Transform>(the_box).expect("a transform").translation += offset;
+    session.update();
+    assert_eq!(reading_back(&mut session), 1, "the moved caster's counts are not read back");
     let after = session.settle(6).expect("render").visibility;
     assert_eq!(scans(&session), settled, "moving one caster walked every mesh");
+    assert_eq!(reading_back(&mut session), 0, "the read-back runs on once the counts are back");
     let now = updates(&session);
     assert_eq!((now.frames - updated.frames, now.records - updated.records), (1, 1), "the move was not one record");
     let (mad, _) = compare(&after, &expected);

@@ -86,8 +86,14 @@ const ENTRY_POINTS: [&str; 18] = [
 
 pub(super) fn build(app: &mut App) {
     embedded_asset!(app, "shaders/extract.wgsl");
-    app.add_plugins(ExtractResourcePlugin::<FinStatsBuffer>::default()).add_systems(Startup, spawn_stats_readback);
+    app.add_plugins(ExtractResourcePlugin::<FinStatsBuffer>::default())
+        .add_systems(Startup, spawn_stats_readback)
+        .add_systems(PostUpdate, read_back_while_waiting.after(crate::extract::FinFramesUpdate));
 }
+
+/// Marks the entity whose `Readback` brings the extraction's counts back.
+#[derive(Component)]
+struct StatsReadback;
 
 /// The small buffer the extraction's counts are copied into, one slot of
 /// `STATS_WORDS` per frame (in [`FinFrames`] order), read back every frame
@@ -104,7 +110,33 @@ fn spawn_stats_readback(mut commands: Commands, mut buffers: ResMut<Assets<Shade
     let bytes = vec![0u8; stats_offset(MAX_FIN_FRAMES) as usize];
     let handle = buffers.add(ShaderBuffer::new(&bytes, bevy::asset::RenderAssetUsages::RENDER_WORLD));
     commands.insert_resource(FinStatsBuffer(handle.clone()));
-    commands.spawn((Name::new("fin shadow stats read-back"), Readback::buffer(handle))).observe(on_stats_readback);
+    commands
+        .spawn((Name::new("fin shadow stats read-back"), StatsReadback, Readback::buffer(handle)))
+        .observe(on_stats_readback);
+}
+
+/// The counts are read back only while some light's GPU frame waits for
+/// them (a new frame, or one redone after a buffer grew): when nothing moved,
+/// no read-back runs (issue 16, item 3). A frame built this update is
+/// extracted with it, and its counts copied before the read-back's copy.
+fn read_back_while_waiting(
+    mut commands: Commands,
+    frames: Res<FinFrames>,
+    cache: Res<MeshCache>,
+    stats: Option<Res<FinStatsBuffer>>,
+    readback: Query<(Entity, Has<Readback>), With<StatsReadback>>,
+) {
+    let (Some(stats), Ok((entity, reading))) = (stats, readback.single()) else { return };
+    let waiting = frames.0.iter().any(|f| cache.lights.get(&f.key()).is_some_and(|s| !s.stats.up_to_date));
+    match (waiting, reading) {
+        (true, false) => {
+            commands.entity(entity).insert(Readback::buffer(stats.0.clone()));
+        }
+        (false, true) => {
+            commands.entity(entity).remove::<Readback>();
+        }
+        _ => {}
+    }
 }
 
 /// Counts of the latest GPU extraction of every light: stats for the main
