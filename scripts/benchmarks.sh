@@ -197,8 +197,10 @@ alpha_section() {
   echo "the hit's UV against the cutoff); the fins' slab maps and the coverage method's depth lists alpha-test"
   echo "each texel's centre ray; fins and potential silhouette edges come from the outline of the opaque region"
   echo "(marching squares on the mask, \`crates/shadow_fins/src/cutout.rs\`) in place of the cards' own four"
-  echo "edges. The peers model the cards solid (their rows show what ignoring the mask costs). The plugin"
-  echo "renders these from Bevy's \`AlphaMode::Mask\` materials (\`tests/render/alpha_masked.rs\`)."
+  echo "edges. The convolution peers filter an alpha-tested shadow map, as the plugin's convolution method"
+  echo "does; the other peers' silhouettes and shells come from the triangles: they model the cards solid"
+  echo "(their rows show what ignoring the mask costs). The plugin renders these from Bevy's"
+  echo "\`AlphaMode::Mask\` materials (\`tests/render/alpha_masked.rs\`)."
   echo
   echo "### Exact oracle"
   echo

@@ -57,24 +57,24 @@ fn primitive_index(wg: vec3<u32>) -> u32 {
     return wg.x + wg.y * 65535u;
 }
 
-// The caster the workgroup draws: every one on a full redraw, the gathered
-// ones on a partial (`NONE` past them).
-fn caster_index(wg: vec3<u32>) -> u32 {
+// The primitive the workgroup draws: every one on a full redraw, on a
+// partial one the gathered ones (`NONE` past them) of the list whose offset
+// is at `control[list_at]` (106 casters, 107 fins).
+fn listed_index(wg: vec3<u32>, list_at: u32) -> u32 {
     let i = primitive_index(wg);
     if (!partial_redraw(params)) {
         return i;
     }
-    let list = control[106u];
+    let list = control[list_at];
     return select(NONE, control[list + 1u + i], i < control[list]);
 }
 
+fn caster_index(wg: vec3<u32>) -> u32 {
+    return listed_index(wg, 106u);
+}
+
 fn fin_index(wg: vec3<u32>) -> u32 {
-    let i = primitive_index(wg);
-    if (!partial_redraw(params)) {
-        return i;
-    }
-    let list = control[107u];
-    return select(NONE, control[list + 1u + i], i < control[list]);
+    return listed_index(wg, 107u);
 }
 
 const NONE: u32 = 0xffffffffu;

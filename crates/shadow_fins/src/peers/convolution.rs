@@ -51,7 +51,11 @@
 //!   plane).
 //!
 //! It is a filtering method: it sees one depth per texel (single-silhouette
-//! artifacts, blockers flattened within a kernel, as §5 says).
+//! artifacts, blockers flattened within a kernel, as §5 says). Being one,
+//! it takes alpha-masked casters as they are: their texels alpha-tested
+//! into the shadow map ([`crate::cutout`]), a hole's penumbra filtered like
+//! any edge's. (The other peers' silhouettes and shells come from the
+//! triangles: they model a cut-out card solid.)
 
 use glam::{Vec2, Vec3};
 
@@ -403,8 +407,12 @@ impl ConvolutionModel {
         let perspective = frame.is_perspective();
         let min_near = light_space.reference_depth * 1e-5;
         let near_clip = if perspective { min_near } else { f32::NEG_INFINITY };
-        let triangles: Vec<MapTriangle> =
-            light_space.casters.iter().flat_map(|t| MapTriangle::clipped(t, &frame, near_clip, perspective)).collect();
+        // Alpha-masked casters cut out of the shadow map, as the fins' maps do.
+        let triangles: Vec<MapTriangle> = (light_space.casters.iter().enumerate())
+            .flat_map(|(k, t)| {
+                MapTriangle::clipped_with_cutout(t, light_space.cutout(k), &frame, near_clip, perspective)
+            })
+            .collect();
         let limit = frame.map_limit(RASTER_MAP_LIMIT);
         // Padded by the widest search rectangle, so that a receiver's
         // kernel beyond the casters sees empty texels, not the map's edge.
@@ -430,7 +438,7 @@ impl ConvolutionModel {
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     let q = region.texel_center(x, y);
-                    if t.contains(q) {
+                    if t.contains(q) && t.opaque_at(q, &light_space.masks) {
                         let d = t.depth_at(q);
                         let cell = &mut depth[y as usize * res + x as usize];
                         if d > near_clip && d < *cell {
