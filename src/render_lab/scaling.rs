@@ -2,8 +2,10 @@
 //! 10, 100, 1000, 10 000 cubes sharing one mesh over the box-over-plane
 //! scene, under one fin-shadowed `SpotLight` — static and with one object
 //! moving every frame (maps redrawn in part, then with
-//! [`FinPartialRedraw`] off, whole), split into the main world's and the
-//! render world's time (`shadow-fins-render-lab scaling`).
+//! [`FinPartialRedraw`] off, whole), then with a skinned bar among them bent
+//! a little further every frame (a new pose each frame), split into the
+//! main world's and the render world's time (`shadow-fins-render-lab
+//! scaling`).
 //!
 //! The app renders sequentially (no pipelined rendering), so each frame is
 //! the main schedule, then extraction and the render world's schedule, timed
@@ -63,6 +65,12 @@ pub struct ScalingRow {
     /// the maps whole): main, render world ms.
     pub whole_main_ms: f64,
     pub whole_render_ms: f64,
+    /// A skinned bar among the cubes, bent a little further every frame
+    /// (a new pose, new geometry, each frame): main, render world ms, and in
+    /// how many frames its caster was rebuilt in place (no re-collected scene).
+    pub posed_main_ms: f64,
+    pub posed_render_ms: f64,
+    pub posed_in_place: u64,
     /// The same app static with `FinShadows` removed (Bevy's own spot shadow
     /// map back): what Bevy alone costs at this object count.
     pub bevy_main_ms: f64,
@@ -113,6 +121,48 @@ fn split_frame(app: &mut App) -> (f64, f64) {
     (main, start.elapsed().as_secs_f64() * 1e3)
 }
 
+/// What changes from frame to frame while timing.
+#[derive(Debug, Clone, Copy)]
+enum Motion {
+    Still,
+    /// The first cube moves a hair every frame.
+    Cube,
+    /// This joint turns a little further every frame.
+    Joint(Entity),
+}
+
+/// A bar of `n`-independent size skinned to two joints — the root at `at`,
+/// the second (its child, at the same place) bending the bar's far half —,
+/// with its mesh's positions in the joints' space (inverse bind poses the
+/// identity). Returns the bending joint.
+fn spawn_skinned_bar(world: &mut World, at: Vec3) -> Entity {
+    use bevy::mesh::{
+        VertexAttributeValues,
+        skinning::{SkinnedMesh, SkinnedMeshInverseBindposes},
+    };
+    let mut mesh = Mesh::from(Cuboid::new(1.2, 0.15, 0.15));
+    let Some(VertexAttributeValues::Float32x3(positions)) = mesh.attribute(Mesh::ATTRIBUTE_POSITION) else {
+        unreachable!("a cuboid has positions")
+    };
+    let weights: Vec<[f32; 4]> = positions.iter().map(|p| [0.5 - p[0] / 1.2, 0.5 + p[0] / 1.2, 0.0, 0.0]).collect();
+    let joints = vec![[0u16, 1, 0, 0]; weights.len()];
+    mesh.insert_attribute(Mesh::ATTRIBUTE_JOINT_INDEX, VertexAttributeValues::Uint16x4(joints));
+    mesh.insert_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, weights);
+    let mesh = world.resource_mut::<Assets<Mesh>>().add(mesh);
+    let bindposes = world
+        .resource_mut::<Assets<SkinnedMeshInverseBindposes>>()
+        .add(SkinnedMeshInverseBindposes::from(vec![Mat4::IDENTITY; 2]));
+    let material = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial::default());
+    let root = world.spawn(Transform::from_translation(at)).id();
+    let bend = world.spawn((Transform::default(), ChildOf(root))).id();
+    world.spawn((
+        Mesh3d(mesh),
+        MeshMaterial3d(material),
+        SkinnedMesh { inverse_bindposes: bindposes, joints: vec![root, bend] },
+    ));
+    bend
+}
+
 /// Median ms of frames (main world, render world, whole frame), and the
 /// last map update: partial or not, the share of texels redrawn.
 #[derive(Debug, Clone, Copy, Default)]
@@ -124,20 +174,28 @@ struct Medians {
     redrawn: f64,
 }
 
-/// Medians over `frames` frames; when `moving`, the first cube moves a hair
-/// every frame.
-fn time(session: &mut Session, frames: u32, moving: bool) -> Medians {
+/// Medians over `frames` frames with `motion`.
+fn time(session: &mut Session, frames: u32, motion: Motion) -> Medians {
     let (mut main, mut render, mut frame) = (vec![], vec![], vec![]);
     let mover = {
         let world = session.app.world_mut();
         world.query_filtered::<Entity, With<ScalingCube>>().iter(world).min()
     };
     for k in 0..frames {
-        if moving && let Some(e) = mover {
-            // One way (1 mm a frame): no pose repeats, so no cache can hide the cost.
-            if let Some(mut t) = session.app.world_mut().get_mut::<Transform>(e) {
-                t.translation.x += 1e-3 * (k + 1) as f32 / frames as f32;
+        // One way (1 mm, or a few mrad, a frame): no pose repeats, so no cache can hide the cost.
+        let step = (k + 1) as f32 / frames as f32;
+        match motion {
+            Motion::Cube => {
+                if let Some(mut t) = mover.and_then(|e| session.app.world_mut().get_mut::<Transform>(e)) {
+                    t.translation.x += 1e-3 * step;
+                }
             }
+            Motion::Joint(joint) => {
+                if let Some(mut t) = session.app.world_mut().get_mut::<Transform>(joint) {
+                    t.rotate_z(0.01 * step);
+                }
+            }
+            Motion::Still => {}
         }
         let (m, r) = split_frame(&mut session.app);
         main.push(m);
@@ -175,23 +233,28 @@ pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
         session.settle(6)?;
         let scans = |s: &Session| s.app.world().resource::<FinCasterScans>().0;
         let before = scans(&session);
-        let still = time(&mut session, run.frames, false);
+        let still = time(&mut session, run.frames, Motion::Still);
         let static_scans = scans(&session) - before;
         let (scans_before, records_before) =
             (scans(&session), session.app.world().resource::<FinCasterUpdates>().records);
-        let moving = time(&mut session, run.frames, true);
+        let moving = time(&mut session, run.frames, Motion::Cube);
         let moving_scans = scans(&session) - scans_before;
         let moving_records = session.app.world().resource::<FinCasterUpdates>().records - records_before;
         session.app.insert_resource(FinPartialRedraw(false));
-        let whole = time(&mut session, run.frames, true);
+        let whole = time(&mut session, run.frames, Motion::Cube);
         session.app.insert_resource(FinPartialRedraw(true));
+        let bend = spawn_skinned_bar(session.app.world_mut(), Vec3::new(1.2, 0.9, 1.2));
+        session.settle(6)?;
+        let in_place_before = session.app.world().resource::<FinCasterUpdates>().frames;
+        let posed = time(&mut session, run.frames, Motion::Joint(bend));
+        let posed_in_place = session.app.world().resource::<FinCasterUpdates>().frames - in_place_before;
         let world = session.app.world_mut();
         let fin_lights: Vec<Entity> = world.query_filtered::<Entity, With<FinShadows>>().iter(world).collect();
         for e in fin_lights {
             world.entity_mut(e).remove::<FinShadows>();
         }
         session.settle(6)?;
-        let bevy = time(&mut session, run.frames, false);
+        let bevy = time(&mut session, run.frames, Motion::Still);
         rows.push(ScalingRow {
             objects: n,
             static_main_ms: still.main,
@@ -207,6 +270,9 @@ pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
             moving_redrawn: moving.redrawn,
             whole_main_ms: whole.main,
             whole_render_ms: whole.render,
+            posed_main_ms: posed.main,
+            posed_render_ms: posed.render,
+            posed_in_place,
             bevy_main_ms: bevy.main,
             bevy_render_ms: bevy.render,
         });
@@ -221,12 +287,13 @@ pub fn markdown(rows: &[ScalingRow]) -> String {
          one moving: main ms | render ms | frame ms | mesh walks | records rebuilt | \
          last update partial | texels it redrew | \
          one moving, maps redrawn whole: main ms | render ms | \
+         a skinned bar bending: main ms | render ms | frames updated in place | \
          FinShadows removed (Bevy's map), static: main ms | render ms |\n\
-         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         out += &format!(
-            "| {} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {:.2}% | {:.1} | {:.1} | {:.1} | {:.1} |\n",
+            "| {} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {:.2}% | {:.1} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} |\n",
             r.objects,
             r.static_main_ms,
             r.static_render_ms,
@@ -241,6 +308,9 @@ pub fn markdown(rows: &[ScalingRow]) -> String {
             r.moving_redrawn * 100.0,
             r.whole_main_ms,
             r.whole_render_ms,
+            r.posed_main_ms,
+            r.posed_render_ms,
+            r.posed_in_place,
             r.bevy_main_ms,
             r.bevy_render_ms,
         );

@@ -105,8 +105,16 @@ fn a_skinned_arm_casts_the_shadow_of_its_current_pose() {
         turned += 1;
     }
     assert_eq!(turned, 3, "the arm's three joints");
+    let updates = |session: &Session| *session.app.world().resource::<bevy_shadow_fins::FinCasterUpdates>();
+    let before = updates(&session);
     let bent = settled_pose(&mut session, &setup, "posed_arm_bent", "arm bent");
     assert_shadow_moved(&straight, &bent, "straight vs bent arm", "the bind pose is cast");
+    // The new pose rebuilt the arm's slot in place: no re-collected scene.
+    let after = updates(&session);
+    assert!(
+        after.frames > before.frames && after.records > before.records,
+        "the new pose re-collected the scene ({before:?} → {after:?})"
+    );
 }
 
 #[test]

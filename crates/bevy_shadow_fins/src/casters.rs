@@ -12,20 +12,23 @@
 //!   cut-out changing, a skin's bind poses loading, a sun starting to fit
 //!   its views).
 //! - [`CasterScene`]: the casters as core `SceneObject`s with their packed GPU
-//!   geometry, boxes and layers. A caster that moved or changed its layers or
-//!   shadow flags is rebuilt in its slot ([`CasterScene::update`]); one that
-//!   appears, goes, is hidden or shown, changes its mesh or is posed again (a
-//!   new pose is new geometry) re-collects the scene and its GPU geometry.
+//!   geometry, boxes and layers. A caster that moved, changed its layers or
+//!   shadow flags, changed its mesh or was posed again (a skinned or morphed
+//!   mesh: a new pose is new geometry) is rebuilt in its slot
+//!   ([`CasterScene::update`]; new geometry makes each light pack its
+//!   meshes again, `gpu_scene.rs`); one that appears, goes, is hidden or
+//!   shown re-collects the scene.
 //! - each light's objects and GPU instance records (`extract.rs`,
 //!   `gpu_scene.rs`): after an in-place update of the scene, only the slots
 //!   it names ([`CasterScene::dirty`]) are recomputed for a light whose own
 //!   part did not change, and the render world writes only the instance
 //!   records that differ (`render/extract_gpu.rs`).
 //!
-//! What still scales with the scene when one caster moves is the GPU's work:
-//! the extraction passes and the maps are redone for every caster (a moved
-//! caster can change `L0`, the depth histogram and so every layer), and a
-//! few flat loops here (the scene's box, a copy of the instance records).
+//! What still scales with the scene when one caster moves is the GPU's
+//! extraction passes, run for every caster (the maps are redrawn only under
+//! the moved caster when the plan stayed: `extract.wgsl`), a few flat loops
+//! here (the scene's box, a copy of the instance records) and, for a caster
+//! with new geometry (a new pose), each light's records and packed geometry.
 
 use std::{
     collections::{HashMap, HashSet},
@@ -353,17 +356,17 @@ impl CasterScene {
     /// Rebuilds the slots of `changed` entities in place and names them in
     /// [`Self::dirty`]. Returns false, changing nothing, when a change is not
     /// one of a slot's content (an object appearing or going, turning
-    /// unreadable or back, or drawn with other geometry): then the scene
-    /// must be collected anew.
+    /// unreadable or back): then the scene must be collected anew. Other
+    /// geometry (a mesh swapped, a new pose) is a slot's content.
     pub fn update(&mut self, changed: &HashSet<Entity>, sources: &mut SlotSources<'_, '_, '_, '_, '_, '_, '_>) -> bool {
         let mut rebuilt = Vec::with_capacity(changed.len());
         for &entity in changed {
             let slot = sources.slot(entity);
             match (self.index.get(&entity), slot) {
                 (None, Slot::NotDrawn) if !self.unread.contains(&entity) => {}
-                (Some(&i), Slot::Object(slot)) if slot.gpu_mesh.packing == self.gpu_meshes[i].packing => {
-                    rebuilt.push((i, slot));
-                }
+                // Its mesh or pose may have changed: the lights' builders see a
+                // new packing and pack their geometry again.
+                (Some(&i), Slot::Object(slot)) => rebuilt.push((i, slot)),
                 _ => return false,
             }
         }

@@ -268,9 +268,10 @@ pub(crate) struct GpuSceneBuilder {
 impl GpuSceneBuilder {
     /// The scene of `objects` (with `meshes`, one per object) in `frame`;
     /// `extent_box` is the objects' world box. With `dirty`, only those
-    /// objects changed since the last build, which had the same objects,
-    /// meshes and frame: only their records are made again (and every
-    /// record's first ids when a changed one casts more or fewer faces).
+    /// objects changed since the last build, which had the same objects and
+    /// frame: only their records are made again (and every record's first
+    /// ids when a changed one casts more or fewer faces) — unless one of them
+    /// has a mesh not packed yet (it changed its mesh or pose): then all are.
     #[allow(clippy::too_many_arguments)]
     pub fn build(
         &mut self,
@@ -282,7 +283,14 @@ impl GpuSceneBuilder {
         capacity_slot: &mut Option<GpuCapacity>,
         max_capacity: GpuCapacity,
     ) -> GpuScene {
-        match dirty.filter(|_| self.instances.len() == objects.len() && !self.geometry.is_empty()) {
+        // In place while every mesh is packed already; a changed mesh or a
+        // new pose (a new packing) packs the geometry and every record again.
+        let in_place = |dirty: &&[usize]| {
+            self.instances.len() == objects.len()
+                && !self.geometry.is_empty()
+                && dirty.iter().all(|&i| self.offsets.contains_key(&meshes[i].packing))
+        };
+        match dirty.filter(in_place) {
             Some(dirty) => self.update_records(objects, meshes, frame, dirty),
             None => self.build_records(objects, meshes, frame),
         }
