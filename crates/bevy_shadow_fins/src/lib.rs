@@ -37,10 +37,12 @@
 //! its own [`FinShadowSettings`] (method, layers, maps), its own frame
 //! rebuilt only when it, a caster, the budget or the set of lights changed
 //! (casters by Bevy's change detection: a still scene's meshes are not
-//! walked and hashed, [`FinCasterScans`]; a rigid caster that moved is
-//! rebuilt in its slot and only its instance record goes up to the GPU,
-//! [`FinCasterUpdates`], while the GPU's extraction and maps are redone for
-//! the whole light),
+//! walked and hashed, [`FinCasterScans`]; a caster that moved or was posed
+//! again is rebuilt in its slot and only its instance record (or its new
+//! geometry) goes up to the GPU, [`FinCasterUpdates`]; the GPU's extraction
+//! then runs for the whole light, and its maps are redrawn only under the
+//! casters that moved when their plan stayed, [`FinPartialRedraw`]; a still
+//! scene runs no read-back),
 //! its own visibility layer per camera and its own [`FinLightStats`]. A light
 //! only sees the casters in its range and in front of its disk: a light that
 //! sees none runs no extraction or map pass (its visibility pass writes 1). The
