@@ -231,7 +231,7 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
         };
         // A skinned or morphed mesh in its current pose (`pose.rs`); any
         // other mesh as stored, converted once per asset.
-        let (entry, world) = match posed_mesh(entity, mesh, self.posed, self.poses) {
+        let (entry, world) = match posed_mesh(entity, mesh3d.id(), mesh, self.posed, self.poses) {
             Some((entry, world)) => (entry, world),
             None => {
                 let entry = self.cache.entry(mesh3d.id()).or_insert_with(|| {

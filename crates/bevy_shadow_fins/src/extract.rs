@@ -1684,11 +1684,12 @@ fn gpu_fin(f: &Fin, layer: u32) -> GpuFin {
     }
 }
 
-/// `entity`'s mesh posed (`pose.rs`), from `posed` while its pose is the
-/// same, and whether its positions are in world space; `None` when it is
-/// not drawn posed.
+/// `entity`'s mesh (asset `mesh_id`) posed (`pose.rs`), from `posed` while
+/// its mesh and pose are the same, and whether its positions are in world
+/// space; `None` when it is not drawn posed.
 pub(crate) fn posed_mesh<'a>(
     entity: Entity,
+    mesh_id: AssetId<Mesh>,
     mesh: &Mesh,
     posed: &'a mut HashMap<Entity, (u64, CachedMesh, bool)>,
     poses: &crate::pose::Poses,
@@ -1697,6 +1698,8 @@ pub(crate) fn posed_mesh<'a>(
         return None;
     }
     let mut hasher = std::collections::hash_map::DefaultHasher::new();
+    // A mesh swapped for another, already loaded, is posed anew at the same pose.
+    mesh_id.hash(&mut hasher);
     poses.hash_pose(entity, &mut hasher);
     let key = hasher.finish();
     if posed.get(&entity).is_none_or(|(k, ..)| *k != key) {

@@ -100,7 +100,8 @@ pub fn scene_snapshot(world: &mut World, root: Option<Entity>) -> FinSceneSnapsh
             continue;
         };
         // Posed as the plugin poses it (`extract::posed_mesh`), else as stored.
-        let posed_entry = crate::extract::posed_mesh(entity, mesh, &mut posed, &poses).map(|(c, w)| (c.clone(), w));
+        let posed_entry =
+            crate::extract::posed_mesh(entity, mesh3d.id(), mesh, &mut posed, &poses).map(|(c, w)| (c.clone(), w));
         let unposed = poses.is_posed(entity) && posed_entry.is_none();
         let (core, world) = match posed_entry {
             Some(posed) => posed,

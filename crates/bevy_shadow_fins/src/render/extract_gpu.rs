@@ -585,10 +585,16 @@ pub(super) fn record(
     copy_args(encoder, C_ARGS_CLEAR, C_ARGS_FINS + 3);
     encoder.copy_buffer_to_buffer(control, C_PARAMS * 4, maps_params, 0, PARAMS_BYTES);
     if let Some((stats, offset)) = stats {
-        encoder.copy_buffer_to_buffer(control, 0, stats, offset, STATS_WORDS * 4);
+        copy_stats(control, stats, offset, encoder);
     }
     buffers.recorded = true;
     true
+}
+
+/// Copies the extraction's counts (`control`'s first words) into a frame's
+/// read-back slot.
+pub(super) fn copy_stats(control: &Buffer, stats: &Buffer, offset: u64, encoder: &mut CommandEncoder) {
+    encoder.copy_buffer_to_buffer(control, 0, stats, offset, STATS_WORDS * 4);
 }
 
 impl ExtractBuffers {

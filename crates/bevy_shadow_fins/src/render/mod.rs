@@ -492,7 +492,16 @@ fn render_maps(
         let Some(gpu) = lights.0.get_mut(&frame.key()) else { continue };
         let stats = extract_gpu::stats_buffer(stats_handle.as_deref(), &shader_buffers)
             .map(|b| (b, extract_gpu::stats_offset(slot)));
+        let redrawn = gpu.dirty;
         render_light_maps(gpu, &pipelines, &pipeline_cache, stats, &mut ctx);
+        // A frame not redrawn keeps its last counts in its slot: the lights
+        // may have changed order since (its slot with them), and a read-back
+        // still waiting for them must find them there (64 bytes a frame).
+        if let (false, MapsSource::Gpu, Some(control), Some((stats, offset))) =
+            (redrawn, gpu.mode, gpu.extraction.control(), stats)
+        {
+            extract_gpu::copy_stats(control, stats, offset, ctx.command_encoder());
+        }
     }
 }
 
