@@ -39,7 +39,7 @@
 // texel for texel what a full redraw writes there, and the rest of the maps
 // is what it was. Otherwise (`H_DIRTY_COUNT` = `FULL`, the plan moved) the
 // maps are redrawn whole.
-#import bevy_shadow_fins::fin_types::{Caster, Fin, cross2, fin_bounds}
+#import bevy_shadow_fins::fin_types::{Caster, Fin, cross2, fin_bounds, CONTROL_LIST_CASTERS, CONTROL_LIST_FINS}
 
 struct ExtractParams {
     // (instances, instance vertices, caster faces, caster edges)
@@ -142,8 +142,6 @@ const C_ARGS_CASTER_THREADS: u32 = 71u;
 const C_PLANES: u32 = 74u; // count, then up to 31 planes
 const C_HISTOGRAM: u32 = 128u;
 
-const C_LIST_CASTERS: u32 = 106u; // where a partial redraw's caster list starts (for maps.wgsl)
-const C_LIST_FINS: u32 = 107u; // and its fin list
 
 // After the histogram, `control` keeps what a partial redraw needs from
 // frame to frame (`history`, words relative to C_HISTOGRAM + sub-layers);
@@ -345,9 +343,9 @@ fn valid(d: vec2<f32>) -> bool {
     return dot(d, d) > 0.0;
 }
 
-// Grows the maps' region and the footprint of the instance that emitted
-// the primitive (patch_id: a face of it) by the primitive's bounds.
-fn grow_region(lo: vec2<f32>, hi: vec2<f32>, patch_id: u32) {
+// Grows the maps' region and the footprint of `instance`, which emitted the
+// primitive, by the primitive's bounds.
+fn grow_region(lo: vec2<f32>, hi: vec2<f32>, instance: u32) {
     if (!(finite(lo.x) && finite(lo.y) && finite(hi.x) && finite(hi.y))) {
         // No footprint holds it: this frame and the next redraw whole.
         atomicStore(&control[C_UNBOUNDED], 1u);
@@ -357,7 +355,7 @@ fn grow_region(lo: vec2<f32>, hi: vec2<f32>, patch_id: u32) {
     atomicMin(&control[C_REGION + 1u], order_key(lo.y));
     atomicMax(&control[C_REGION + 2u], order_key(hi.x));
     atomicMax(&control[C_REGION + 3u], order_key(hi.y));
-    grow_keys(H_FOOTPRINTS + 4u * instance_of(patch_id, 2u), order_key(lo.x), order_key(lo.y), order_key(hi.x), order_key(hi.y));
+    grow_keys(H_FOOTPRINTS + 4u * instance, order_key(lo.x), order_key(lo.y), order_key(hi.x), order_key(hi.y));
 }
 
 // `history` word i's index in `control`.
@@ -701,18 +699,18 @@ fn method_has_inner_fins() -> bool {
 }
 
 // Outer side 1, inner side 0, as in `maps.wgsl`.
-fn emit_fin(kind: u32, outer: bool, patch_id: u32, data: array<f32, 12>, lo: vec2<f32>, hi: vec2<f32>) {
+fn emit_fin(kind: u32, outer: bool, patch_id: u32, instance: u32, data: array<f32, 12>, lo: vec2<f32>, hi: vec2<f32>) {
     if (!method_has_fins() || (!outer && !method_has_inner_fins())) {
         return;
     }
     let index = atomicAdd(&control[C_FINS], 1u);
     if (index < params.capacity.y) {
         fins[index] = Fin(vec4<u32>(kind, select(0u, 1u, outer), patch_id, 0u), data);
-        grow_region(lo, hi, patch_id);
+        grow_region(lo, hi, instance);
     }
 }
 
-fn emit_sector(center: vec2<f32>, radius: f32, from_dir: vec2<f32>, to_dir: vec2<f32>, depth: f32, outer: bool, patch_id: u32) {
+fn emit_sector(center: vec2<f32>, radius: f32, from_dir: vec2<f32>, to_dir: vec2<f32>, depth: f32, outer: bool, patch_id: u32, instance: u32) {
     // Skip empty or degenerate sectors (collinear fins need no fan).
     if (!valid(from_dir) || !valid(to_dir) || (abs(cross2(from_dir, to_dir)) < 1e-6 && dot(from_dir, to_dir) > 0.0)) {
         return;
@@ -724,7 +722,7 @@ fn emit_sector(center: vec2<f32>, radius: f32, from_dir: vec2<f32>, to_dir: vec2
     mid = select(vec2<f32>(-from_dir.y, from_dir.x), normalize(mid), dot(mid, mid) > 0.0);
     let r = radius * support(mid, center);
     let data = array<f32, 12>(center.x, center.y, from_dir.x, from_dir.y, to_dir.x, to_dir.y, r, depth, 0.0, 0.0, 0.0, 0.0);
-    emit_fin(1u, outer, patch_id, data, center - r, center + r);
+    emit_fin(1u, outer, patch_id, instance, data, center - r, center + r);
 }
 
 // Unit left normal of the projected edge (the fins' outward direction), zero if degenerate.
@@ -791,6 +789,7 @@ fn vertex_silhouettes(inst: Instance, v: u32) -> vec4<u32> {
 // Fin ends, fans, caps and junction sectors at one silhouette vertex (the core's
 // `FinBuilder::build`, first loop). Run by the vertex's lowest silhouette.
 fn process_vertex(s: u32, inst: Instance, v: u32) {
+    let instance = silhouettes[s].ids.x;
     let csr = g(inst, G_CSR_AT);
     let start = g(inst, csr + v);
     let end = g(inst, csr + v + 1u);
@@ -849,9 +848,9 @@ fn process_vertex(s: u32, inst: Instance, v: u32) {
         // Interior is on the right: a right turn (negative cross) is convex.
         let turn = cross2(ea, eb);
         if (turn < 0.0) {
-            emit_sector(center, radius, da, db, pos.z, true, patch_id);
+            emit_sector(center, radius, da, db, pos.z, true, patch_id, instance);
         } else if (turn > 0.0) {
-            emit_sector(center, radius, -da, -db, pos.z, false, patch_id);
+            emit_sector(center, radius, -da, -db, pos.z, false, patch_id, instance);
         }
     } else if (n_in + n_out == 1u) {
         // Open chain end: outer half-disk cap around the edge's extension.
@@ -861,8 +860,8 @@ fn process_vertex(s: u32, inst: Instance, v: u32) {
         let d = direction_at(only);
         let along = direction(m1 - m0);
         let ext = select(along, -along, n_in == 0u);
-        emit_sector(center, radius, d, ext, pos.z, true, patch_id);
-        emit_sector(center, radius, ext, -d, pos.z, true, patch_id);
+        emit_sector(center, radius, d, ext, pos.z, true, patch_id, instance);
+        emit_sector(center, radius, ext, -d, pos.z, true, patch_id, instance);
     } else {
         // Junction: sectors from each fin to the projected averaged normal.
         let avg = direction(map_direction(pos, normal));
@@ -873,8 +872,8 @@ fn process_vertex(s: u32, inst: Instance, v: u32) {
             }
             let d = direction_at(t);
             if (dot(d, avg) > -0.999) {
-                emit_sector(center, radius, d, avg, pos.z, true, patch_id);
-                emit_sector(center, radius, -d, -avg, pos.z, false, patch_id);
+                emit_sector(center, radius, d, avg, pos.z, true, patch_id, instance);
+                emit_sector(center, radius, -d, -avg, pos.z, false, patch_id, instance);
             }
         }
     }
@@ -963,13 +962,13 @@ fn silhouette_quads(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocat
         let data = array<f32, 12>(m0.x, m0.y, m1.x, m1.y, a0.x, a0.y, a1.x, a1.y, w0, w1, sil.a.z, sil.b.z);
         let p2 = m0 + a0 * w0;
         let p3 = m1 + a1 * w1;
-        emit_fin(0u, side == 1u, sil.ids.w, data, min(min(m0, m1), min(p2, p3)), max(max(m0, m1), max(p2, p3)));
+        emit_fin(0u, side == 1u, sil.ids.w, sil.ids.x, data, min(min(m0, m1), min(p2, p3)), max(max(m0, m1), max(p2, p3)));
     }
 }
 
 // ---------------------------------------------------------------- 9. casters
 
-fn emit_caster(p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, normal: vec3<f32>, offset: f32, patch_id: u32) {
+fn emit_caster(p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, normal: vec3<f32>, offset: f32, patch_id: u32, instance: u32) {
     let c0 = map_point(p0);
     let c1 = map_point(p1);
     let c2 = map_point(p2);
@@ -990,7 +989,7 @@ fn emit_caster(p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, normal: vec3<f32>, o
         patch_id,
         0u, // solid: frames with alpha-masked casters extract on the CPU
     );
-    grow_region(min(c0, min(c1, c2)), max(c0, max(c1, c2)), patch_id);
+    grow_region(min(c0, min(c1, c2)), max(c0, max(c1, c2)), instance);
 }
 
 @compute @workgroup_size(64, 1, 1)
@@ -1003,7 +1002,8 @@ fn map_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
     if (patch_id == NONE) {
         return;
     }
-    let inst = instances[instance_of(i, 2u)];
+    let instance = instance_of(i, 2u);
+    let inst = instances[instance];
     let at = g(inst, G_FACES_AT) + 7u * (i - inst.ids.z);
     let p = array<vec3<f32>, 3>(
         frame_position(inst, g(inst, at)),
@@ -1031,7 +1031,7 @@ fn map_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
         }
     }
     if (inside) {
-        emit_caster(p[0], p[1], p[2], normal, offset, patch_id);
+        emit_caster(p[0], p[1], p[2], normal, offset, patch_id, instance);
         return;
     }
     // Sutherland–Hodgman, one plane after another: at most 3 + 5 corners.
@@ -1058,7 +1058,7 @@ fn map_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
         n = m;
     }
     for (var k = 1u; k + 1u < n; k++) {
-        emit_caster(poly[0], poly[k], poly[k + 1u], normal, offset, patch_id);
+        emit_caster(poly[0], poly[k], poly[k + 1u], normal, offset, patch_id, instance);
     }
 }
 
@@ -1232,8 +1232,8 @@ fn plan_redraw(p: array<u32, 32>, region_min: vec2<f32>, texel: f32, resolution:
     atomicStore(&control[h(H_REDRAW_AREA + 3u)], bitcast<u32>(area_hi.y));
     atomicStore(&control[list_casters()], 0u);
     atomicStore(&control[list_fins()], 0u);
-    atomicStore(&control[C_LIST_CASTERS], list_casters());
-    atomicStore(&control[C_LIST_FINS], list_fins());
+    atomicStore(&control[CONTROL_LIST_CASTERS], list_casters());
+    atomicStore(&control[CONTROL_LIST_FINS], list_fins());
     return rect;
 }
 

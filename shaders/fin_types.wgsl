@@ -22,6 +22,11 @@ struct FinParams {
     redraw: vec4<u32>,
 }
 
+// Words of the GPU extraction's `control` holding where a partial redraw's
+// caster and fin lists start (`extract.wgsl` writes them, `maps.wgsl` reads).
+const CONTROL_LIST_CASTERS: u32 = 106u;
+const CONTROL_LIST_FINS: u32 = 107u;
+
 // A partial redraw: `redraw` is not the whole maps.
 fn partial_redraw(params: FinParams) -> bool {
     let last = max(params.counts.x, 1u) - 1u;

@@ -3,7 +3,8 @@
 // One workgroup per primitive; its threads stride over the primitive's texels.
 #import bevy_shadow_fins::fin_types::{
     FinParams, Caster, Fin, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, INF_BITS, texel_index, min_key, max_key,
-    texel_center, cross2, orthographic, caster_depth_at, fin_bounds, partial_redraw,
+    texel_center, cross2, orthographic, caster_depth_at, fin_bounds, partial_redraw, CONTROL_LIST_CASTERS,
+    CONTROL_LIST_FINS,
 }
 #import bevy_shadow_fins::cutout::caster_opaque
 
@@ -12,8 +13,9 @@
 @group(0) @binding(2) var<storage, read> casters: array<Caster>;
 @group(0) @binding(3) var<storage, read> fins: array<Fin>;
 // The GPU extraction's `control`: a partial redraw's caster and fin lists
-// (count, then indices) at the offsets in its words 106 and 107
-// (`extract.wgsl`). Not read on a full redraw (a stand-in on the CPU path).
+// (count, then indices) at the offsets in its words CONTROL_LIST_CASTERS and
+// CONTROL_LIST_FINS (`extract.wgsl`). Not read on a full redraw (a stand-in
+// on the CPU path).
 @group(0) @binding(6) var<storage, read> control: array<u32>;
 
 const WORKGROUP: u32 = 64u;
@@ -59,7 +61,7 @@ fn primitive_index(wg: vec3<u32>) -> u32 {
 
 // The primitive the workgroup draws: every one on a full redraw, on a
 // partial one the gathered ones (`NONE` past them) of the list whose offset
-// is at `control[list_at]` (106 casters, 107 fins).
+// is at `control[list_at]`.
 fn listed_index(wg: vec3<u32>, list_at: u32) -> u32 {
     let i = primitive_index(wg);
     if (!partial_redraw(params)) {
@@ -70,11 +72,11 @@ fn listed_index(wg: vec3<u32>, list_at: u32) -> u32 {
 }
 
 fn caster_index(wg: vec3<u32>) -> u32 {
-    return listed_index(wg, 106u);
+    return listed_index(wg, CONTROL_LIST_CASTERS);
 }
 
 fn fin_index(wg: vec3<u32>) -> u32 {
-    return listed_index(wg, 107u);
+    return listed_index(wg, CONTROL_LIST_FINS);
 }
 
 const NONE: u32 = 0xffffffffu;

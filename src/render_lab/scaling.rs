@@ -77,10 +77,6 @@ pub struct ScalingRow {
     pub bevy_render_ms: f64,
 }
 
-/// Marks the cubes the run adds.
-#[derive(Component)]
-struct ScalingCube;
-
 /// `n` cubes of one shared mesh on a grid over the ground, each floating
 /// its own size above it (so each casts), within the spot light's cone, row
 /// by row from (−3, −3); their entities in that order.
@@ -90,19 +86,13 @@ pub fn spawn_cubes(world: &mut World, n: usize) -> Vec<Entity> {
     let size = spacing * 0.4;
     let mesh = world.resource_mut::<Assets<Mesh>>().add(Cuboid::from_length(size));
     let material = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial::default());
-    let mut cubes = Vec::with_capacity(n);
-    for k in 0..n {
-        let (i, j) = ((k as f32 % side), (k as f32 / side).floor());
-        let at = Vec3::new(-3.0 + (i + 0.5) * spacing, size * 1.5, -3.0 + (j + 0.5) * spacing);
-        let cube = world.spawn((
-            Mesh3d(mesh.clone()),
-            MeshMaterial3d(material.clone()),
-            Transform::from_translation(at),
-            ScalingCube,
-        ));
-        cubes.push(cube.id());
-    }
-    cubes
+    (0..n)
+        .map(|k| {
+            let (i, j) = ((k as f32 % side), (k as f32 / side).floor());
+            let at = Vec3::new(-3.0 + (i + 0.5) * spacing, size * 1.5, -3.0 + (j + 0.5) * spacing);
+            world.spawn((Mesh3d(mesh.clone()), MeshMaterial3d(material.clone()), Transform::from_translation(at))).id()
+        })
+        .collect()
 }
 
 /// One frame, main world and render world timed apart (ms of wall time on
@@ -125,13 +115,13 @@ fn split_frame(app: &mut App) -> (f64, f64) {
 #[derive(Debug, Clone, Copy)]
 enum Motion {
     Still,
-    /// The first cube moves a hair every frame.
-    Cube,
+    /// This cube moves a hair every frame.
+    Cube(Entity),
     /// This joint turns a little further every frame.
     Joint(Entity),
 }
 
-/// A bar of `n`-independent size skinned to two joints — the root at `at`,
+/// A bar (of one size whatever the cube count) skinned to two joints — the root at `at`,
 /// the second (its child, at the same place) bending the bar's far half —,
 /// with its mesh's positions in the joints' space (inverse bind poses the
 /// identity). Returns the bending joint.
@@ -163,8 +153,8 @@ fn spawn_skinned_bar(world: &mut World, at: Vec3) -> Entity {
     bend
 }
 
-/// Median ms of frames (main world, render world, whole frame), and the
-/// last map update: partial or not, the share of texels redrawn.
+/// Median ms of frames (main world, render world, whole frame), and, for a
+/// moving cube, the last map update: partial or not, the share of texels redrawn.
 #[derive(Debug, Clone, Copy, Default)]
 struct Medians {
     main: f64,
@@ -177,46 +167,35 @@ struct Medians {
 /// Medians over `frames` frames with `motion`.
 fn time(session: &mut Session, frames: u32, motion: Motion) -> Medians {
     let (mut main, mut render, mut frame) = (vec![], vec![], vec![]);
-    let mover = {
-        let world = session.app.world_mut();
-        world.query_filtered::<Entity, With<ScalingCube>>().iter(world).min()
-    };
     for k in 0..frames {
         // One way (1 mm, or a few mrad, a frame): no pose repeats, so no cache can hide the cost.
         let step = (k + 1) as f32 / frames as f32;
+        let world = session.app.world_mut();
         match motion {
-            Motion::Cube => {
-                if let Some(mut t) = mover.and_then(|e| session.app.world_mut().get_mut::<Transform>(e)) {
-                    t.translation.x += 1e-3 * step;
-                }
-            }
-            Motion::Joint(joint) => {
-                if let Some(mut t) = session.app.world_mut().get_mut::<Transform>(joint) {
-                    t.rotate_z(0.01 * step);
-                }
-            }
-            Motion::Still => {}
-        }
+            Motion::Cube(cube) => world.get_mut::<Transform>(cube).map(|mut t| t.translation.x += 1e-3 * step),
+            Motion::Joint(joint) => world.get_mut::<Transform>(joint).map(|mut t| t.rotate_z(0.01 * step)),
+            Motion::Still => None,
+        };
         let (m, r) = split_frame(&mut session.app);
         main.push(m);
         render.push(r);
         frame.push(m + r);
     }
-    // A frame's counts come back a frame or two late, and only count for the
-    // frame still current: a few still frames, then the last update's stats.
-    for _ in 0..4 {
-        split_frame(&mut session.app);
-    }
-    let stats = session.app.world().resource::<FinShadowStats>().0;
-    let whole = stats.layers as f64 * (stats.map_resolution as f64).powi(2);
     let median = |v: &[f64]| Spread::of(v).median;
-    Medians {
-        main: median(&main),
-        render: median(&render),
-        frame: median(&frame),
-        partial: stats.partial_redraw,
-        redrawn: if whole > 0.0 { stats.redrawn_texels as f64 / whole } else { 0.0 },
+    let mut medians =
+        Medians { main: median(&main), render: median(&render), frame: median(&frame), ..Default::default() };
+    if let Motion::Cube(_) = motion {
+        // A frame's counts come back a frame or two late, and only count for
+        // the frame still current: a few still frames, then the last move's.
+        for _ in 0..4 {
+            split_frame(&mut session.app);
+        }
+        let stats = session.app.world().resource::<FinShadowStats>().0;
+        let whole = stats.layers as f64 * (stats.map_resolution as f64).powi(2);
+        medians.partial = stats.partial_redraw;
+        medians.redrawn = if whole > 0.0 { stats.redrawn_texels as f64 / whole } else { 0.0 };
     }
+    medians
 }
 
 /// One row per object count, each in its own app.
@@ -229,7 +208,9 @@ pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
         setup.spot = true;
         setup.sequential_rendering = true;
         let mut session = Session::new(&setup);
-        spawn_cubes(session.app.world_mut(), n);
+        let Some(&mover) = spawn_cubes(session.app.world_mut(), n).first() else {
+            return Err("the scaling run needs at least one object".into());
+        };
         session.settle(6)?;
         let scans = |s: &Session| s.app.world().resource::<FinCasterScans>().0;
         let before = scans(&session);
@@ -237,11 +218,11 @@ pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
         let static_scans = scans(&session) - before;
         let (scans_before, records_before) =
             (scans(&session), session.app.world().resource::<FinCasterUpdates>().records);
-        let moving = time(&mut session, run.frames, Motion::Cube);
+        let moving = time(&mut session, run.frames, Motion::Cube(mover));
         let moving_scans = scans(&session) - scans_before;
         let moving_records = session.app.world().resource::<FinCasterUpdates>().records - records_before;
         session.app.insert_resource(FinPartialRedraw(false));
-        let whole = time(&mut session, run.frames, Motion::Cube);
+        let whole = time(&mut session, run.frames, Motion::Cube(mover));
         session.app.insert_resource(FinPartialRedraw(true));
         let bend = spawn_skinned_bar(session.app.world_mut(), Vec3::new(1.2, 0.9, 1.2));
         session.settle(6)?;

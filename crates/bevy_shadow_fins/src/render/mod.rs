@@ -268,9 +268,8 @@ struct FinMapsGpu {
     fins: Option<Buffer>,
     cutouts: Option<Buffer>,
     mask_words: Option<Buffer>,
-    /// Bound where the GPU extraction's `control` is on its path (never read:
-    /// a CPU-extracted frame is always redrawn whole).
-    no_control: Option<Buffer>,
+    /// The read-back slot its counts were last copied into.
+    stats_slot: Option<usize>,
     bind_group: Option<BindGroup>,
     counts: (u32, u32, u64),
     /// How many times the map passes have drawn these maps (what the
@@ -446,25 +445,27 @@ fn prepare_light_maps(
             }
         }
     }
-    gpu.bind_group = Some(device.create_bind_group(
-        "fin_maps_bind_group",
-        &pipeline_cache.get_bind_group_layout(&pipelines.maps_layout),
-        &BindGroupEntries::sequential((
-            gpu.params.as_ref().unwrap().as_entire_binding(),
-            gpu.maps.as_ref().unwrap().as_entire_binding(),
-            gpu.casters.as_ref().unwrap().as_entire_binding(),
-            gpu.fins.as_ref().unwrap().as_entire_binding(),
-            gpu.cutouts.as_ref().unwrap().as_entire_binding(),
-            gpu.mask_words.as_ref().unwrap().as_entire_binding(),
-            match gpu.mode {
-                MapsSource::Gpu => gpu.extraction.control().unwrap().as_entire_binding(),
-                _ => {
-                    ensure(&mut gpu.no_control, device, "fin_no_control", 64, storage, cap);
-                    gpu.no_control.as_ref().unwrap().as_entire_binding()
+    gpu.bind_group = Some(
+        device.create_bind_group(
+            "fin_maps_bind_group",
+            &pipeline_cache.get_bind_group_layout(&pipelines.maps_layout),
+            &BindGroupEntries::sequential((
+                gpu.params.as_ref().unwrap().as_entire_binding(),
+                gpu.maps.as_ref().unwrap().as_entire_binding(),
+                gpu.casters.as_ref().unwrap().as_entire_binding(),
+                gpu.fins.as_ref().unwrap().as_entire_binding(),
+                gpu.cutouts.as_ref().unwrap().as_entire_binding(),
+                gpu.mask_words.as_ref().unwrap().as_entire_binding(),
+                // Read only on a partial redraw, which the CPU path never does:
+                // there the cut-outs stand in.
+                match gpu.mode {
+                    MapsSource::Gpu => gpu.extraction.control().unwrap(),
+                    _ => gpu.cutouts.as_ref().unwrap(),
                 }
-            },
-        )),
-    ));
+                .as_entire_binding(),
+            )),
+        ),
+    );
     gpu.counts = (f.casters.len() as u32, f.fins.len() as u32, texels);
     gpu.generation = f.generation;
     gpu.dirty = true;
@@ -492,15 +493,19 @@ fn render_maps(
         let Some(gpu) = lights.0.get_mut(&frame.key()) else { continue };
         let stats = extract_gpu::stats_buffer(stats_handle.as_deref(), &shader_buffers)
             .map(|b| (b, extract_gpu::stats_offset(slot)));
-        let redrawn = gpu.dirty;
+        let redrawing = gpu.dirty;
         render_light_maps(gpu, &pipelines, &pipeline_cache, stats, &mut ctx);
-        // A frame not redrawn keeps its last counts in its slot: the lights
-        // may have changed order since (its slot with them), and a read-back
-        // still waiting for them must find them there (64 bytes a frame).
-        if let (false, MapsSource::Gpu, Some(control), Some((stats, offset))) =
-            (redrawn, gpu.mode, gpu.extraction.control(), stats)
+        if redrawing && !gpu.dirty && stats.is_some() {
+            // Recorded, its counts copied into this slot.
+            gpu.stats_slot = Some(slot);
+        } else if let (false, MapsSource::Gpu, Some(control), Some((stats, offset))) =
+            (gpu.dirty, gpu.mode, gpu.extraction.control(), stats)
+            && gpu.stats_slot != Some(slot)
         {
+            // The lights changed order since: its counts follow it to its new
+            // slot, where a read-back still waiting for them looks.
             extract_gpu::copy_stats(control, stats, offset, ctx.command_encoder());
+            gpu.stats_slot = Some(slot);
         }
     }
 }
