@@ -236,14 +236,37 @@ pub struct WorldReceiver {
     pub normal: Vec3,
 }
 
-/// Every casting triangle of `scene` in world space.
-fn world_casters(scene: &Scene) -> Vec<[Vec3; 3]> {
-    scene
-        .objects
-        .iter()
-        .filter(|o| o.casts_shadows)
-        .flat_map(|o| o.mesh.triangles().map(|t| t.map(|p| o.transform.transform_point3(p))))
-        .collect()
+/// Every casting face of `scene` in world space, in a BVH, with each
+/// face's alpha mask and UVs when its object is cut out: the rays of the
+/// hard, exact and truth paths alpha-test them, as the ground truth does
+/// (`ground_truth.rs`) and as the convolution maps do.
+struct WorldCasters {
+    bvh: Bvh,
+    cutouts: Vec<Option<(std::sync::Arc<crate::cutout::AlphaMask>, [glam::Vec2; 3])>>,
+}
+
+impl WorldCasters {
+    fn new(scene: &Scene) -> Self {
+        let (mut triangles, mut cutouts) = (Vec::new(), Vec::new());
+        for o in scene.objects.iter().filter(|o| o.casts_shadows) {
+            let world: Vec<Vec3> = o.topology.positions.iter().map(|p| o.transform.transform_point3(*p)).collect();
+            triangles.extend(o.topology.faces.iter().map(|f| f.map(|i| world[i as usize])));
+            match o.fitting_cutout() {
+                Some(c) => cutouts.extend(c.face_uvs.iter().map(|uvs| Some((c.mask.clone(), *uvs)))),
+                None => cutouts.extend(o.topology.faces.iter().map(|_| None)),
+            }
+        }
+        Self { bvh: Bvh::new(&triangles), cutouts }
+    }
+
+    /// True when the segment `origin + t·dir`, `t ∈ (t_min, t_max)`, crosses
+    /// a face where it is opaque.
+    fn blocked(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> bool {
+        self.bvh.any_hit_where(origin, dir, t_min, t_max, |k, u, v| match &self.cutouts[k as usize] {
+            None => true,
+            Some((mask, uvs)) => mask.opaque(uvs[0] * (1.0 - u - v) + uvs[1] * u + uvs[2] * v),
+        })
+    }
 }
 
 /// The ray offset off a receiver: a relative 1e-4 of the scene's size.
@@ -256,7 +279,7 @@ fn lift(scene_size: f32) -> f32 {
 pub struct EnvironmentTruth {
     directions: Vec<Vec3>,
     energies: Vec<f32>,
-    bvh: Bvh,
+    casters: WorldCasters,
     size: f32,
 }
 
@@ -265,7 +288,7 @@ impl EnvironmentTruth {
         let n = map.resolution;
         let directions = (0..6 * n * n).map(|k| texel_direction(n, k / (n * n), k % n, (k / n) % n)).collect();
         let size = scene.bounds().map_or(1.0, |(lo, hi)| (hi - lo).length());
-        Self { directions, energies: map.energies(), bvh: Bvh::new(&world_casters(scene)), size }
+        Self { directions, energies: map.energies(), casters: WorldCasters::new(scene), size }
     }
 
     /// `(irradiance with shadows, without)` at a receiver.
@@ -279,7 +302,7 @@ impl EnvironmentTruth {
                 continue;
             }
             open += e * c;
-            if !self.bvh.any_hit(o, *w, 0.0, far) {
+            if !self.casters.blocked(o, *w, 0.0, far) {
                 shadowed += e * c;
             }
         }
@@ -312,8 +335,7 @@ pub fn shade(
     threads: usize,
 ) -> Vec<f32> {
     let size = scene.bounds().map_or(1.0, |(lo, hi)| (hi - lo).length());
-    let bvh =
-        matches!(shadows, LightShadows::Hard | LightShadows::Exact { .. }).then(|| Bvh::new(&world_casters(scene)));
+    let bvh = matches!(shadows, LightShadows::Hard | LightShadows::Exact { .. }).then(|| WorldCasters::new(scene));
     let mut sum = vec![0.0f32; receivers.len()];
     const CHUNK: usize = 256;
     for light in lights {
@@ -331,7 +353,7 @@ pub fn shade(
                 }),
                 (LightShadows::Hard, _, Some(bvh)) => {
                     let o = r.position + r.normal * lift(size);
-                    if bvh.any_hit(o, light.direction, 0.0, 4.0 * size + o.length()) { 0.0 } else { 1.0 }
+                    if bvh.blocked(o, light.direction, 0.0, 4.0 * size + o.length()) { 0.0 } else { 1.0 }
                 }
                 (LightShadows::Exact { samples }, _, Some(bvh)) => disk_visibility(bvh, size, *r, light, samples),
                 _ => 1.0,
@@ -367,7 +389,7 @@ pub fn shade(
 /// The share of `light`'s disk a receiver sees: `samples` rays through a
 /// golden-angle spiral over the disk (equal areas of the tangent plane,
 /// equal solid angles for a small cap).
-fn disk_visibility(bvh: &Bvh, size: f32, r: WorldReceiver, light: &EnvLight, samples: u32) -> f32 {
+fn disk_visibility(casters: &WorldCasters, size: f32, r: WorldReceiver, light: &EnvLight, samples: u32) -> f32 {
     let (u, v) = crate::peers::across(light.direction);
     let tan = match light.light() {
         Some(Light::Sun(s)) => s.angular_radius.tan(),
@@ -382,7 +404,7 @@ fn disk_visibility(bvh: &Bvh, size: f32, r: WorldReceiver, light: &EnvLight, sam
             let radius = ((*k as f32 + 0.5) / n as f32).sqrt() * tan;
             let (s, c) = (*k as f32 * golden).sin_cos();
             let w = (light.direction + u * (radius * c) + v * (radius * s)).normalize();
-            !bvh.any_hit(o, w, 0.0, far)
+            !casters.blocked(o, w, 0.0, far)
         })
         .count();
     seen as f32 / n as f32

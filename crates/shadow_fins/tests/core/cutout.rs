@@ -246,3 +246,43 @@ fn a_closed_masked_mesh_keeps_its_back_faces_in_the_maps() {
         assert!(v < 0.02, "{what}: {v} under the hole, the bottom blocks it");
     }
 }
+
+#[test]
+fn the_environment_lab_alpha_tests_its_rays_as_the_ground_truth_does() {
+    // The environment lab's hard, exact and truth paths cast rays in world
+    // space; through a leaf card's holes they must see the light, as the
+    // (alpha-tested) ground truth does — and as its CSM maps do.
+    use shadow_fins::{
+        light::{Light, SunLight},
+        peers::environment::{EnvLight, LightShadows, WorldReceiver, shade},
+    };
+    let s = SceneId::LeafCards.build();
+    let up = EnvLight { direction: Vec3::Y, solid_angle: 1e-6, energy: 1.0, face: 2, square: (0, 0, 1) };
+    let receivers: Vec<WorldReceiver> = (0..48 * 48)
+        .map(|k| {
+            let (i, j) = ((k % 48) as f32, (k / 48) as f32);
+            WorldReceiver { position: Vec3::new(-1.2 + i * 0.05, 0.0, -1.2 + j * 0.05), normal: Vec3::Y }
+        })
+        .collect();
+    let hard = shade(&s.scene, &[up], LightShadows::Hard, &receivers, 2);
+    let sun = Light::Sun(SunLight::new(Vec3::NEG_Y, 1e-6).unwrap());
+    let ls = LightSpaceScene::new(&s.scene, sun);
+    let truth = GroundTruth::new(&ls, 16);
+    let expected: Vec<f32> = receivers
+        .iter()
+        .map(|r| {
+            truth.visibility(Receiver {
+                position: ls.frame.to_frame(r.position),
+                normal: ls.frame.dir_to_frame(r.normal),
+            })
+        })
+        .collect();
+    let agree = hard.iter().zip(&expected).filter(|(h, e)| (*h - *e).abs() < 0.5).count();
+    let mut solid = s.scene.clone();
+    solid.objects.iter_mut().for_each(|o| o.cutout = None);
+    let solid_hard = shade(&solid, &[up], LightShadows::Hard, &receivers, 2);
+    let through_holes = hard.iter().zip(&solid_hard).filter(|(m, s)| **m > 0.5 && **s < 0.5).count();
+    println!("{agree} of {} agree with the truth; {through_holes} lit only through the holes", receivers.len());
+    assert!(through_holes > 20, "no receiver is lit through a card's holes ({through_holes})");
+    assert!(agree * 1000 >= receivers.len() * 995, "{agree} of {} agree", receivers.len());
+}
