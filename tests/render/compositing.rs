@@ -139,7 +139,8 @@ fn pass_times_are_recorded_as_render_diagnostics() {
     let shot = render(&setup(SceneId::BoxOverPlane, settings()));
     let names: Vec<&str> = shot.pass_times.iter().map(|(n, _)| n.as_str()).collect();
     println!("{:?}", shot.pass_times);
-    for pass in ["visibility", "composite"] {
+    // The maps' passes run in the root render graph, outside any camera's.
+    for pass in ["extraction", "penumbra_maps", "visibility", "composite"] {
         assert!(
             names.iter().any(|n| n.starts_with(&format!("render/fin_shadows/{pass}/"))),
             "no diagnostic for {pass} in {names:?}"

@@ -24,7 +24,7 @@ use bevy::{
             },
             *,
         },
-        renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue, ViewQuery},
+        renderer::{RenderContext, RenderDevice, RenderGraph, RenderGraphSystems, RenderQueue, ViewQuery},
         texture::{CachedTexture, GpuImage, TextureCache},
         view::{ExtractedView, ViewUniform, ViewUniformOffset, ViewUniforms},
     },
@@ -116,7 +116,8 @@ pub(crate) fn finish(app: &mut App) {
                 prepare_view_bind_groups.in_set(RenderSystems::PrepareBindGroups),
             ),
         )
-        .add_systems(RenderGraph, render_maps.before(camera_driver))
+        // In `Render`, after `Begin`: the diagnostics recorder clears the spans recorded before it.
+        .add_systems(RenderGraph, render_maps.in_set(RenderGraphSystems::Render).before(camera_driver))
         .add_systems(Core3d, fin_visibility.after(Core3dSystems::Prepass).before(Core3dSystems::MainPass));
     coverage::finish(app);
     convolution::finish(app);
