@@ -26,7 +26,10 @@
 //                          dispatch sizes for them
 //
 // Caster geometry (`geometry`) is uploaded once per mesh; only `instances`
-// (object → light-frame transforms) change when something moves.
+// (object → light-frame transforms) change when something moves. A skinned
+// or morphed instance has its own copy of its mesh's geometry, which
+// `pose.wgsl` poses before these passes run: a new pose is a changed
+// instance record, not new geometry.
 //
 // Partial redraw (issue 16, item 3: only what depends on a moved caster is
 // redone). Every instance's footprint — the map-space bounds of the casters
@@ -87,6 +90,9 @@ struct Instance {
     ids: vec4<u32>,
     // (flags: 1 casts, 2 closed mesh, 4 mirrors; vertices; caster faces; caster edges)
     info: vec4<u32>,
+    // (its pose's hash: low, high; 0; 0): changes with a pose posed on the
+    // GPU (`pose.wgsl` has posed its copy of the geometry before this runs).
+    pose: vec4<u32>,
 }
 
 struct Silhouette {

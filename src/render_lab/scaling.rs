@@ -22,7 +22,7 @@ use std::time::Instant;
 
 use bevy::prelude::*;
 use bevy_shadow_fins::{
-    FinCasterScans, FinCasterUpdates, FinPartialRedraw, FinShadowSettings, FinShadowStats, FinShadows,
+    FinCasterScans, FinCasterUpdates, FinGpuPosing, FinPartialRedraw, FinShadowSettings, FinShadowStats, FinShadows,
 };
 use shadow_fins::scenes::SceneId;
 use shadow_fins_lab::results::Spread;
@@ -66,11 +66,20 @@ pub struct ScalingRow {
     pub whole_main_ms: f64,
     pub whole_render_ms: f64,
     /// A skinned bar among the cubes, bent a little further every frame
-    /// (a new pose, new geometry, each frame): main, render world ms, and in
-    /// how many frames its caster was rebuilt in place (no re-collected scene).
+    /// (a new pose each frame): main, render world ms, in how many frames
+    /// its caster was rebuilt in place (no re-collected scene), whether the
+    /// GPU posed it (`FinFrameStats::posed_on_gpu`), and the last bend's
+    /// map update: partial or whole, and the share of texels redrawn.
     pub posed_main_ms: f64,
     pub posed_render_ms: f64,
     pub posed_in_place: u64,
+    pub posed_on_gpu: usize,
+    pub posed_partial: bool,
+    pub posed_redrawn: f64,
+    /// The bar bending again with [`FinGpuPosing`] off (posed on the CPU: new
+    /// geometry each pose): main, render world ms.
+    pub cpu_posed_main_ms: f64,
+    pub cpu_posed_render_ms: f64,
     /// The same app static with `FinShadows` removed (Bevy's own spot shadow
     /// map back): what Bevy alone costs at this object count.
     pub bevy_main_ms: f64,
@@ -125,7 +134,7 @@ enum Motion {
 /// the second (its child, at the same place) bending the bar's far half —,
 /// with its mesh's positions in the joints' space (inverse bind poses the
 /// identity). Returns the bending joint.
-fn spawn_skinned_bar(world: &mut World, at: Vec3) -> Entity {
+pub fn spawn_skinned_bar(world: &mut World, at: Vec3) -> Entity {
     use bevy::mesh::{
         VertexAttributeValues,
         skinning::{SkinnedMesh, SkinnedMeshInverseBindposes},
@@ -162,6 +171,7 @@ struct Medians {
     frame: f64,
     partial: bool,
     redrawn: f64,
+    posed_on_gpu: usize,
 }
 
 /// Medians over `frames` frames with `motion`.
@@ -184,7 +194,7 @@ fn time(session: &mut Session, frames: u32, motion: Motion) -> Medians {
     let median = |v: &[f64]| Spread::of(v).median;
     let mut medians =
         Medians { main: median(&main), render: median(&render), frame: median(&frame), ..Default::default() };
-    if let Motion::Cube(_) = motion {
+    if let Motion::Cube(_) | Motion::Joint(_) = motion {
         // A frame's counts come back a frame or two late, and only count for
         // the frame still current: a few still frames, then the last move's.
         for _ in 0..4 {
@@ -193,6 +203,7 @@ fn time(session: &mut Session, frames: u32, motion: Motion) -> Medians {
         let stats = session.app.world().resource::<FinShadowStats>().0;
         let whole = stats.layers as f64 * (stats.map_resolution as f64).powi(2);
         medians.partial = stats.partial_redraw;
+        medians.posed_on_gpu = stats.posed_on_gpu;
         medians.redrawn = if whole > 0.0 { stats.redrawn_texels as f64 / whole } else { 0.0 };
     }
     medians
@@ -229,6 +240,10 @@ pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
         let in_place_before = session.app.world().resource::<FinCasterUpdates>().frames;
         let posed = time(&mut session, run.frames, Motion::Joint(bend));
         let posed_in_place = session.app.world().resource::<FinCasterUpdates>().frames - in_place_before;
+        session.app.insert_resource(FinGpuPosing(false));
+        session.settle(6)?;
+        let posed_on_cpu = time(&mut session, run.frames, Motion::Joint(bend));
+        session.app.insert_resource(FinGpuPosing(true));
         let world = session.app.world_mut();
         let fin_lights: Vec<Entity> = world.query_filtered::<Entity, With<FinShadows>>().iter(world).collect();
         for e in fin_lights {
@@ -254,6 +269,11 @@ pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
             posed_main_ms: posed.main,
             posed_render_ms: posed.render,
             posed_in_place,
+            posed_on_gpu: posed.posed_on_gpu,
+            posed_partial: posed.partial,
+            posed_redrawn: posed.redrawn,
+            cpu_posed_main_ms: posed_on_cpu.main,
+            cpu_posed_render_ms: posed_on_cpu.render,
             bevy_main_ms: bevy.main,
             bevy_render_ms: bevy.render,
         });
@@ -268,13 +288,15 @@ pub fn markdown(rows: &[ScalingRow]) -> String {
          one moving: main ms | render ms | frame ms | mesh walks | records rebuilt | \
          last update partial | texels it redrew | \
          one moving, maps redrawn whole: main ms | render ms | \
-         a skinned bar bending: main ms | render ms | frames updated in place | \
+         a skinned bar bending: main ms | render ms | frames updated in place | posed on the GPU | \
+         last update partial | texels it redrew | \
+         the bar posed on the CPU (FinGpuPosing off): main ms | render ms | \
          FinShadows removed (Bevy's map), static: main ms | render ms |\n\
-         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         out += &format!(
-            "| {} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {:.2}% | {:.1} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} |\n",
+            "| {} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {:.2}% | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {:.2}% | {:.1} | {:.1} | {:.1} | {:.1} |\n",
             r.objects,
             r.static_main_ms,
             r.static_render_ms,
@@ -292,6 +314,11 @@ pub fn markdown(rows: &[ScalingRow]) -> String {
             r.posed_main_ms,
             r.posed_render_ms,
             r.posed_in_place,
+            r.posed_on_gpu,
+            r.posed_partial,
+            r.posed_redrawn * 100.0,
+            r.cpu_posed_main_ms,
+            r.cpu_posed_render_ms,
             r.bevy_main_ms,
             r.bevy_render_ms,
         );

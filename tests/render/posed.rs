@@ -42,7 +42,7 @@ fn matches_its_oracle(session: &mut Session, setup: &Setup, shot: &Shot, label: 
         snapshot.approximated
     );
     let lights = session.fin_lights();
-    assert_eq!(lights.len(), 1, "{label}: the sun");
+    assert_eq!(lights.len(), 1, "{label}: the one light");
     let mut judged = setup.clone();
     judged.scene = snapshot.scene;
     judged.light = lights[0].1;
@@ -73,6 +73,11 @@ fn settled_pose(session: &mut Session, setup: &Setup, name: &str, label: &str) -
     save(&shot, name);
     assert_not_trivial(&shot);
     matches_its_oracle(session, setup, &shot, label);
+    // The GPU extraction posed it itself (`pose.wgsl`), from the joints'
+    // matrices and the morph weights.
+    let stats = session.app.world().resource::<bevy_shadow_fins::FinShadowStats>().0;
+    println!("{label}: {stats:?}");
+    assert_eq!(stats.posed_on_gpu, 1, "{label}: not posed on the GPU: {stats:?}");
     shot
 }
 
@@ -115,6 +120,30 @@ fn a_skinned_arm_casts_the_shadow_of_its_current_pose() {
         after.frames > before.frames && after.records > before.records,
         "the new pose re-collected the scene ({before:?} → {after:?})"
     );
+}
+
+#[test]
+fn a_skinned_arm_under_a_spot_is_posed_on_the_gpu_in_the_spots_perspective_frame() {
+    // The same arm under a fin-shadowed `SpotLight` (a disk light's
+    // perspective frame, not the sun's orthographic one): its joints turned
+    // by hand, the GPU poses it and its shadow is the oracle's of the pose.
+    let mut setup = posed_setup("skinned-arm.gltf");
+    let disk = shadow_fins::light::DiskLight::new(Vec3::new(-1.0, 3.2, -1.2), Vec3::new(0.35, -0.85, 0.4), 0.25)
+        .expect("a valid disk");
+    setup.light = Light::Disk(disk);
+    setup.spot = true;
+    let mut session = Session::new(&setup);
+    session.wait_for_gltf().expect("Bevy loads it");
+    let straight = settled_pose(&mut session, &setup, "posed_arm_spot_straight", "arm under a spot, straight");
+    let world = session.app.world_mut();
+    let mut joints = world.query::<(&Name, &mut Transform)>();
+    for (name, mut t) in joints.iter_mut(world) {
+        if matches!(name.as_str(), "shoulder" | "elbow" | "wrist") {
+            t.rotation = Quat::from_xyzw(0.2, 0.0, 0.3, 1.0).normalize();
+        }
+    }
+    let bent = settled_pose(&mut session, &setup, "posed_arm_spot_bent", "arm under a spot, bent");
+    assert_shadow_moved(&straight, &bent, "straight vs bent arm under a spot", "the bind pose is cast");
 }
 
 #[test]

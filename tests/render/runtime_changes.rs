@@ -374,3 +374,56 @@ fn one_cube_of_many_moving_redraws_only_its_part_of_the_maps_and_shadows_as_a_fr
     assert!(changed > 1e-4, "the second move changed no shadow ({changed})");
     assert!(worst <= 1e-4, "the second partial redraw differs from a fresh app's maps (max {worst})");
 }
+
+#[test]
+fn a_skinned_bar_bending_among_many_cubes_is_posed_on_the_gpu_and_redraws_only_its_part() {
+    // Posing on the GPU (`pose.wgsl`): a new pose of a skinned caster is a
+    // changed instance record — joint matrices up, no new geometry — so the
+    // maps are redrawn only under the bar's old and new footprints, and the
+    // visibility is the one a fresh app renders with the bar already bent.
+    use shadow_fins_app::render_lab::scaling::{spawn_cubes, spawn_skinned_bar};
+    let setup = setup(SceneId::BoxOverPlane, settings());
+    let at = Vec3::new(1.2, 0.9, 1.2);
+    let bend = |world: &mut World, joint: Entity| {
+        world.get_mut::<Transform>(joint).expect("a transform").rotate_z(0.3);
+    };
+    let mut session = harness::Session::new(&setup);
+    spawn_cubes(session.app.world_mut(), 100);
+    let joint = spawn_skinned_bar(session.app.world_mut(), at);
+    let straight = session.settle(6).expect("render").visibility;
+    assert_visibility_not_trivial(&straight);
+    let stats = |session: &harness::Session| session.app.world().resource::<bevy_shadow_fins::FinShadowStats>().0;
+    assert_eq!(stats(&session).posed_on_gpu, 1, "the bar was not posed on the GPU");
+    bend(session.app.world_mut(), joint);
+    let bent = session.settle(6).expect("render").visibility;
+    let partial = stats(&session);
+    let whole = partial.layers as u64 * (partial.map_resolution as u64).pow(2);
+    println!(
+        "bar bent among 100 cubes: posed on the GPU {}, partial {}, {} of {whole} texels redrawn",
+        partial.posed_on_gpu, partial.partial_redraw, partial.redrawn_texels
+    );
+    assert_eq!(partial.posed_on_gpu, 1, "the bent bar was not posed on the GPU");
+    assert!(partial.partial_redraw, "a new pose of one caster of 101 redrew the maps whole");
+    assert!(partial.redrawn_texels * 10 < whole, "the bend redrew {} of {whole} texels", partial.redrawn_texels);
+
+    let mut fresh = harness::Session::new(&setup);
+    spawn_cubes(fresh.app.world_mut(), 100);
+    let fresh_joint = spawn_skinned_bar(fresh.app.world_mut(), at);
+    bend(fresh.app.world_mut(), fresh_joint);
+    let expected = fresh.settle(6).expect("render").visibility;
+    let worst = bent.iter().zip(&expected).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    let (changed, _) = compare(&bent, &straight);
+    println!("bent bar: |V − V fresh| max {worst:.2e}; |V − V straight| {changed:.4}");
+    assert!(changed > 1e-4, "the bar's shadow did not bend ({changed})");
+    assert!(worst <= 1e-4, "the partial redraw of a new pose differs from a fresh app's (max {worst})");
+
+    // Posed on the CPU instead (`FinGpuPosing` off): the same shadow, up to
+    // rounding (the GPU's arithmetic is its own), the maps redrawn whole.
+    session.app.insert_resource(bevy_shadow_fins::FinGpuPosing(false));
+    let on_cpu = session.settle(6).expect("render").visibility;
+    let cpu = stats(&session);
+    assert_eq!(cpu.posed_on_gpu, 0, "FinGpuPosing off still posed on the GPU");
+    let (mad, far) = compare(&on_cpu, &bent);
+    println!("posed on the CPU vs on the GPU: mean {mad:.2e}, {:.3}% of pixels by > 0.1", far * 100.0);
+    assert!(mad <= 1e-3 && far <= 0.002, "posing on the CPU and on the GPU disagree: {mad} / {far}");
+}

@@ -14,7 +14,7 @@
 //! - [`CasterScene`]: the casters as core `SceneObject`s with their packed GPU
 //!   geometry, boxes and layers. A caster that moved, changed its layers or
 //!   shadow flags, changed its mesh or was posed again (a skinned or morphed
-//!   mesh: a new pose is new geometry) is rebuilt in its slot
+//!   mesh; the GPU poses its own copy, `pose.rs`) is rebuilt in its slot
 //!   ([`CasterScene::update`]; new geometry makes each light pack its
 //!   meshes again, `gpu_scene.rs`); one that appears, goes, is hidden or
 //!   shown re-collects the scene.
@@ -28,7 +28,8 @@
 //! extraction passes, run for every caster (the maps are redrawn only under
 //! the moved caster when the plan stayed: `extract.wgsl`), a few flat loops
 //! here (the scene's box, a copy of the instance records) and, for a caster
-//! with new geometry (a new pose), each light's records and packed geometry.
+//! with new geometry (a mesh swapped, or a pose the GPU cannot pose), each
+//! light's records and packed geometry.
 
 use std::{
     collections::{HashMap, HashSet},
@@ -47,7 +48,7 @@ use crate::{
         CachedMesh, Casters, LightSees, core_mesh, hash_floats, hash_layers, nearest_distance, out_of_reach,
         outside_face, posed_mesh, world_corners,
     },
-    gpu_scene::GpuMeshGeometry,
+    gpu_scene::{GpuMeshGeometry, GpuPose},
     sun_fit,
 };
 
@@ -199,6 +200,8 @@ enum Slot {
 struct ObjectSlot {
     object: SceneObject,
     gpu_mesh: Arc<GpuMeshGeometry>,
+    /// The pose the GPU poses `gpu_mesh` at (a posable packing), if any.
+    gpu_pose: Option<Arc<GpuPose>>,
     bounds: Option<[Vec3; 8]>,
     world_box: (Vec3, Vec3),
     layers: RenderLayers,
@@ -211,7 +214,10 @@ pub(crate) struct SlotSources<'a, 'cw, 'cs, 'pw, 'ps, 'mw, 'ms> {
     pub casters: &'a Casters<'cw, 'cs>,
     pub meshes: &'a Assets<Mesh>,
     pub cache: &'a mut HashMap<AssetId<Mesh>, CachedMesh>,
-    pub posed: &'a mut HashMap<Entity, (u64, CachedMesh, bool)>,
+    pub posed: &'a mut HashMap<Entity, crate::extract::PosedCaster>,
+    pub posable: &'a mut HashMap<AssetId<Mesh>, Option<Arc<GpuMeshGeometry>>>,
+    /// The GPU poses what it can ([`FinGpuPosing`](crate::pose::FinGpuPosing)).
+    pub gpu_posing: bool,
     pub poses: &'a crate::pose::Poses<'pw, 'ps>,
     pub materials: &'a mut crate::cutout::CasterMaterials<'mw, 'ms>,
 }
@@ -231,8 +237,10 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
         };
         // A skinned or morphed mesh in its current pose (`pose.rs`); any
         // other mesh as stored, converted once per asset.
-        let (entry, world) = match posed_mesh(entity, mesh3d.id(), mesh, self.posed, self.poses) {
-            Some((entry, world)) => (entry, world),
+        let posable = Some(&mut *self.posable).filter(|_| self.gpu_posing);
+        let posed = posed_mesh(entity, mesh3d.id(), mesh, self.posed, self.cache, posable, self.poses);
+        let (entry, world, gpu_posed) = match posed {
+            Some(p) => (&p.mesh, p.world, p.gpu.clone()),
             None => {
                 let entry = self.cache.entry(mesh3d.id()).or_insert_with(|| {
                     let converted = core_mesh(mesh);
@@ -241,7 +249,7 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
                     }
                     converted
                 });
-                (&*entry, false)
+                (&*entry, false, None)
             }
         };
         let Ok((core, topology, geometry)) = entry else {
@@ -263,9 +271,14 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
                     .map(|c| object.transform.transform_point3(c))
                     .into_iter()
                     .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));
+                let (gpu_mesh, gpu_pose) = match gpu_posed {
+                    Some((posable, pose)) => (posable, Some(pose)),
+                    None => (geometry.clone(), None),
+                };
                 Slot::Object(Box::new(ObjectSlot {
                     object,
-                    gpu_mesh: geometry.clone(),
+                    gpu_mesh,
+                    gpu_pose,
                     bounds: corners,
                     world_box,
                     layers: caster.layers(),
@@ -281,6 +294,8 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
 pub(crate) struct CasterScene {
     pub objects: Vec<SceneObject>,
     pub gpu_meshes: Vec<Arc<GpuMeshGeometry>>,
+    /// Each object's pose, when the GPU poses its mesh (`pose.wgsl`).
+    pub gpu_poses: Vec<Option<Arc<GpuPose>>>,
     /// Each object's world bounding box corners (from Bevy's `Aabb`), for
     /// the lights' range culling; `None` is never culled.
     bounds: Vec<Option<[Vec3; 8]>>,
@@ -316,6 +331,7 @@ impl CasterScene {
         let mut scene = Self {
             objects: vec![],
             gpu_meshes: vec![],
+            gpu_poses: vec![],
             bounds: vec![],
             world_boxes: vec![],
             layers: vec![],
@@ -343,6 +359,7 @@ impl CasterScene {
                     scene.entities.push(entity);
                     scene.objects.push(slot.object);
                     scene.gpu_meshes.push(slot.gpu_mesh);
+                    scene.gpu_poses.push(slot.gpu_pose);
                     scene.bounds.push(slot.bounds);
                     scene.world_boxes.push(slot.world_box);
                     scene.layers.push(slot.layers);
@@ -372,8 +389,9 @@ impl CasterScene {
         }
         let mut dirty = Vec::with_capacity(rebuilt.len());
         for (i, slot) in rebuilt {
-            let ObjectSlot { object, gpu_mesh, bounds, world_box, layers } = *slot;
-            (self.objects[i], self.gpu_meshes[i], self.bounds[i]) = (object, gpu_mesh, bounds);
+            let ObjectSlot { object, gpu_mesh, gpu_pose, bounds, world_box, layers } = *slot;
+            (self.objects[i], self.gpu_meshes[i], self.gpu_poses[i], self.bounds[i]) =
+                (object, gpu_mesh, gpu_pose, bounds);
             (self.world_boxes[i], self.layers[i]) = (world_box, layers);
             dirty.push(i);
         }

@@ -36,7 +36,7 @@ use crate::{
     budget::{FinDegradation, FinDeviceLimits, FinShadowBudget, FinShadowsUnsupported, allocate_maps},
     casters::{CasterScene, CasterSignature, FinCasterUpdates, SlotSources},
     coverage_frame::{CoverageFrame, coverage_frame},
-    gpu_scene::{GpuCapacity, GpuMeshGeometry, GpuScene, GpuSceneBuilder},
+    gpu_scene::{GpuCapacity, GpuMeshGeometry, GpuPose, GpuScene, GpuSceneBuilder},
     light::{FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster},
     sun_fit,
 };
@@ -87,6 +87,11 @@ pub struct FinFrameStats {
     /// extraction), a partial redraw's few; 0 for the coverage method (no
     /// penumbra maps).
     pub redrawn_texels: u64,
+    /// Skinned or morphed casters the GPU posed itself (`pose.wgsl`): a new
+    /// pose of one of them is a changed instance, like a moved caster. The
+    /// others posed are posed on the CPU (the CPU extraction, or a pose that
+    /// changes the mesh's topology; see `extract::posed_mesh`).
+    pub posed_on_gpu: usize,
 }
 
 /// What the first fin-shadowed light's shadows currently model (see
@@ -506,7 +511,10 @@ pub(crate) struct MeshCache {
     generation: u64,
     /// Posed casters (skinned, morphed), per entity with its pose's hash:
     /// rebuilt when the pose changed.
-    posed: HashMap<Entity, (u64, CachedMesh, bool)>,
+    posed: HashMap<Entity, PosedCaster>,
+    /// Per skinned or morphed mesh, its topology at rest packed with what
+    /// poses it on the GPU (`None`: it cannot be posed there).
+    posable: HashMap<AssetId<Mesh>, Option<Arc<GpuMeshGeometry>>>,
     pub(crate) lights: HashMap<FrameKey, LightState>,
     /// The `CutoutCache` generation the frames were built with.
     cutout_generation: u64,
@@ -801,6 +809,7 @@ struct CasterAssets<'w, 's> {
     /// A skin's inverse bind poses loading or changing re-poses its casters
     /// (optional: a world without Bevy's skinning has none).
     bindpose_events: Option<MessageReader<'w, 's, AssetEvent<bevy::mesh::skinning::SkinnedMeshInverseBindposes>>>,
+    gpu_posing: Option<Res<'w, crate::pose::FinGpuPosing>>,
     materials: crate::cutout::CasterMaterials<'w, 's>,
 }
 
@@ -843,10 +852,18 @@ fn update_fin_frames(
         mesh_event = true;
         cache.posed.clear();
     }
+    let gpu_posing = assets.gpu_posing.as_ref().is_none_or(|g| g.0);
+    if assets.gpu_posing.as_ref().is_some_and(|g| g.is_changed()) {
+        // Posed anew, for the GPU or not: new geometry for the GPU's frames.
+        meshes_changed = true;
+        mesh_event = true;
+        cache.posed.clear();
+    }
     for event in assets.mesh_events.read() {
         mesh_event = true;
         if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
             cache.meshes.remove(id);
+            cache.posable.remove(id);
             assets.materials.cache.forget_mesh(*id);
             // A posed mesh of that asset is posed again (rare: clear them all).
             cache.posed.clear();
@@ -958,12 +975,14 @@ fn update_fin_frames(
         changed = true;
         let light = source.light;
         if !scene_caught_up {
-            let MeshCache { meshes: cached, posed, scene, .. } = &mut *cache;
+            let MeshCache { meshes: cached, posed, posable, scene, .. } = &mut *cache;
             let mut sources = SlotSources {
                 casters: &casters,
                 meshes: &assets.meshes,
                 cache: cached,
                 posed,
+                posable,
+                gpu_posing,
                 poses: &changes.poses,
                 materials: &mut assets.materials,
             };
@@ -1091,6 +1110,7 @@ impl FinFrameStats {
             extraction: a.extraction,
             partial_redraw: a.partial_redraw && b.partial_redraw,
             redrawn_texels: a.redrawn_texels + b.redrawn_texels,
+            posed_on_gpu: a.posed_on_gpu.max(b.posed_on_gpu),
         })
     }
 }
@@ -1255,7 +1275,16 @@ fn light_frame(
         let dirty = dirty.filter(|_| gpu_frame == Some(frame));
         built.gpu_frame = Some(frame);
         let max = GpuCapacity::max_for(max_buffer);
-        let scene = gpu.build(&built.objects, &scene.gpu_meshes, &frame, scene.objects_box, dirty, capacity, max);
+        let scene = gpu.build(
+            &built.objects,
+            &scene.gpu_meshes,
+            &scene.gpu_poses,
+            &frame,
+            scene.objects_box,
+            dirty,
+            capacity,
+            max,
+        );
         // Buffers sized by the scene itself cannot shrink: past the limit the
         // core crate extracts on the CPU instead.
         match scene.input_bytes().into_iter().find(|(_, bytes)| *bytes > max_buffer) {
@@ -1307,6 +1336,7 @@ fn light_frame(
                 up_to_date: scene.totals[1] == 0,
                 degraded: alloc.degradation,
                 map_resolution: alloc.resolution,
+                posed_on_gpu: scene.pose_sizes[0] as usize,
                 ..default()
             };
             FinFrameData {
@@ -1417,6 +1447,7 @@ fn coverage_data(
         extraction: FinExtraction::Cpu,
         partial_redraw: false,
         redrawn_texels: 0,
+        posed_on_gpu: 0,
     };
     FinFrameData {
         generation,
@@ -1609,6 +1640,7 @@ fn cpu_frame(
         extraction: FinExtraction::Cpu,
         partial_redraw: false,
         redrawn_texels: (model.plan.len() as u64) * (region.resolution as u64).pow(2),
+        posed_on_gpu: 0,
     };
     FinFrameData {
         generation,
@@ -1684,16 +1716,35 @@ fn gpu_fin(f: &Fin, layer: u32) -> GpuFin {
     }
 }
 
+/// A posed caster as last posed: its pose's hash (with its mesh's), the
+/// posed mesh, whether its positions are in world space (skinned), and — when
+/// the GPU can pose it — the mesh's posable packing and the pose.
+pub(crate) struct PosedCaster {
+    key: u64,
+    pub mesh: CachedMesh,
+    pub world: bool,
+    pub gpu: Option<(Arc<GpuMeshGeometry>, Arc<GpuPose>)>,
+}
+
 /// `entity`'s mesh (asset `mesh_id`) posed (`pose.rs`), from `posed` while
-/// its mesh and pose are the same, and whether its positions are in world
-/// space; `None` when it is not drawn posed.
+/// its mesh and pose are the same; `None` when it is not drawn posed.
+///
+/// The CPU poses it for the oracles, the CPU extraction and the other
+/// methods. The GPU extraction poses it itself (`pose.wgsl`), from the
+/// topology of the mesh at rest, when that is the posed mesh's topology too
+/// — the same welded vertices and faces, which a pose that welds two
+/// vertices apart, or folds a face flat, breaks: then the GPU gets the
+/// CPU's posed packing, a new mesh each pose. `posable`: the cache of
+/// packings the GPU poses, `None` when the GPU is not to pose it.
 pub(crate) fn posed_mesh<'a>(
     entity: Entity,
     mesh_id: AssetId<Mesh>,
     mesh: &Mesh,
-    posed: &'a mut HashMap<Entity, (u64, CachedMesh, bool)>,
+    posed: &'a mut HashMap<Entity, PosedCaster>,
+    at_rest: &mut HashMap<AssetId<Mesh>, CachedMesh>,
+    posable: Option<&mut HashMap<AssetId<Mesh>, Option<Arc<GpuMeshGeometry>>>>,
     poses: &crate::pose::Poses,
-) -> Option<(&'a CachedMesh, bool)> {
+) -> Option<&'a PosedCaster> {
     if !poses.is_posed(entity) {
         return None;
     }
@@ -1702,11 +1753,22 @@ pub(crate) fn posed_mesh<'a>(
     mesh_id.hash(&mut hasher);
     poses.hash_pose(entity, &mut hasher);
     let key = hasher.finish();
-    if posed.get(&entity).is_none_or(|(k, ..)| *k != key) {
+    if posed.get(&entity).is_none_or(|p| p.key != key) {
         let pose = poses.pose(entity, mesh)?;
-        posed.insert(entity, (key, core_mesh_at(mesh, pose.positions), pose.world));
+        let cached = core_mesh_at(mesh, pose.positions);
+        let gpu = cached.as_ref().ok().zip(posable).and_then(|((_, topology, _), posable)| {
+            let Ok((_, rest, _)) = at_rest.entry(mesh_id).or_insert_with(|| core_mesh(mesh)) else { return None };
+            if rest.faces != topology.faces || rest.positions.len() != topology.positions.len() {
+                return None;
+            }
+            let packing = posable
+                .entry(mesh_id)
+                .or_insert_with(|| GpuMeshGeometry::pack_posable(rest, &crate::pose::pose_source(mesh)).map(Arc::new));
+            Some((packing.clone()?, Arc::new(GpuPose::new(&pose.pose))))
+        });
+        posed.insert(entity, PosedCaster { key, mesh: cached, world: pose.world, gpu });
     }
-    posed.get(&entity).map(|(_, m, world)| (m, *world))
+    posed.get(&entity)
 }
 
 /// A Bevy mesh's triangles as the core's mesh, with its topology and its

@@ -15,10 +15,23 @@ use shadow_fins::{
     scene::{LightInObject, ObjectToFrame, SceneObject},
 };
 
-/// Word offsets of a packed mesh's header (`G_*` in `extract.wgsl`):
-/// vertex count, face count, edge count, then where the faces, vertices,
-/// edges, vertex → edge lists and non-manifold face lists start.
-const HEADER_WORDS: usize = 8;
+/// Word offsets of a packed mesh's header (`G_*` in `extract.wgsl` and
+/// `pose.wgsl`): vertex count, face count, edge count, then where the faces,
+/// vertices, edges, vertex → edge lists and non-manifold face lists start;
+/// then, for a posable packing, where its pose section starts (0: none) and
+/// its morph targets.
+const HEADER_WORDS: usize = 12;
+const G_POSE_AT: usize = 8;
+const G_MORPH_TARGETS: usize = 9;
+/// Words per welded vertex in a pose section: bind position, four joint
+/// indices as two `u16` pairs, four weights (then, target-major, each morph
+/// target's displacement of every welded vertex, three words each).
+const POSE_VERTEX_WORDS: usize = 9;
+/// A joint index no skin has: the weight on it counts for nothing.
+const NO_JOINT: u32 = 0xFFFF;
+/// Words of a pose buffer's header and of each of its jobs (`pose.wgsl`).
+const POSES_HEADER_WORDS: usize = 8;
+const POSE_JOB_WORDS: usize = 8;
 const EDGE_FORWARD0: u32 = 1;
 const EDGE_FORWARD1: u32 = 2;
 const EDGE_CREASE: u32 = 4;
@@ -111,7 +124,7 @@ impl GpuMeshGeometry {
         w.extend(&list);
         let non_manifold_at = w.len();
         w.extend(&non_manifold);
-        w[..HEADER_WORDS].copy_from_slice(&[
+        w[..G_POSE_AT].copy_from_slice(&[
             v as u32,
             f as u32,
             e as u32,
@@ -136,6 +149,109 @@ impl GpuMeshGeometry {
     }
 }
 
+/// What a posable packing poses (`pose.rs`' inputs, per input vertex of the
+/// Bevy mesh): bind positions, the skin's joints and weights (empty when the
+/// mesh has none), and the morph targets' displacements, target-major.
+#[derive(Debug, Default)]
+pub(crate) struct PoseSource {
+    pub positions: Vec<Vec3>,
+    pub joints: Vec<[u16; 4]>,
+    pub weights: Vec<[f32; 4]>,
+    pub morph_targets: Vec<Vec<Vec3>>,
+}
+
+impl GpuMeshGeometry {
+    /// `t` (the topology of the mesh at its bind positions `source.positions`)
+    /// packed with a pose section, for `pose.wgsl` to pose each instance's
+    /// copy on the GPU. Each welded vertex is posed as its first input vertex
+    /// (the one welding kept). `None` when `t` is not that mesh's topology.
+    pub fn pack_posable(t: &Topology, source: &PoseSource) -> Option<Self> {
+        let (welded, remap) = shadow_fins::mesh::weld_positions(&source.positions);
+        if welded.len() != t.positions.len() || welded != t.positions {
+            return None;
+        }
+        let mut first = vec![u32::MAX; welded.len()];
+        for (input, &w) in remap.iter().enumerate().rev() {
+            first[w as usize] = input as u32;
+        }
+        let mut g = Self::pack(t);
+        let pose_at = g.words.len();
+        let bits = |x: f32| x.to_bits();
+        let skinned = source.joints.len() == source.positions.len() && source.weights.len() == source.positions.len();
+        for (&input, p) in first.iter().zip(&welded) {
+            let (mut joints, mut weights) = ([0u32; 4], [0.0f32; 4]);
+            if skinned {
+                let (j, w) = (source.joints[input as usize], source.weights[input as usize]);
+                for k in 0..4 {
+                    // A weight not finite counts for nothing and renormalises
+                    // the others (`pose::skinned`): as on a joint no skin has.
+                    (joints[k], weights[k]) = if w[k].is_finite() { (j[k] as u32, w[k]) } else { (NO_JOINT, 1.0) };
+                }
+            }
+            g.words.extend([p.x, p.y, p.z].map(bits));
+            g.words.extend([joints[0] | joints[1] << 16, joints[2] | joints[3] << 16]);
+            g.words.extend(weights.map(bits));
+        }
+        debug_assert_eq!(g.words.len() - pose_at, POSE_VERTEX_WORDS * welded.len());
+        let n = source.positions.len();
+        let targets: Vec<&Vec<Vec3>> = source.morph_targets.iter().filter(|d| d.len() == n).collect();
+        for deltas in &targets {
+            for &input in &first {
+                let d = deltas[input as usize];
+                // A displacement not finite would make a NaN even at weight 0.
+                let d = if d.is_finite() { d } else { Vec3::ZERO };
+                g.words.extend([d.x, d.y, d.z].map(bits));
+            }
+        }
+        g.words[G_POSE_AT] = pose_at as u32;
+        g.words[G_MORPH_TARGETS] = targets.len() as u32;
+        Some(g)
+    }
+
+    /// True for a packing with a pose section ([`Self::pack_posable`]).
+    pub fn posable(&self) -> bool {
+        self.words[G_POSE_AT] != 0
+    }
+}
+
+/// One caster's pose as `pose.wgsl` reads it: each joint's `Jᵢ · IBPᵢ` as
+/// four columns, the last one's `w` 1 when the matrix is finite and 0 when
+/// the pass must skip it; the morph weights.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct GpuPose {
+    pub joints: Vec<[f32; 16]>,
+    pub morph_weights: Vec<f32>,
+    pub skinned: bool,
+    /// Changes with the pose: the instance record carries it, so that a new
+    /// pose is a changed record (uploaded, and redrawn in part).
+    pub hash: u64,
+}
+
+impl GpuPose {
+    pub fn new(pose: &crate::pose::Pose) -> Self {
+        let joints: Vec<[f32; 16]> = pose
+            .joints
+            .iter()
+            .flatten()
+            .map(|m| {
+                let mut c = if m.is_finite() { m.to_cols_array() } else { [0.0; 16] };
+                // `transform_point3` ignores the bottom row: its last word is the flag.
+                c[15] = m.is_finite() as u32 as f32;
+                c
+            })
+            .collect();
+        let mut hasher = std::collections::hash_map::DefaultHasher::new();
+        joints.iter().flatten().chain(&pose.morph_weights).for_each(|x| x.to_bits().hash(&mut hasher));
+        pose.joints.is_some().hash(&mut hasher);
+        Self {
+            joints,
+            morph_weights: pose.morph_weights.clone(),
+            skinned: pose.joints.is_some(),
+            hash: hasher.finish(),
+        }
+    }
+}
+
 /// One caster instance, the layout of `Instance` in `extract.wgsl`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -148,6 +264,8 @@ pub(crate) struct GpuInstance {
     ids: [u32; 4],
     /// (flags 1 casts / 2 closed / 4 mirrors, vertices, caster faces, caster edges)
     info: [u32; 4],
+    /// (its pose's hash, low and high words; 0, 0): a new pose changes the record.
+    pose: [u32; 4],
 }
 
 /// Sizes of the GPU extraction's output buffers. They start from the scene's
@@ -229,11 +347,17 @@ impl GpuCapacity {
 /// Everything the GPU extraction needs for one frame.
 #[derive(Debug)]
 pub(crate) struct GpuScene {
-    /// Every caster mesh's packed geometry, concatenated; replaced only when
-    /// the set of meshes changes (`geometry_key`).
+    /// Every caster mesh's packed geometry, concatenated, then a copy of its
+    /// packing for each posed instance (which `pose.wgsl` poses in place);
+    /// replaced only when the set of meshes changes (`geometry_key`).
     pub geometry: Arc<Vec<u32>>,
     pub geometry_key: u64,
     pub instances: Vec<GpuInstance>,
+    /// What poses the posed instances' copies (`pose.wgsl`): empty when no
+    /// instance is posed on the GPU.
+    pub poses: Vec<u32>,
+    /// (jobs, most vertices, faces, edges of one job): the posing passes' sizes.
+    pub pose_sizes: [u32; 4],
     /// (instance vertices, caster faces, caster edges)
     pub totals: [u32; 3],
     pub capacity: GpuCapacity,
@@ -260,40 +384,51 @@ pub(crate) struct GpuSceneBuilder {
     geometry_key: u64,
     /// Word offset of each packing in `geometry`.
     offsets: HashMap<u64, u32>,
+    /// Per object posed on the GPU: its packing and the word offset of its
+    /// own copy of it in `geometry`.
+    posed_copies: HashMap<usize, (u64, u32)>,
     /// The records of the last build, one per object.
     instances: Vec<GpuInstance>,
     totals: [u32; 3],
 }
 
 impl GpuSceneBuilder {
-    /// The scene of `objects` (with `meshes`, one per object) in `frame`;
-    /// `extent_box` is the objects' world box. With `dirty`, only those
-    /// objects changed since the last build, which had the same objects and
-    /// frame: only their records are made again (and every record's first
+    /// The scene of `objects` (with `meshes` and `poses`, one per object) in
+    /// `frame`; `extent_box` is the objects' world box. With `dirty`, only
+    /// those objects changed since the last build, which had the same objects
+    /// and frame: only their records are made again (and every record's first
     /// ids when a changed one casts more or fewer faces) — unless one of them
-    /// has a mesh not packed yet (it changed its mesh or pose): then all are.
+    /// has a mesh not packed yet (it changed its mesh, or a pose the GPU does
+    /// not pose): then all are. A pose posed on the GPU is not a new mesh:
+    /// only its record and the pose buffer change.
     #[allow(clippy::too_many_arguments)]
     pub fn build(
         &mut self,
         objects: &[SceneObject],
         meshes: &[Arc<GpuMeshGeometry>],
+        poses: &[Option<Arc<GpuPose>>],
         frame: &LightFrame,
         extent_box: (Vec3, Vec3),
         dirty: Option<&[usize]>,
         capacity_slot: &mut Option<GpuCapacity>,
         max_capacity: GpuCapacity,
     ) -> GpuScene {
-        // In place while every mesh is packed already; a changed mesh or a
-        // new pose (a new packing) packs the geometry and every record again.
+        // In place while every mesh is packed already (and every object
+        // posed on the GPU has its copy); a changed mesh or a pose posed on
+        // the CPU (a new packing) packs the geometry and every record again.
         let in_place = |dirty: &&[usize]| {
             self.instances.len() == objects.len()
                 && !self.geometry.is_empty()
-                && dirty.iter().all(|&i| self.offsets.contains_key(&meshes[i].packing))
+                && dirty.iter().all(|&i| match &poses[i] {
+                    Some(_) => self.posed_copies.get(&i).is_some_and(|(packing, _)| *packing == meshes[i].packing),
+                    None => self.offsets.contains_key(&meshes[i].packing) && !self.posed_copies.contains_key(&i),
+                })
         };
         match dirty.filter(in_place) {
-            Some(dirty) => self.update_records(objects, meshes, frame, dirty),
-            None => self.build_records(objects, meshes, frame),
+            Some(dirty) => self.update_records(objects, meshes, poses, frame, dirty),
+            None => self.build_records(objects, meshes, poses, frame),
         }
+        let (pose_words, pose_sizes) = self.pose_buffer(meshes, poses);
         let (lo, hi) = extent_box;
         let extent = if lo.x <= hi.x { (hi - lo).length().max(1e-30) } else { 1.0 };
         let [_, faces, edges] = self.totals;
@@ -304,6 +439,8 @@ impl GpuSceneBuilder {
             geometry: self.geometry.clone(),
             geometry_key: self.geometry_key,
             instances: self.instances.clone(),
+            poses: pose_words,
+            pose_sizes,
             totals: self.totals,
             capacity,
             max_capacity,
@@ -315,32 +452,52 @@ impl GpuSceneBuilder {
         }
     }
 
-    /// Every record anew, and the geometry when the set of meshes changed.
-    fn build_records(&mut self, objects: &[SceneObject], meshes: &[Arc<GpuMeshGeometry>], frame: &LightFrame) {
-        // The distinct meshes in first-use order; re-pack only when that list changes.
+    /// Every record anew, and the geometry when the set of meshes (or of
+    /// objects posed on the GPU) changed.
+    fn build_records(
+        &mut self,
+        objects: &[SceneObject],
+        meshes: &[Arc<GpuMeshGeometry>],
+        poses: &[Option<Arc<GpuPose>>],
+        frame: &LightFrame,
+    ) {
+        // The distinct meshes in first-use order, then each object posed on
+        // the GPU (its own copy); re-pack only when that list changes.
         let mut distinct: Vec<&Arc<GpuMeshGeometry>> = Vec::new();
         let mut seen = std::collections::HashSet::new();
         let mut hasher = std::collections::hash_map::DefaultHasher::new();
-        for m in meshes {
-            if seen.insert(m.packing) {
+        for (m, pose) in meshes.iter().zip(poses) {
+            if pose.is_none() && seen.insert(m.packing) {
                 distinct.push(m);
                 m.packing.hash(&mut hasher);
             }
         }
+        let posed: Vec<usize> = (0..meshes.len()).filter(|&i| poses[i].is_some()).collect();
+        debug_assert!(posed.iter().all(|&i| meshes[i].posable()), "a pose for a packing with no pose section");
+        for &i in &posed {
+            (i, meshes[i].packing).hash(&mut hasher);
+        }
         let key = hasher.finish();
         if key != self.geometry_key || self.geometry.is_empty() {
-            let mut words = Vec::with_capacity(distinct.iter().map(|d| d.words.len()).sum());
+            let copies = posed.iter().map(|&i| meshes[i].words.len()).sum::<usize>();
+            let mut words = Vec::with_capacity(distinct.iter().map(|d| d.words.len()).sum::<usize>() + copies);
             self.offsets.clear();
+            self.posed_copies.clear();
             for d in &distinct {
                 self.offsets.insert(d.packing, words.len() as u32);
                 words.extend_from_slice(&d.words);
+            }
+            for &i in &posed {
+                self.posed_copies.insert(i, (meshes[i].packing, words.len() as u32));
+                words.extend_from_slice(&meshes[i].words);
             }
             // A binding may not be empty.
             words.resize(words.len().max(HEADER_WORDS), 0);
             self.geometry = Arc::new(words);
             self.geometry_key = key;
         }
-        self.instances = objects.iter().zip(meshes).map(|(o, m)| self.record(o, m, frame)).collect();
+        self.instances =
+            (0..objects.len()).map(|i| self.record(i, &objects[i], &meshes[i], &poses[i], frame)).collect();
         self.number_records();
     }
 
@@ -349,12 +506,13 @@ impl GpuSceneBuilder {
         &mut self,
         objects: &[SceneObject],
         meshes: &[Arc<GpuMeshGeometry>],
+        poses: &[Option<Arc<GpuPose>>],
         frame: &LightFrame,
         dirty: &[usize],
     ) {
         let mut counts_moved = false;
         for &i in dirty {
-            let record = self.record(&objects[i], &meshes[i], frame);
+            let record = self.record(i, &objects[i], &meshes[i], &poses[i], frame);
             let old = &mut self.instances[i];
             counts_moved |= record.info[1..] != old.info[1..];
             *old = GpuInstance { ids: old.ids, ..record };
@@ -376,8 +534,50 @@ impl GpuSceneBuilder {
         self.totals = totals;
     }
 
-    /// One object's record, its first ids left at 0 (`number_records`).
-    fn record(&self, object: &SceneObject, mesh: &GpuMeshGeometry, frame: &LightFrame) -> GpuInstance {
+    /// The pose buffer `pose.wgsl` reads: a header (jobs; the most vertices,
+    /// faces and edges of one; the cosine of the crease angle), a job per
+    /// object posed on the GPU (its copy's offset in the geometry, its data's
+    /// offset here, its joints, its morph weights, 1 when skinned), then
+    /// each job's joint columns and morph weights.
+    fn pose_buffer(&self, meshes: &[Arc<GpuMeshGeometry>], poses: &[Option<Arc<GpuPose>>]) -> (Vec<u32>, [u32; 4]) {
+        let jobs: Vec<(usize, &GpuPose)> =
+            poses.iter().enumerate().filter_map(|(i, p)| Some((i, &**p.as_ref()?))).collect();
+        if jobs.is_empty() {
+            return (Vec::new(), [0; 4]);
+        }
+        let mut sizes = [jobs.len() as u32, 0, 0, 0];
+        let mut words = vec![0u32; POSES_HEADER_WORDS + POSE_JOB_WORDS * jobs.len()];
+        words[4] = shadow_fins::mesh::CREASE_ANGLE_DEG.to_radians().cos().to_bits();
+        for (k, (i, pose)) in jobs.iter().enumerate() {
+            let m = &meshes[*i];
+            sizes[1] = sizes[1].max(m.vertices);
+            sizes[2] = sizes[2].max(m.faces);
+            sizes[3] = sizes[3].max(m.edges);
+            let at = words.len() as u32;
+            words.extend(pose.joints.iter().flatten().map(|x| x.to_bits()));
+            words.extend(pose.morph_weights.iter().map(|x| x.to_bits()));
+            let job = POSES_HEADER_WORDS + POSE_JOB_WORDS * k;
+            words[job..job + 5].copy_from_slice(&[
+                self.posed_copies[i].1,
+                at,
+                pose.joints.len() as u32,
+                pose.morph_weights.len() as u32,
+                pose.skinned as u32,
+            ]);
+        }
+        words[..4].copy_from_slice(&sizes);
+        (words, sizes)
+    }
+
+    /// Object `i`'s record, its first ids left at 0 (`number_records`).
+    fn record(
+        &self,
+        i: usize,
+        object: &SceneObject,
+        mesh: &GpuMeshGeometry,
+        pose: &Option<Arc<GpuPose>>,
+        frame: &LightFrame,
+    ) -> GpuInstance {
         let to_frame = ObjectToFrame::new(object, frame);
         // The light as a homogeneous point for the facing test n·c > d·w:
         // the disk's centre (w = 1), or the sun at infinity against its
@@ -395,23 +595,29 @@ impl GpuSceneBuilder {
         // A closed mesh with the light inside is drawn both sides, like an open one.
         let closed = mesh.closed && !to_frame.light_inside;
         let flags = casts as u32 | (closed as u32) << 1 | (to_frame.mirrors as u32) << 2;
+        let (offset, hash) = match pose {
+            Some(pose) => (self.posed_copies[&i].1, pose.hash),
+            None => (self.offsets[&mesh.packing], 0),
+        };
         GpuInstance {
             linear: [v4(c.x_axis), v4(c.y_axis), v4(c.z_axis)],
             translation: v4(to_frame.translation),
             normal: cofactor.map(|n| v4(n * sign)),
             light: light.to_array(),
-            ids: [self.offsets[&mesh.packing], 0, 0, 0],
+            ids: [offset, 0, 0, 0],
             info: [flags, mesh.vertices, f, e],
+            pose: [hash as u32, (hash >> 32) as u32, 0, 0],
         }
     }
 }
 
 impl GpuScene {
     /// Bytes of the extraction's buffers that the scene sizes by itself.
-    pub fn input_bytes(&self) -> [(&'static str, u64); 4] {
+    pub fn input_bytes(&self) -> [(&'static str, u64); 5] {
         let [vertices, faces, edges] = self.totals.map(|x| x as u64);
         [
             ("packed geometry", self.geometry.len() as u64 * 4),
+            ("poses", self.poses.len() as u64 * 4),
             ("instances", self.instances.len() as u64 * size_of::<GpuInstance>() as u64),
             ("face and edge state", (faces * FACE_STATE_WORDS + edges) * 4),
             ("light-frame vertices", vertices * 16),
@@ -468,9 +674,65 @@ mod tests {
         let mut builder = GpuSceneBuilder::default();
         let max = GpuCapacity::max_for(1 << 30);
         let world = (Vec3::splat(-0.5), Vec3::splat(0.5));
-        let first = builder.build(&objects, &[Arc::new(a)], &frame, world, None, &mut None, max).geometry_key;
-        let second = builder.build(&objects, &[Arc::new(b)], &frame, world, None, &mut None, max).geometry_key;
+        let first = builder.build(&objects, &[Arc::new(a)], &[None], &frame, world, None, &mut None, max).geometry_key;
+        let second = builder.build(&objects, &[Arc::new(b)], &[None], &frame, world, None, &mut None, max).geometry_key;
         assert_ne!(first, second, "a new packing of the same mesh kept the old geometry key");
+    }
+
+    #[test]
+    fn a_posable_packing_poses_each_welded_vertex_as_its_first_input_vertex() {
+        // A cuboid's 8 corners as 24 split vertices (as a flat-shaded export
+        // has them), each with its own joints and weights; one weight a NaN.
+        let mesh = shapes::cuboid(Vec3::ONE);
+        let split: Vec<Vec3> = mesh.indices().iter().map(|&i| mesh.positions()[i as usize]).collect();
+        let n = split.len();
+        let split_mesh = shadow_fins::mesh::Mesh::new(split.clone(), (0..n as u32).collect()).unwrap();
+        let topology = Topology::build(&split_mesh);
+        let mut source = PoseSource {
+            positions: split.clone(),
+            joints: (0..n).map(|i| [i as u16, 1, 2, 3]).collect(),
+            weights: vec![[0.25; 4]; n],
+            morph_targets: vec![vec![Vec3::X; n], vec![Vec3::splat(f32::NAN); n], vec![Vec3::Y; 3]],
+        };
+        source.weights[0][2] = f32::NAN;
+        let g = GpuMeshGeometry::pack_posable(&topology, &source).expect("its own topology");
+        assert!(g.posable() && !GpuMeshGeometry::pack(&topology).posable());
+        let at = g.words[G_POSE_AT] as usize;
+        // Two whole targets (the third is short and left out).
+        assert_eq!(g.words[G_MORPH_TARGETS], 2);
+        assert_eq!(g.words.len(), at + POSE_VERTEX_WORDS * 8 + 2 * 8 * 3);
+        for (w, p) in topology.positions.iter().enumerate() {
+            let first = split.iter().position(|q| q == p).unwrap();
+            let words = &g.words[at + POSE_VERTEX_WORDS * w..at + POSE_VERTEX_WORDS * (w + 1)];
+            assert_eq!(words[..3], p.to_array().map(f32::to_bits), "vertex {w}: its bind position");
+            let third = if first == 0 { NO_JOINT } else { 2 };
+            assert_eq!(words[3..5], [first as u32 | 1 << 16, third | 3 << 16], "vertex {w}: its first input's joints");
+            let third = if first == 0 { 1.0 } else { 0.25 };
+            assert_eq!(words[5..9], [0.25, 0.25, third, 0.25].map(f32::to_bits), "vertex {w}: weights");
+        }
+        let deltas = at + POSE_VERTEX_WORDS * 8;
+        assert_eq!(g.words[deltas..deltas + 3], Vec3::X.to_array().map(f32::to_bits));
+        // A displacement not finite is none (a NaN would survive a zero weight).
+        assert!(g.words[deltas + 24..deltas + 48].iter().all(|w| *w == 0));
+        // Another mesh's topology is not this one's.
+        let other = Topology::build(&shapes::cuboid(Vec3::splat(2.0)));
+        assert!(GpuMeshGeometry::pack_posable(&other, &source).is_none());
+    }
+
+    #[test]
+    fn a_pose_flags_joints_that_are_not_finite_and_hashes_what_it_holds() {
+        let pose = crate::pose::Pose {
+            morph_weights: vec![0.5],
+            joints: Some(vec![Mat4::from_translation(Vec3::X), Mat4::NAN]),
+        };
+        let gpu = GpuPose::new(&pose);
+        assert!(gpu.skinned);
+        assert_eq!(gpu.joints[0][12..], [1.0, 0.0, 0.0, 1.0]);
+        assert_eq!(gpu.joints[1], [[0.0; 15].as_slice(), &[0.0]].concat()[..]);
+        let moved = GpuPose::new(&crate::pose::Pose { morph_weights: vec![0.6], ..pose.clone() });
+        assert_ne!(gpu.hash, moved.hash, "a new weight must change the record");
+        let unskinned = GpuPose::new(&crate::pose::Pose { joints: None, ..pose });
+        assert!(!unskinned.skinned && unskinned.joints.is_empty());
     }
 
     #[test]

@@ -38,8 +38,10 @@
 //! rebuilt only when it, a caster, the budget or the set of lights changed
 //! (casters by Bevy's change detection: a still scene's meshes are not
 //! walked and hashed, [`FinCasterScans`]; a caster that moved or was posed
-//! again is rebuilt in its slot and only its instance record (or its new
-//! geometry) goes up to the GPU, [`FinCasterUpdates`]; the GPU's extraction
+//! again is rebuilt in its slot and only its instance record (with its
+//! pose: a skinned or morphed caster is posed on the GPU from its joint
+//! matrices and morph weights, `shaders/pose.wgsl`, [`FinFrameStats::posed_on_gpu`];
+//! or its new geometry) goes up to the GPU, [`FinCasterUpdates`]; the GPU's extraction
 //! then runs for the whole light, and its maps are redrawn only under the
 //! casters that moved when their plan stayed, [`FinPartialRedraw`]; a still
 //! scene runs no read-back),
@@ -215,6 +217,7 @@ pub use light::{
     FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster,
     NotFinShadowReceiver,
 };
+pub use pose::FinGpuPosing;
 pub use receivers::FinReceivers;
 pub use render::{FinForwardShading, FinPartialRedraw};
 pub use shadow_fins;
@@ -263,6 +266,7 @@ impl Plugin for ShadowFinsPlugin {
             .register_type::<NotFinShadowReceiver>()
             .register_type::<FinShadowBudget>()
             .init_resource::<FinShadowBudget>()
+            .init_resource::<FinGpuPosing>()
             .init_resource::<budget::FinDeviceLimits>()
             .add_systems(PostUpdate, turn_off_msaa_on_fin_views)
             .add_observer(add_not_shadow_receiver)

@@ -2,18 +2,31 @@
 //! with morph targets at its current weights (issue 16, item 2).
 //!
 //! Bevy poses these on the GPU, in the vertex shader (`skinning.wgsl`,
-//! `morph.wgsl`), and keeps no posed copy. The plugin poses the mesh's main-
-//! world copy the same way on the CPU when the pose changes — each vertex
-//! displaced by the weighted morph targets (`Mesh::morph_targets`, target-
-//! major), then moved by `Σ wᵢ (Jᵢ · IBPᵢ)` over its four joints (`Jᵢ` the
-//! joint entity's `GlobalTransform`, `IBPᵢ` its inverse bind pose), which
-//! gives world positions (Bevy's skinning ignores the mesh entity's own
-//! transform) — and hands the posed triangles to the extraction (GPU or CPU)
-//! and to [`scene_snapshot`](crate::scene_snapshot), so oracles and ground
-//! truths judge the pose the plugin shadowed.
+//! `morph.wgsl`), and keeps no posed copy. The plugin poses them twice, the
+//! same way — each vertex displaced by the weighted morph targets
+//! (`Mesh::morph_targets`, target-major), then moved by `Σ wᵢ (Jᵢ · IBPᵢ)`
+//! over its four joints (`Jᵢ` the joint entity's `GlobalTransform`, `IBPᵢ`
+//! its inverse bind pose), which gives world positions (Bevy's skinning
+//! ignores the mesh entity's own transform):
 //!
-//! Cost: a posed mesh is rebuilt (topology and packed geometry) in every
-//! frame in which its pose changed, and the light's frame with it.
+//! - on the CPU, the main-world copy when the pose changes ([`Poses::pose`]),
+//!   for the CPU extraction, the other methods, and
+//!   [`scene_snapshot`](crate::scene_snapshot), so that oracles and ground
+//!   truths judge the pose the plugin shadowed;
+//! - on the GPU, for the GPU extraction (`shaders/pose.wgsl`): each posed
+//!   instance has its own copy of its mesh's geometry at rest with a pose
+//!   section ([`pose_source`], `GpuMeshGeometry::pack_posable`), posed in
+//!   place from the [`Pose`] (joint matrices, morph weights) before the
+//!   extraction runs. A new pose is then a changed instance record, not new
+//!   geometry: nothing is repacked or uploaded but the pose, and the maps
+//!   are redrawn only under the caster (`extract.wgsl`'s partial redraw).
+//!
+//! The GPU poses the topology at rest (welded vertices, faces, edges); a pose
+//! whose own topology differs (it welds two vertices apart, or folds a face
+//! to nothing) is posed on the CPU for the GPU too (`extract::posed_mesh`).
+//!
+//! Cost: the CPU still poses and rebuilds the topology of a posed mesh in
+//! every frame in which its pose changed (its time is in the main world's).
 
 use std::hash::{Hash, Hasher};
 
@@ -25,6 +38,20 @@ use bevy::{
     },
     prelude::*,
 };
+
+/// Whether the GPU extraction poses skinned and morphed casters itself
+/// (`shaders/pose.wgsl`; see [`FinFrameStats::posed_on_gpu`](crate::FinFrameStats)).
+/// On by default. Off, it gets the CPU's posed mesh as new geometry every
+/// pose (repacked, uploaded, the maps redrawn whole) — for measuring what
+/// posing on the GPU saves (`shadow-fins-render-lab scaling`).
+#[derive(Resource, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FinGpuPosing(pub bool);
+
+impl Default for FinGpuPosing {
+    fn default() -> Self {
+        Self(true)
+    }
+}
 
 /// What poses meshes: skins, morph weights, joints, inverse bind poses.
 #[derive(bevy::ecs::system::SystemParam)]
@@ -42,6 +69,18 @@ pub(crate) struct Posed {
     pub positions: Vec<Vec3>,
     /// The positions are in world space (skinned), not the entity's own.
     pub world: bool,
+    /// What posed them, for the GPU to pose the same way (`pose.wgsl`).
+    pub pose: Pose,
+}
+
+/// What a pose is made of, as the GPU's posing pass reads it: the morph
+/// weights applied (non-finite ones as 0, one per target the mesh has), then
+/// the skin's `Jᵢ · IBPᵢ` (`None`: not skinned; a joint not finite stays
+/// NaN, which the pass counts for nothing, as [`skinned`] does).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub(crate) struct Pose {
+    pub morph_weights: Vec<f32>,
+    pub joints: Option<Vec<Mat4>>,
 }
 
 impl Poses<'_, '_> {
@@ -98,16 +137,22 @@ impl Poses<'_, '_> {
         let mut positions: Vec<Vec3> = base.iter().map(|p| Vec3::from_array(*p)).collect();
         // Morph targets (`Mesh::morph_targets`, target-major) at their weights.
         let morph = self.morph_weights(entity).zip(mesh.try_morph_targets().ok());
+        let mut pose = Pose::default();
         if let Some((weights, targets)) = morph {
             let n = positions.len();
-            for (t, w) in weights.iter().enumerate().filter(|(_, w)| **w != 0.0 && w.is_finite()) {
+            // The weights of the targets the mesh has; a weight the GPU would
+            // read as a NaN is no displacement.
+            let applied = weights.len().min(targets.len().checked_div(n).unwrap_or(0));
+            pose.morph_weights = weights[..applied].iter().map(|w| if w.is_finite() { *w } else { 0.0 }).collect();
+            for (t, w) in pose.morph_weights.iter().enumerate().filter(|(_, w)| **w != 0.0) {
                 let Some(target) = targets.get(t * n..(t + 1) * n) else { break };
                 for (p, d) in positions.iter_mut().zip(target) {
                     *p += d.position * *w;
                 }
             }
         }
-        let morphed = Some(Posed { positions: positions.clone(), world: false }).filter(|_| morph.is_some());
+        let morphed =
+            Some(Posed { positions: positions.clone(), world: false, pose: pose.clone() }).filter(|_| morph.is_some());
         let Ok((_, skin)) = self.skins.get(entity) else { return morphed };
         let Some(matrices) = self.joint_matrices(skin) else { return morphed };
         let (Ok(Some(VertexAttributeValues::Uint16x4(joints))), Ok(Some(VertexAttributeValues::Float32x4(weights)))) = (
@@ -119,7 +164,8 @@ impl Poses<'_, '_> {
         for ((p, j), w) in positions.iter_mut().zip(joints).zip(weights) {
             *p = skinned(*p, j, w, &matrices);
         }
-        Some(Posed { positions, world: true })
+        pose.joints = Some(matrices);
+        Some(Posed { positions, world: true, pose })
     }
 
     /// Each joint's `Jᵢ · IBPᵢ`, or `None` before the skin has loaded.
@@ -133,6 +179,30 @@ impl Poses<'_, '_> {
                 .collect(),
         )
     }
+}
+
+/// What poses `mesh` on the GPU (`gpu_scene::PoseSource`): its bind
+/// positions, its joints and weights (none when either attribute is missing
+/// or of another format: then it is not skinned, as [`Poses::pose`] finds),
+/// its morph targets' position displacements, target-major.
+pub(crate) fn pose_source(mesh: &Mesh) -> crate::gpu_scene::PoseSource {
+    let mut source = crate::gpu_scene::PoseSource::default();
+    if let Ok(Some(VertexAttributeValues::Float32x3(p))) = mesh.try_attribute_option(Mesh::ATTRIBUTE_POSITION) {
+        source.positions = p.iter().map(|p| Vec3::from_array(*p)).collect();
+    }
+    if let (Ok(Some(VertexAttributeValues::Uint16x4(j))), Ok(Some(VertexAttributeValues::Float32x4(w)))) = (
+        mesh.try_attribute_option(Mesh::ATTRIBUTE_JOINT_INDEX),
+        mesh.try_attribute_option(Mesh::ATTRIBUTE_JOINT_WEIGHT),
+    ) {
+        (source.joints, source.weights) = (j.clone(), w.clone());
+    }
+    let n = source.positions.len();
+    if let Ok(targets) = mesh.try_morph_targets()
+        && n > 0
+    {
+        source.morph_targets = targets.chunks_exact(n).map(|t| t.iter().map(|d| d.position).collect()).collect();
+    }
+    source
 }
 
 /// One vertex skinned by up to four joints (`skinning.wgsl`'s

@@ -100,8 +100,10 @@ pub fn scene_snapshot(world: &mut World, root: Option<Entity>) -> FinSceneSnapsh
             continue;
         };
         // Posed as the plugin poses it (`extract::posed_mesh`), else as stored.
+        // The posed triangles only: no packing for the GPU to pose.
         let posed_entry =
-            crate::extract::posed_mesh(entity, mesh3d.id(), mesh, &mut posed, &poses).map(|(c, w)| (c.clone(), w));
+            crate::extract::posed_mesh(entity, mesh3d.id(), mesh, &mut posed, &mut Default::default(), None, &poses)
+                .map(|p| (p.mesh.clone(), p.world));
         let unposed = poses.is_posed(entity) && posed_entry.is_none();
         let (core, world) = match posed_entry {
             Some(posed) => posed,

@@ -62,6 +62,11 @@ const WORKGROUP: u32 = 64;
 use crate::gpu_scene::SILHOUETTE_BYTES;
 pub(super) use crate::gpu_scene::{CASTER_BYTES, FIN_BYTES};
 
+/// The posing passes' entry points (`pose.wgsl`), in the order they run.
+const POSE_ENTRY_POINTS: [&str; 4] = ["pose_vertices", "pose_faces", "pose_normals", "pose_creases"];
+/// The most workgroups a posing pass dispatches per job (its threads stride).
+const MAX_POSE_GROUPS: u32 = 1024;
+
 /// The entry points, in the order they run.
 const ENTRY_POINTS: [&str; 18] = [
     "reset",
@@ -86,6 +91,7 @@ const ENTRY_POINTS: [&str; 18] = [
 
 pub(super) fn build(app: &mut App) {
     embedded_asset!(app, "shaders/extract.wgsl");
+    embedded_asset!(app, "shaders/pose.wgsl");
     app.add_plugins(ExtractResourcePlugin::<FinStatsBuffer>::default())
         .add_systems(Startup, spawn_stats_readback)
         .add_systems(PostUpdate, read_back_while_waiting.after(crate::extract::FinFramesUpdate));
@@ -234,6 +240,8 @@ struct ExtractParams {
 pub(super) struct ExtractPipelines {
     layout: BindGroupLayoutDescriptor,
     ids: Vec<CachedComputePipelineId>,
+    pose_layout: BindGroupLayoutDescriptor,
+    pose_ids: Vec<CachedComputePipelineId>,
 }
 
 impl ExtractPipelines {
@@ -255,24 +263,39 @@ impl ExtractPipelines {
                 ),
             ),
         );
-        let shader = load_embedded_asset!(asset_server, "shaders/extract.wgsl");
-        let ids = ENTRY_POINTS
-            .iter()
-            .map(|entry| {
-                pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
-                    label: Some(format!("fin_extract_{entry}").into()),
-                    layout: vec![layout.clone()],
-                    shader: shader.clone(),
-                    entry_point: Some(Cow::from(*entry)),
-                    ..default()
+        let pose_layout = BindGroupLayoutDescriptor::new(
+            "fin_pose_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (storage_buffer_read_only_sized(false, None), storage_buffer_sized(false, None)),
+            ),
+        );
+        let queue = |shader: &Handle<Shader>, layout: &BindGroupLayoutDescriptor, entries: &[&'static str]| {
+            entries
+                .iter()
+                .map(|entry| {
+                    pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
+                        label: Some(format!("fin_extract_{entry}").into()),
+                        layout: vec![layout.clone()],
+                        shader: shader.clone(),
+                        entry_point: Some(Cow::from(*entry)),
+                        ..default()
+                    })
                 })
-            })
-            .collect();
-        Self { layout, ids }
+                .collect()
+        };
+        let ids = queue(&load_embedded_asset!(asset_server, "shaders/extract.wgsl"), &layout, &ENTRY_POINTS);
+        let pose_ids =
+            queue(&load_embedded_asset!(asset_server, "shaders/pose.wgsl"), &pose_layout, &POSE_ENTRY_POINTS);
+        Self { layout, ids, pose_layout, pose_ids }
     }
 
     fn ready<'a>(&self, cache: &'a PipelineCache) -> Option<Vec<&'a ComputePipeline>> {
         self.ids.iter().map(|&id| cache.get_compute_pipeline(id)).collect()
+    }
+
+    fn pose_ready<'a>(&self, cache: &'a PipelineCache) -> Option<Vec<&'a ComputePipeline>> {
+        self.pose_ids.iter().map(|&id| cache.get_compute_pipeline(id)).collect()
     }
 }
 
@@ -292,6 +315,11 @@ pub(super) struct ExtractBuffers {
     positions: Option<Buffer>,
     silhouettes: Option<Buffer>,
     bind_group: Option<BindGroup>,
+    /// What poses the posed instances' geometry copies (`pose.wgsl`), and
+    /// the posing passes' sizes (jobs; most vertices, faces, edges of one).
+    poses: Option<Buffer>,
+    pose_bind_group: Option<BindGroup>,
+    pose_sizes: [u32; 4],
     /// (instance vertices, caster faces, caster edges, sub-layers)
     sizes: [u32; 4],
     /// Instances whose records changed this frame: how many (`FULL` when
@@ -442,6 +470,25 @@ pub(super) fn prepare(
         queue.write_buffer(buffers.geometry.as_ref().unwrap(), 0, geometry_bytes);
         buffers.geometry_key = scene.geometry_key;
     }
+    // The poses go up whole (a few joints each); the posing passes pose every
+    // posed copy again before each extraction (also after the geometry went
+    // up at rest). A new pose changed its instance's record, so the maps are
+    // redrawn under that instance only.
+    buffers.pose_sizes = scene.pose_sizes;
+    buffers.pose_bind_group = None;
+    if scene.pose_sizes[0] > 0 {
+        let pose_bytes: &[u8] = bytemuck::cast_slice(scene.poses.as_slice());
+        ensure(&mut buffers.poses, device, "fin_extract_poses", pose_bytes.len() as u64, storage, cap);
+        queue.write_buffer(buffers.poses.as_ref().unwrap(), 0, pose_bytes);
+        buffers.pose_bind_group = Some(device.create_bind_group(
+            "fin_pose_bind_group",
+            &pipeline_cache.get_bind_group_layout(&pipelines.pose_layout),
+            &BindGroupEntries::sequential((
+                buffers.poses.as_ref().unwrap().as_entire_binding(),
+                buffers.geometry.as_ref().unwrap().as_entire_binding(),
+            )),
+        ));
+    }
     let instances = scene.instances.len() as u64;
     let history = C_HISTOGRAM + s.sub_layers as u64;
     let dirty_list = history + H_FOOTPRINTS + 4 * instances;
@@ -555,6 +602,22 @@ pub(super) fn record(
         encoder.copy_buffer_to_buffer(control, from * 4, args, from * 4, (to - from) * 4);
     };
     let entry = |name: &str| ready[ENTRY_POINTS.iter().position(|e| *e == name).expect("an entry point")];
+    if let Some(pose_bind_group) = &buffers.pose_bind_group {
+        let Some(pose) = pipelines.pose_ready(pipeline_cache) else { return false };
+        let [jobs, vertices, faces, edges] = buffers.pose_sizes;
+        let mut pass =
+            encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("fin_posing"), timestamp_writes: None });
+        pass.set_bind_group(0, pose_bind_group, &[]);
+        for (pipeline, n) in pose.into_iter().zip([vertices, faces, vertices, edges]) {
+            // Jobs along y, past 65 535 along z too (`pose.wgsl`'s `job_of`).
+            pass.set_pipeline(pipeline);
+            pass.dispatch_workgroups(
+                n.div_ceil(WORKGROUP).clamp(1, MAX_POSE_GROUPS),
+                jobs.min(65535),
+                jobs.div_ceil(65535),
+            );
+        }
+    }
     begin(encoder, &mut |pass| {
         direct(pass, entry("reset"), threads(C_HISTOGRAM as u32 + sub_layers));
         direct(pass, entry("forget_footprints"), threads(dirty));
