@@ -844,6 +844,20 @@ impl Shot {
     pub fn save_color(&self, path: &str) -> Result<(), String> {
         save_srgb8(self.width, self.height, &self.color, path)
     }
+
+    /// Writes the first camera's visibility buffer as a grey PNG (white
+    /// lit, black in umbra; a value not finite is written red): the shadow
+    /// alone, without the lighting that can hide it in the final image.
+    pub fn save_visibility(&self, path: &str) -> Result<(), String> {
+        let grey = |v: f32| -> [u8; 4] {
+            if !v.is_finite() {
+                return [255, 0, 0, 255];
+            }
+            let g = (v.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8;
+            [g, g, g, 255]
+        };
+        save_srgb8(self.width, self.height, &self.visibility.iter().map(|v| grey(*v)).collect::<Vec<_>>(), path)
+    }
 }
 
 /// Writes sRGB bytes (RGBA, row-major, top row first) as a PNG, making its folder.

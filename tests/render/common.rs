@@ -99,7 +99,9 @@ pub fn linear_rgb(shot: &Shot) -> Vec<[f32; 3]> {
 /// Writes a test's image to `<target>/tmp/test-images/` when `SHADOW_FINS_TEST_IMAGES` is set.
 pub fn save(shot: &Shot, name: &str) {
     if std::env::var_os("SHADOW_FINS_TEST_IMAGES").is_some() {
-        shot.save_color(&format!("{}/test-images/{name}.png", env!("CARGO_TARGET_TMPDIR"))).expect("write test image");
+        let dir = format!("{}/test-images", env!("CARGO_TARGET_TMPDIR"));
+        shot.save_color(&format!("{dir}/{name}.png")).expect("write test image");
+        shot.save_visibility(&format!("{dir}/{name}_visibility.png")).expect("write test image");
     }
 }
 
