@@ -1,6 +1,7 @@
 // Posing on the GPU (issue 16, item 2: casters as they are drawn): each
 // skinned or morphed caster instance has its own copy of its mesh's packed
-// geometry (`GpuMeshGeometry::pack_posable`), at rest, with a pose section.
+// geometry at rest (`GpuMeshGeometry::pack_posable`), less the pose section,
+// which its mesh's shared packing holds once.
 // These passes pose the copy in place before the extraction (`extract.wgsl`)
 // reads it, the way Bevy's vertex shader poses what it draws (`morph.wgsl`,
 // `skinning.wgsl`) and `pose.rs` poses the CPU's copy:
@@ -22,12 +23,14 @@ const P_COS_CREASE: u32 = 4u;
 const P_HEADER: u32 = 8u;
 const JOB_WORDS: u32 = 8u;
 // A job: its copy's offset in `geometry`, its data's offset in `poses`, its
-// joints, its morph weights, 1 when skinned.
+// joints, its morph weights, 1 when skinned, the offset of its mesh's shared
+// packing (whose pose section the copy, which has none, is posed from).
 const J_GEOMETRY: u32 = 0u;
 const J_DATA: u32 = 1u;
 const J_JOINTS: u32 = 2u;
 const J_MORPHS: u32 = 3u;
 const J_SKINNED: u32 = 4u;
+const J_SOURCE: u32 = 5u;
 
 // Geometry blob header (relative word offsets), see `GpuMeshGeometry`.
 const G_VERTICES: u32 = 0u;
@@ -78,6 +81,15 @@ fn g(job: u32, word: u32) -> u32 {
 
 fn gf(job: u32, word: u32) -> f32 {
     return bitcast<f32>(g(job, word));
+}
+
+// Word `word` of the job's shared packing (its pose section is there), as a float.
+fn sf(job: u32, word: u32) -> f32 {
+    return bitcast<f32>(geometry[job_word(job, J_SOURCE) + word]);
+}
+
+fn s3(job: u32, word: u32) -> vec3<f32> {
+    return vec3(sf(job, word), sf(job, word + 1u), sf(job, word + 2u));
 }
 
 fn set_gf(job: u32, word: u32, x: f32) {
@@ -141,24 +153,25 @@ fn pose_vertices(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation
         return;
     }
     let n = g(job, G_VERTICES);
-    let pose_at = g(job, G_POSE_AT);
-    let targets = min(g(job, G_MORPH_TARGETS), job_word(job, J_MORPHS));
+    let source = job_word(job, J_SOURCE);
+    let pose_at = geometry[source + G_POSE_AT];
+    let targets = min(geometry[source + G_MORPH_TARGETS], job_word(job, J_MORPHS));
     let weights_at = job_word(job, J_DATA) + job_word(job, J_JOINTS) * 16u;
     for (var v = wg.x * WORKGROUP + lane; v < n; v += groups.x * WORKGROUP) {
         let at = pose_at + v * POSE_VERTEX_WORDS;
-        var p = g3(job, at);
+        var p = s3(job, at);
         let deltas = pose_at + n * POSE_VERTEX_WORDS;
         for (var t = 0u; t < targets; t++) {
             let w = pf(weights_at + t);
             if (w != 0.0) {
-                p += g3(job, deltas + (t * n + v) * 3u) * w;
+                p += s3(job, deltas + (t * n + v) * 3u) * w;
             }
         }
         if (job_word(job, J_SKINNED) != 0u) {
-            let j01 = g(job, at + 3u);
-            let j23 = g(job, at + 4u);
+            let j01 = geometry[source + at + 3u];
+            let j23 = geometry[source + at + 4u];
             let joints = vec4(j01 & 0xffffu, j01 >> 16u, j23 & 0xffffu, j23 >> 16u);
-            let weights = vec4(gf(job, at + 5u), gf(job, at + 6u), gf(job, at + 7u), gf(job, at + 8u));
+            let weights = vec4(sf(job, at + 5u), sf(job, at + 6u), sf(job, at + 7u), sf(job, at + 8u));
             p = skinned(job, p, joints, weights);
         }
         set_g3(job, g(job, G_VERTICES_AT) + v * VERTEX_WORDS, p);

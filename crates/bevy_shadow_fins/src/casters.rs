@@ -267,7 +267,8 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
                 if object.casts_shadows {
                     object.cutout = self.materials.cutout(entity, mesh3d.id(), mesh, core, topology, world);
                 }
-                let world_box = sun_fit::corners(geometry.bounds)
+                // The posed vertices' box (a posable packing's is the rest pose's).
+                let world_box = sun_fit::corners(topology.bounds)
                     .map(|c| object.transform.transform_point3(c))
                     .into_iter()
                     .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));

@@ -19,9 +19,13 @@
 //! [`shadow_fins::cutout::Filter`]). Approximated: the minification filter
 //! and mip levels are not modelled (the shadow is the texture's at its own
 //! resolution, box-filtered down past 256 texels a side:
-//! [`shadow_fins::cutout::MAX_MASK_SIDE`]), vertex colour alpha is not
-//! applied, and a posed (skinned, morphed) masked mesh builds its outline
-//! again at every new pose.
+//! [`shadow_fins::cutout::MAX_MASK_SIDE`]), and a posed (skinned, morphed)
+//! masked mesh builds its outline again at every new pose. Vertex colour
+//! alpha is not applied, as in Bevy's own shadow and depth prepasses
+//! (`pbr_prepass_functions.wgsl`'s `prepass_alpha_discard` reads the
+//! material and its texture only); Bevy's main pass does multiply it in, so
+//! a card cut by its vertex alpha alone is drawn with holes that neither
+//! Bevy's shadow nor the fins' have.
 
 use std::{collections::HashMap, sync::Arc};
 

@@ -90,7 +90,9 @@ pub struct FinFrameStats {
     /// Skinned or morphed casters the GPU posed itself (`pose.wgsl`): a new
     /// pose of one of them is a changed instance, like a moved caster. The
     /// others posed are posed on the CPU (the CPU extraction, or a pose that
-    /// changes the mesh's topology; see `extract::posed_mesh`).
+    /// changes the mesh's topology; see `extract::posed_mesh`). Counted per
+    /// light frame, with those out of the light's reach (their vertices
+    /// still bound the receivers' depth); a point light's faces: the most.
     pub posed_on_gpu: usize,
 }
 
@@ -515,6 +517,8 @@ pub(crate) struct MeshCache {
     /// Per skinned or morphed mesh, its topology at rest packed with what
     /// poses it on the GPU (`None`: it cannot be posed there).
     posable: HashMap<AssetId<Mesh>, Option<Arc<GpuMeshGeometry>>>,
+    /// [`FinGpuPosing`](crate::FinGpuPosing) as the posed casters were posed.
+    gpu_posing: bool,
     pub(crate) lights: HashMap<FrameKey, LightState>,
     /// The `CutoutCache` generation the frames were built with.
     cutout_generation: u64,
@@ -852,8 +856,11 @@ fn update_fin_frames(
         mesh_event = true;
         cache.posed.clear();
     }
+    // Compared with the last frame's, not by change detection: a mutable
+    // borrow (an editor's checkbox) is a change, and a removal is none.
     let gpu_posing = assets.gpu_posing.as_ref().is_none_or(|g| g.0);
-    if assets.gpu_posing.as_ref().is_some_and(|g| g.is_changed()) {
+    if gpu_posing != cache.gpu_posing {
+        cache.gpu_posing = gpu_posing;
         // Posed anew, for the GPU or not: new geometry for the GPU's frames.
         meshes_changed = true;
         mesh_event = true;
@@ -1717,8 +1724,10 @@ fn gpu_fin(f: &Fin, layer: u32) -> GpuFin {
 }
 
 /// A posed caster as last posed: its pose's hash (with its mesh's), the
-/// posed mesh, whether its positions are in world space (skinned), and — when
-/// the GPU can pose it — the mesh's posable packing and the pose.
+/// posed mesh (whose packing is the posable one when the GPU poses it: its
+/// words are the mesh at rest), whether its positions are in world space
+/// (skinned), and — when the GPU can pose it — the mesh's posable packing
+/// and the pose.
 pub(crate) struct PosedCaster {
     key: u64,
     pub mesh: CachedMesh,
@@ -1755,8 +1764,10 @@ pub(crate) fn posed_mesh<'a>(
     let key = hasher.finish();
     if posed.get(&entity).is_none_or(|p| p.key != key) {
         let pose = poses.pose(entity, mesh)?;
-        let cached = core_mesh_at(mesh, pose.positions);
-        let gpu = cached.as_ref().ok().zip(posable).and_then(|((_, topology, _), posable)| {
+        let posed_now = core_topology_at(mesh, pose.positions);
+        // The GPU poses it when the pose kept the topology at rest (then no
+        // packing of the posed mesh is made: the posable one stands for it).
+        let gpu = posed_now.as_ref().ok().zip(posable).and_then(|((_, topology), posable)| {
             let Ok((_, rest, _)) = at_rest.entry(mesh_id).or_insert_with(|| core_mesh(mesh)) else { return None };
             if rest.faces != topology.faces || rest.positions.len() != topology.positions.len() {
                 return None;
@@ -1765,6 +1776,13 @@ pub(crate) fn posed_mesh<'a>(
                 .entry(mesh_id)
                 .or_insert_with(|| GpuMeshGeometry::pack_posable(rest, &crate::pose::pose_source(mesh)).map(Arc::new));
             Some((packing.clone()?, Arc::new(GpuPose::new(&pose.pose))))
+        });
+        let cached = posed_now.map(|(core, topology)| {
+            let geometry = match &gpu {
+                Some((posable, _)) => posable.clone(),
+                None => Arc::new(GpuMeshGeometry::pack(&topology)),
+            };
+            (core, topology, geometry)
         });
         posed.insert(entity, PosedCaster { key, mesh: cached, world: pose.world, gpu });
     }
@@ -1784,6 +1802,13 @@ pub(crate) fn core_mesh(mesh: &Mesh) -> CachedMesh {
 
 /// [`core_mesh`] with the vertices at `positions` (a pose of the mesh).
 fn core_mesh_at(mesh: &Mesh, positions: Vec<Vec3>) -> CachedMesh {
+    let (core, topology) = core_topology_at(mesh, positions)?;
+    let geometry = GpuMeshGeometry::pack(&topology);
+    Ok((core, topology, Arc::new(geometry)))
+}
+
+/// [`core_mesh_at`] without the GPU packing.
+fn core_topology_at(mesh: &Mesh, positions: Vec<Vec3>) -> Result<(Arc<CoreMesh>, Arc<Topology>), FinSceneError> {
     if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
         return Err(FinSceneError::NotTriangles);
     }
@@ -1795,8 +1820,7 @@ fn core_mesh_at(mesh: &Mesh, positions: Vec<Vec3>) -> CachedMesh {
     };
     let core = CoreMesh::new(positions, indices).map_err(FinSceneError::Invalid)?;
     let topology = Topology::build(&core);
-    let geometry = GpuMeshGeometry::pack(&topology);
-    Ok((Arc::new(core), Arc::new(topology), Arc::new(geometry)))
+    Ok((Arc::new(core), Arc::new(topology)))
 }
 
 #[cfg(test)]

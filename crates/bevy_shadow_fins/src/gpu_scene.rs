@@ -38,6 +38,7 @@ const EDGE_CREASE: u32 = 4;
 const EDGE_NON_MANIFOLD: u32 = 8;
 
 /// One mesh's light-independent topology as `u32` words (floats as bits):
+/// - a header of [`HEADER_WORDS`]: the counts and where each part starts;
 /// - vertices: position, area-weighted normal (6 words);
 /// - faces: three vertex ids, plane normal and offset (7 words);
 /// - edges (one- and two-face, then non-manifold): `v0, v1, f0, f1, flags`;
@@ -45,7 +46,9 @@ const EDGE_NON_MANIFOLD: u32 = 8;
 ///   `f0, f1`;
 /// - per vertex the edges at it (CSR), which the fin pass walks to find the
 ///   silhouette edges meeting at a silhouette vertex;
-/// - non-manifold face lists: `face | forward << 31`.
+/// - non-manifold face lists: `face | forward << 31`;
+/// - a posable packing ([`Self::pack_posable`]) then has a pose section:
+///   what `pose.wgsl` poses a copy of the words before it from.
 #[derive(Debug)]
 pub(crate) struct GpuMeshGeometry {
     pub words: Vec<u32>,
@@ -53,8 +56,6 @@ pub(crate) struct GpuMeshGeometry {
     pub faces: u32,
     pub edges: u32,
     pub closed: bool,
-    /// Object-space bounds (for the scene extent without touching vertices).
-    pub bounds: (Vec3, Vec3),
     /// Unique per packing: what the concatenated geometry is keyed by. Not the
     /// `Arc`'s address — a mesh edited in place is packed again and its new
     /// `Arc` may reuse the freed address, which kept the old triangles on the GPU.
@@ -134,18 +135,8 @@ impl GpuMeshGeometry {
             csr_at as u32,
             non_manifold_at as u32,
         ]);
-        let bounds =
-            t.positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
         let packing = NEXT_PACKING.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        Self {
-            words: w,
-            vertices: v as u32,
-            faces: f as u32,
-            edges: e as u32,
-            closed: t.is_closed_manifold(),
-            bounds,
-            packing,
-        }
+        Self { words: w, vertices: v as u32, faces: f as u32, edges: e as u32, closed: t.is_closed_manifold(), packing }
     }
 }
 
@@ -211,6 +202,15 @@ impl GpuMeshGeometry {
     /// True for a packing with a pose section ([`Self::pack_posable`]).
     pub fn posable(&self) -> bool {
         self.words[G_POSE_AT] != 0
+    }
+
+    /// The words a posed instance's own copy needs: all but the pose
+    /// section, which the instances of a mesh share.
+    fn posed_part(&self) -> &[u32] {
+        match self.words[G_POSE_AT] as usize {
+            0 => &self.words,
+            at => &self.words[..at],
+        }
     }
 }
 
@@ -461,13 +461,15 @@ impl GpuSceneBuilder {
         poses: &[Option<Arc<GpuPose>>],
         frame: &LightFrame,
     ) {
-        // The distinct meshes in first-use order, then each object posed on
-        // the GPU (its own copy); re-pack only when that list changes.
+        // The distinct meshes in first-use order (a posed one too: its pose
+        // section is read from there), then each object posed on the GPU
+        // (its own copy, less the pose section); re-pack only when that
+        // list changes.
         let mut distinct: Vec<&Arc<GpuMeshGeometry>> = Vec::new();
         let mut seen = std::collections::HashSet::new();
         let mut hasher = std::collections::hash_map::DefaultHasher::new();
-        for (m, pose) in meshes.iter().zip(poses) {
-            if pose.is_none() && seen.insert(m.packing) {
+        for m in meshes {
+            if seen.insert(m.packing) {
                 distinct.push(m);
                 m.packing.hash(&mut hasher);
             }
@@ -479,7 +481,7 @@ impl GpuSceneBuilder {
         }
         let key = hasher.finish();
         if key != self.geometry_key || self.geometry.is_empty() {
-            let copies = posed.iter().map(|&i| meshes[i].words.len()).sum::<usize>();
+            let copies = posed.iter().map(|&i| meshes[i].posed_part().len()).sum::<usize>();
             let mut words = Vec::with_capacity(distinct.iter().map(|d| d.words.len()).sum::<usize>() + copies);
             self.offsets.clear();
             self.posed_copies.clear();
@@ -489,7 +491,7 @@ impl GpuSceneBuilder {
             }
             for &i in &posed {
                 self.posed_copies.insert(i, (meshes[i].packing, words.len() as u32));
-                words.extend_from_slice(&meshes[i].words);
+                words.extend_from_slice(meshes[i].posed_part());
             }
             // A binding may not be empty.
             words.resize(words.len().max(HEADER_WORDS), 0);
@@ -515,7 +517,9 @@ impl GpuSceneBuilder {
             let record = self.record(i, &objects[i], &meshes[i], &poses[i], frame);
             let old = &mut self.instances[i];
             counts_moved |= record.info[1..] != old.info[1..];
-            *old = GpuInstance { ids: old.ids, ..record };
+            // Its geometry is the new record's (a mesh swapped for one
+            // packed already); its first ids stay unless a count moved.
+            *old = GpuInstance { ids: [record.ids[0], old.ids[1], old.ids[2], old.ids[3]], ..record };
         }
         if counts_moved {
             self.number_records();
@@ -537,8 +541,9 @@ impl GpuSceneBuilder {
     /// The pose buffer `pose.wgsl` reads: a header (jobs; the most vertices,
     /// faces and edges of one; the cosine of the crease angle), a job per
     /// object posed on the GPU (its copy's offset in the geometry, its data's
-    /// offset here, its joints, its morph weights, 1 when skinned), then
-    /// each job's joint columns and morph weights.
+    /// offset here, its joints, its morph weights, 1 when skinned, the
+    /// offset of its mesh's shared packing, whose pose section it is posed
+    /// from), then each job's joint columns and morph weights.
     fn pose_buffer(&self, meshes: &[Arc<GpuMeshGeometry>], poses: &[Option<Arc<GpuPose>>]) -> (Vec<u32>, [u32; 4]) {
         let jobs: Vec<(usize, &GpuPose)> =
             poses.iter().enumerate().filter_map(|(i, p)| Some((i, &**p.as_ref()?))).collect();
@@ -557,12 +562,13 @@ impl GpuSceneBuilder {
             words.extend(pose.joints.iter().flatten().map(|x| x.to_bits()));
             words.extend(pose.morph_weights.iter().map(|x| x.to_bits()));
             let job = POSES_HEADER_WORDS + POSE_JOB_WORDS * k;
-            words[job..job + 5].copy_from_slice(&[
+            words[job..job + 6].copy_from_slice(&[
                 self.posed_copies[i].1,
                 at,
                 pose.joints.len() as u32,
                 pose.morph_weights.len() as u32,
                 pose.skinned as u32,
+                self.offsets[&m.packing],
             ]);
         }
         words[..4].copy_from_slice(&sizes);
@@ -717,6 +723,114 @@ mod tests {
         // Another mesh's topology is not this one's.
         let other = Topology::build(&shapes::cuboid(Vec3::splat(2.0)));
         assert!(GpuMeshGeometry::pack_posable(&other, &source).is_none());
+    }
+
+    /// A split cuboid (24 input vertices welded to 8), packed to be posed,
+    /// with each vertex on joint 0 or 1.
+    fn posable_cuboid() -> GpuMeshGeometry {
+        let mesh = shapes::cuboid(Vec3::ONE);
+        let split: Vec<Vec3> = mesh.indices().iter().map(|&i| mesh.positions()[i as usize]).collect();
+        let n = split.len();
+        let topology = Topology::build(&shadow_fins::mesh::Mesh::new(split.clone(), (0..n as u32).collect()).unwrap());
+        let source = PoseSource {
+            joints: split.iter().map(|p| [(p.x > 0.0) as u16, 0, 0, 0]).collect(),
+            weights: vec![[1.0, 0.0, 0.0, 0.0]; n],
+            positions: split,
+            morph_targets: vec![],
+        };
+        GpuMeshGeometry::pack_posable(&topology, &source).unwrap()
+    }
+
+    fn pose_at(x: f32) -> Arc<GpuPose> {
+        let joints = Some(vec![Mat4::IDENTITY, Mat4::from_translation(Vec3::X * x)]);
+        Arc::new(GpuPose::new(&crate::pose::Pose { morph_weights: vec![], joints }))
+    }
+
+    #[test]
+    fn posed_instances_get_their_own_copies_and_a_new_pose_changes_only_their_records() {
+        let disk = shadow_fins::light::DiskLight::new(Vec3::new(0.0, 5.0, 0.0), Vec3::NEG_Y, 0.5).unwrap();
+        let frame = LightFrame::disk(&disk);
+        let object = |x: f32| {
+            SceneObject::new("box", shapes::cuboid(Vec3::ONE), bevy::math::Affine3A::from_translation(Vec3::X * x))
+                .unwrap()
+        };
+        let objects = [object(0.0), object(2.0), object(4.0)];
+        let (rest, posable) =
+            (Arc::new(GpuMeshGeometry::pack(&Topology::build(&shapes::cuboid(Vec3::ONE)))), Arc::new(posable_cuboid()));
+        let meshes = [rest.clone(), posable.clone(), posable.clone()];
+        let mut poses = [None, Some(pose_at(0.5)), Some(pose_at(1.0))];
+        let (max, world) = (GpuCapacity::max_for(1 << 30), (Vec3::splat(-1.0), Vec3::splat(5.0)));
+        let mut builder = GpuSceneBuilder::default();
+        let first = builder.build(&objects, &meshes, &poses, &frame, world, None, &mut None, max);
+        // Each mesh once (the posable one for its pose section), then a copy
+        // per posed instance, less the pose section.
+        let part = posable.posed_part();
+        assert!(part.len() < posable.words.len());
+        assert_eq!(first.geometry.len(), rest.words.len() + posable.words.len() + 2 * part.len());
+        let [a, b, c] = [0, 1, 2].map(|i| first.instances[i].ids[0] as usize);
+        assert_eq!(first.geometry[a..a + rest.words.len()], rest.words[..]);
+        assert!(b != c && b > a && c > a);
+        for copy in [b, c] {
+            assert_eq!(first.geometry[copy..copy + part.len()], *part, "a posed instance's own copy");
+        }
+        // The pose buffer: two jobs, each naming its copy, its joints and the shared packing.
+        assert_eq!(first.pose_sizes, [2, 8, 12, 18]);
+        let shared = rest.words.len() as u32;
+        for (k, copy) in [b, c].into_iter().enumerate() {
+            let job = &first.poses[POSES_HEADER_WORDS + POSE_JOB_WORDS * k..][..6];
+            assert_eq!([job[0], job[2], job[3], job[4], job[5]], [copy as u32, 2, 0, 1, shared]);
+            let data = &first.poses[job[1] as usize..][..32];
+            let x: f32 = if k == 0 { 0.5 } else { 1.0 };
+            assert_eq!(data[16 + 12], x.to_bits(), "joint 1's translation x");
+            assert_eq!([data[15], data[31]], [1.0f32.to_bits(); 2], "both joints finite");
+        }
+        // A new pose of one: the same geometry, only its record differs.
+        poses[1] = Some(pose_at(0.75));
+        let second = builder.build(&objects, &meshes, &poses, &frame, world, Some(&[1]), &mut None, max);
+        assert_eq!(second.geometry_key, first.geometry_key, "a new pose repacked the geometry");
+        assert_ne!(second.instances[1].pose, first.instances[1].pose);
+        assert_eq!(second.instances[1].ids, first.instances[1].ids);
+        for i in [0, 2] {
+            assert_eq!(bytemuck::bytes_of(&second.instances[i]), bytemuck::bytes_of(&first.instances[i]));
+        }
+    }
+
+    #[test]
+    fn a_mesh_swapped_for_one_already_packed_takes_its_geometry() {
+        // In place (the other mesh is packed already): the record must point
+        // at the new mesh's words, not keep the old offset with new counts.
+        let disk = shadow_fins::light::DiskLight::new(Vec3::new(0.0, 5.0, 0.0), Vec3::NEG_Y, 0.5).unwrap();
+        let frame = LightFrame::disk(&disk);
+        let box_ =
+            |s: f32| SceneObject::new("box", shapes::cuboid(Vec3::splat(s)), bevy::math::Affine3A::IDENTITY).unwrap();
+        let objects = [box_(1.0), box_(1.0)];
+        let small = Arc::new(GpuMeshGeometry::pack(&Topology::build(&shapes::cuboid(Vec3::ONE))));
+        let sphere = Arc::new(GpuMeshGeometry::pack(&Topology::build(&shapes::uv_sphere(1.0, 8, 6))));
+        let (max, world) = (GpuCapacity::max_for(1 << 30), (Vec3::splat(-1.0), Vec3::splat(1.0)));
+        let mut builder = GpuSceneBuilder::default();
+        let first = builder.build(
+            &objects,
+            &[small.clone(), sphere.clone()],
+            &[None, None],
+            &frame,
+            world,
+            None,
+            &mut None,
+            max,
+        );
+        let second = builder.build(
+            &objects,
+            &[sphere.clone(), sphere.clone()],
+            &[None, None],
+            &frame,
+            world,
+            Some(&[0]),
+            &mut None,
+            max,
+        );
+        assert_eq!(second.instances[0].ids[0], first.instances[1].ids[0], "the swapped mesh kept its old words");
+        assert_eq!(second.instances[0].info[1..], first.instances[1].info[1..]);
+        assert_eq!(second.totals[1], 2 * sphere.faces);
     }
 
     #[test]

@@ -265,6 +265,7 @@ impl Plugin for ShadowFinsPlugin {
             .register_type::<NotFinShadowCaster>()
             .register_type::<NotFinShadowReceiver>()
             .register_type::<FinShadowBudget>()
+            .register_type::<FinGpuPosing>()
             .init_resource::<FinShadowBudget>()
             .init_resource::<FinGpuPosing>()
             .init_resource::<budget::FinDeviceLimits>()

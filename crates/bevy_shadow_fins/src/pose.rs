@@ -44,7 +44,8 @@ use bevy::{
 /// On by default. Off, it gets the CPU's posed mesh as new geometry every
 /// pose (repacked, uploaded, the maps redrawn whole) — for measuring what
 /// posing on the GPU saves (`shadow-fins-render-lab scaling`).
-#[derive(Resource, Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Resource, Reflect, Clone, Copy, Debug, PartialEq, Eq)]
+#[reflect(Resource)]
 pub struct FinGpuPosing(pub bool);
 
 impl Default for FinGpuPosing {
