@@ -123,49 +123,42 @@ fn a_skinned_arm_casts_the_shadow_of_its_current_pose() {
     );
 }
 
-#[test]
-fn a_skinned_arm_under_a_spot_is_posed_on_the_gpu_in_the_spots_perspective_frame() {
-    // The same arm under a fin-shadowed `SpotLight` (a disk light's
-    // perspective frame, not the sun's orthographic one): its joints turned
-    // by hand, the GPU poses it and its shadow is the oracle's of the pose.
+/// The arm under `light`, straight, then with its three joints each turned
+/// by `turn`: each pose posed on the GPU and judged against its oracle, and
+/// the shadow moved between them. `name` and `label` name the images and lines.
+fn straight_then_bent(light: Light, spot: bool, turn: Quat, name: &str, label: &str) {
     let mut setup = posed_setup("skinned-arm.gltf");
-    let disk = shadow_fins::light::DiskLight::new(Vec3::new(-1.0, 3.2, -1.2), Vec3::new(0.35, -0.85, 0.4), 0.25)
-        .expect("a valid disk");
-    setup.light = Light::Disk(disk);
-    setup.spot = true;
+    (setup.light, setup.spot) = (light, spot);
     let mut session = Session::new(&setup);
     session.wait_for_gltf().expect("Bevy loads it");
-    let straight = settled_pose(&mut session, &setup, "posed_arm_spot_straight", "arm under a spot, straight");
+    let straight = settled_pose(&mut session, &setup, &format!("{name}_straight"), &format!("{label}, straight"));
     let world = session.app.world_mut();
     let mut joints = world.query::<(&Name, &mut Transform)>();
     for (name, mut t) in joints.iter_mut(world) {
         if matches!(name.as_str(), "shoulder" | "elbow" | "wrist") {
-            t.rotation = Quat::from_xyzw(0.2, 0.0, 0.3, 1.0).normalize();
+            t.rotation = turn;
         }
     }
-    let bent = settled_pose(&mut session, &setup, "posed_arm_spot_bent", "arm under a spot, bent");
-    assert_shadow_moved(&straight, &bent, "straight vs bent arm under a spot", "the bind pose is cast");
+    let bent = settled_pose(&mut session, &setup, &format!("{name}_bent"), &format!("{label}, bent"));
+    assert_shadow_moved(&straight, &bent, &format!("straight vs bent {label}"), "the bind pose is cast");
+}
+
+#[test]
+fn a_skinned_arm_under_a_spot_is_posed_on_the_gpu_in_the_spots_perspective_frame() {
+    // A fin-shadowed `SpotLight`: a disk light's perspective frame, not the sun's orthographic one.
+    let disk = shadow_fins::light::DiskLight::new(Vec3::new(-1.0, 3.2, -1.2), Vec3::new(0.35, -0.85, 0.4), 0.25)
+        .expect("a valid disk");
+    let turn = Quat::from_xyzw(0.2, 0.0, 0.3, 1.0).normalize();
+    straight_then_bent(Light::Disk(disk), true, turn, "posed_arm_spot", "arm under a spot");
 }
 
 #[test]
 fn a_skinned_arm_under_a_point_light_is_posed_on_the_gpu_in_every_cube_face() {
     // A point light close to the arm: its shadow falls across several cube
     // faces, each a frame with its own copy of the arm posed on the GPU.
-    let mut setup = posed_setup("skinned-arm.gltf");
     let sphere = shadow_fins::light::SphereLight::new(Vec3::new(-0.6, 1.6, -0.5), 0.12).expect("a valid sphere");
-    setup.light = Light::Sphere(sphere);
-    let mut session = Session::new(&setup);
-    session.wait_for_gltf().expect("Bevy loads it");
-    let straight = settled_pose(&mut session, &setup, "posed_arm_point_straight", "arm under a point light, straight");
-    let world = session.app.world_mut();
-    let mut joints = world.query::<(&Name, &mut Transform)>();
-    for (name, mut t) in joints.iter_mut(world) {
-        if matches!(name.as_str(), "shoulder" | "elbow" | "wrist") {
-            t.rotation = Quat::from_xyzw(0.0, 0.0, 0.4, 1.0).normalize();
-        }
-    }
-    let bent = settled_pose(&mut session, &setup, "posed_arm_point_bent", "arm under a point light, bent");
-    assert_shadow_moved(&straight, &bent, "straight vs bent arm under a point light", "the bind pose is cast");
+    let turn = Quat::from_xyzw(0.0, 0.0, 0.4, 1.0).normalize();
+    straight_then_bent(Light::Sphere(sphere), false, turn, "posed_arm_point", "arm under a point light");
 }
 
 #[test]
