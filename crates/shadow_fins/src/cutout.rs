@@ -344,6 +344,15 @@ pub struct CasterCutout {
     pub uvs: [Vec2; 3],
 }
 
+impl CasterCutout {
+    /// True where the triangle is opaque at its barycentric point `(u, v)`
+    /// (weights `1 − u − v`, `u`, `v` of its corners), reading `masks`.
+    #[inline]
+    pub fn blocks_at(&self, masks: &[Arc<AlphaMask>], u: f32, v: f32) -> bool {
+        masks[self.mask as usize].opaque(self.uvs[0] * (1.0 - u - v) + self.uvs[1] * u + self.uvs[2] * v)
+    }
+}
+
 /// The outline of a masked mesh's opaque region, object space: what its
 /// silhouettes and potential silhouette edges are drawn from in place of
 /// the mesh's edges. Its edges are [`crate::mesh::Edge`]s over its own

@@ -355,10 +355,7 @@ impl LightSpaceScene {
     /// caster, where its alpha passes the cutoff for a masked one.
     #[inline]
     pub fn blocks_at(&self, k: usize, u: f32, v: f32) -> bool {
-        match self.cutout(k) {
-            None => true,
-            Some(c) => self.masks[c.mask as usize].opaque(c.uvs[0] * (1.0 - u - v) + c.uvs[1] * u + c.uvs[2] * v),
-        }
+        self.cutout(k).is_none_or(|c| c.blocks_at(&self.masks, u, v))
     }
 
     /// Moves the reference plane `L0` down to the deepest of `receivers` (light

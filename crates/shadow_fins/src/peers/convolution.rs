@@ -54,8 +54,10 @@
 //! artifacts, blockers flattened within a kernel, as §5 says). Being one,
 //! it takes alpha-masked casters as they are: their texels alpha-tested
 //! into the shadow map ([`crate::cutout`]), a hole's penumbra filtered like
-//! any edge's. (The other peers' silhouettes and shells come from the
-//! triangles: they model a cut-out card solid.)
+//! any edge's. (So do the plateaus, whose cones and sheets come from the
+//! masked outline and whose drop shadow alpha-tests its rays; single-sample's
+//! shells and the wedges' silhouettes come from the triangles: they model a
+//! cut-out card solid.)
 
 use glam::{Vec2, Vec3};
 

@@ -47,6 +47,12 @@
 //! other receiver (the casters themselves, a second floor) gets the light
 //! centre's hard shadow — what a renderer pairing plateaus with its shadow
 //! map does — and the lab's tables score those pixels too.
+//!
+//! **Alpha-masked casters** ([`crate::cutout`]): the silhouettes come from
+//! the fins' extractor, which draws a masked caster's from the outline of
+//! its opaque region, and both ray-cast shadows (the drop shadow, the hard
+//! shadow off the plane) alpha-test what they cross, so light passes through
+//! the holes, as through the plugin's alpha-tested hard shadow maps.
 
 use glam::{Mat2, Vec2, Vec3};
 
@@ -157,8 +163,13 @@ pub struct PlateauModel {
     pub texture: PlateauTexture,
     /// Casters off the plane, for the drop shadow.
     drop: Bvh,
+    /// The caster index of each of `drop`'s triangles.
+    off_plane: Vec<u32>,
     /// Every caster, for the hard shadow of receivers off the plane.
     hard: Bvh,
+    /// Each caster's cut-out (empty when none is masked) and the masks.
+    cutouts: Vec<Option<crate::cutout::CasterCutout>>,
+    masks: Vec<std::sync::Arc<crate::cutout::AlphaMask>>,
     projection: Projection,
     reference_depth: f32,
 }
@@ -198,16 +209,17 @@ impl PlateauModel {
         let texture = PlateauTexture::on_plane(scene, light_space, plane);
         let on_plane_tolerance = 1e-5 * light_space.extent.max(1e-30);
         let plane = texture.plane;
-        let off_plane: Vec<[Vec3; 3]> = light_space
-            .casters
-            .iter()
-            .filter(|t| t.iter().any(|p| plane.height(*p).abs() > on_plane_tolerance))
-            .copied()
+        let off_plane: Vec<u32> = (0..light_space.casters.len() as u32)
+            .filter(|&k| light_space.casters[k as usize].iter().any(|p| plane.height(*p).abs() > on_plane_tolerance))
             .collect();
+        let drop_triangles: Vec<[Vec3; 3]> = off_plane.iter().map(|&k| light_space.casters[k as usize]).collect();
         Self {
             texture,
-            drop: Bvh::new(&off_plane),
+            drop: Bvh::new(&drop_triangles),
+            off_plane,
             hard: Bvh::new(&light_space.casters),
+            cutouts: light_space.caster_cutouts.clone(),
+            masks: light_space.masks.clone(),
             projection: light_space.frame.projection,
             reference_depth: light_space.reference_depth,
         }
@@ -238,10 +250,19 @@ impl PlateauModel {
             Projection::Orthographic { .. } => (Vec3::NEG_Z, self.texture.extent * 4.0 + o.z.abs()),
         };
         let t_min = eps / dir.length().max(eps);
+        // Both shadows alpha-test masked casters (their holes let the light
+        // through), as the cones and sheets come from their outlines.
+        let blocks = |k: usize, u: f32, v: f32| {
+            self.cutouts.get(k).copied().flatten().is_none_or(|c| c.blocks_at(&self.masks, u, v))
+        };
         if !on_plane {
-            return if self.hard.any_hit(o, dir, t_min, t_max) { 0.0 } else { 1.0 };
+            return if self.hard.any_hit_where(o, dir, t_min, t_max, |k, u, v| blocks(k as usize, u, v)) {
+                0.0
+            } else {
+                1.0
+            };
         }
-        if self.drop.any_hit(o, dir, t_min, t_max) {
+        if self.drop.any_hit_where(o, dir, t_min, t_max, |k, u, v| blocks(self.off_plane[k as usize] as usize, u, v)) {
             return 0.0;
         }
         self.texture.value(p)

@@ -67,9 +67,18 @@ fn light_passes_through_a_hole_for_the_truth_coverage_and_fins() {
         let coverage = CoverageModel::new(scene, &ls, CoverageSettings::default());
         let fins = FinShadowModel::new(scene, &ls, Method::MultiLayer, FinSettings::default());
         let (exact, maps) = (fins.analytic(), fins.raster(512));
+        // The plateaus peer: its drop shadow alpha-tested, its cones and
+        // sheets from the outline.
+        let plateaus = shadow_fins::peers::PlateauModel::new(scene, &ls);
         for (r, want) in receivers.iter().zip(expected) {
-            let got = [truth.visibility(*r), coverage.visibility(*r), exact.visibility(*r), maps.visibility(*r)];
-            for (what, v) in ["truth", "coverage", "fins", "fins maps"].iter().zip(got) {
+            let got = [
+                truth.visibility(*r),
+                coverage.visibility(*r),
+                exact.visibility(*r),
+                maps.visibility(*r),
+                plateaus.visibility(*r),
+            ];
+            for (what, v) in ["truth", "coverage", "fins", "fins maps", "plateaus"].iter().zip(got) {
                 assert!((v - want).abs() < 0.02, "{what} at {:?}: {v}, wanted {want}", r.position);
             }
         }

@@ -117,9 +117,11 @@ fn peers_at_radius_zero_are_the_hard_shadow_and_never_brighten_inside_it() {
                 // methods promise never to brighten the hard shadow.
                 let outer_only = matches!(method, PeerMethod::SingleSample | PeerMethod::Plateaus);
                 let filtered = matches!(method, PeerMethod::Convolution | PeerMethod::ConvolutionMipmap);
-                // The convolution peers filter an alpha-tested shadow map; the
-                // others model cut-out casters solid.
-                let hard = if filtered { &masked } else { &solid };
+                // The convolution peers filter an alpha-tested shadow map and
+                // the plateaus alpha-test their drop shadow; the others model
+                // cut-out casters solid.
+                let cut = filtered || method == PeerMethod::Plateaus;
+                let hard = if cut { &masked } else { &solid };
                 if !zero && !outer_only {
                     let soft = v.iter().filter(|v| **v > 0.0 && **v < 1.0).count();
                     assert!(soft > 0, "{} {}: no penumbra at all", id.name(), method.name());
