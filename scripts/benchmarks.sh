@@ -198,8 +198,8 @@ alpha_section() {
   echo "each texel's centre ray; fins and potential silhouette edges come from the outline of the opaque region"
   echo "(marching squares on the mask, \`crates/shadow_fins/src/cutout.rs\`) in place of the cards' own four"
   echo "edges. The convolution peers filter an alpha-tested shadow map, as the plugin's convolution method"
-  echo "does; the plateaus' cones and sheets come from the same outline and their drop shadow alpha-tests its"
-  echo "rays. Single-sample's shells and the wedges' silhouettes come from the triangles: they model the"
+  echo "does; the plateaus' cones and sheets come from the same outline, and their drop and hard shadows"
+  echo "alpha-test their rays. Single-sample's shells and the wedges' silhouettes come from the triangles: they model the"
   echo "cards solid (their rows show what ignoring the mask costs). The plugin renders these from Bevy's"
   echo "\`AlphaMode::Mask\` materials (\`tests/render/alpha_masked.rs\`)."
   echo
