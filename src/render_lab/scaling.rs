@@ -135,6 +135,13 @@ enum Motion {
 /// with its mesh's positions in the joints' space (inverse bind poses the
 /// identity). Returns the bending joint.
 pub fn spawn_skinned_bar(world: &mut World, at: Vec3) -> Entity {
+    spawn_skinned_bar_weighted(world, at, |_, p| 0.5 + p.x / 1.2)
+}
+
+/// [`spawn_skinned_bar`] with the bending joint's weight of each of the
+/// cuboid's 24 vertices (4 per face: each corner three times, once per
+/// face) given by `bend_weight(vertex, position)`, the root's the rest.
+pub fn spawn_skinned_bar_weighted(world: &mut World, at: Vec3, bend_weight: impl Fn(usize, Vec3) -> f32) -> Entity {
     use bevy::mesh::{
         VertexAttributeValues,
         skinning::{SkinnedMesh, SkinnedMeshInverseBindposes},
@@ -143,7 +150,12 @@ pub fn spawn_skinned_bar(world: &mut World, at: Vec3) -> Entity {
     let Some(VertexAttributeValues::Float32x3(positions)) = mesh.attribute(Mesh::ATTRIBUTE_POSITION) else {
         unreachable!("a cuboid has positions")
     };
-    let weights: Vec<[f32; 4]> = positions.iter().map(|p| [0.5 - p[0] / 1.2, 0.5 + p[0] / 1.2, 0.0, 0.0]).collect();
+    let weights: Vec<[f32; 4]> = (positions.iter().enumerate())
+        .map(|(i, p)| {
+            let w = bend_weight(i, Vec3::from_array(*p));
+            [1.0 - w, w, 0.0, 0.0]
+        })
+        .collect();
     let joints = vec![[0u16, 1, 0, 0]; weights.len()];
     mesh.insert_attribute(Mesh::ATTRIBUTE_JOINT_INDEX, VertexAttributeValues::Uint16x4(joints));
     mesh.insert_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, weights);

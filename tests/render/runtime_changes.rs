@@ -427,3 +427,39 @@ fn a_skinned_bar_bending_among_many_cubes_is_posed_on_the_gpu_and_redraws_only_i
     println!("posed on the CPU vs on the GPU: mean {mad:.2e}, {:.3}% of pixels by > 0.1", far * 100.0);
     assert!(mad <= 1e-4 && far <= 5e-4, "posing on the CPU and on the GPU disagree: {mad} / {far}");
 }
+
+#[test]
+fn a_pose_that_tears_welded_vertices_apart_is_posed_on_the_cpu_and_still_shadows_as_a_fresh_app() {
+    // The GPU poses the topology at rest (`pose.wgsl`). A skin whose three
+    // copies of a cuboid corner (one per face) carry different weights
+    // welds them at rest but pulls them apart when bent: the posed mesh's
+    // topology is another, so that pose falls back to the CPU's posed mesh
+    // (`extract::posed_mesh`) — and shadows as a fresh app does.
+    use shadow_fins_app::render_lab::scaling::spawn_skinned_bar_weighted;
+    let setup = setup(SceneId::BoxOverPlane, settings());
+    let at = Vec3::new(1.2, 0.9, 1.2);
+    // Each face's four vertices: the end faces' and side faces' copies differ.
+    let torn = |i: usize, p: Vec3| (0.5 + p.x / 1.2 + if (i / 4) % 2 == 0 { 0.0 } else { 0.2 }).clamp(0.0, 1.0);
+    let bend = |world: &mut World, joint: Entity| {
+        world.get_mut::<Transform>(joint).expect("a transform").rotate_z(0.5);
+    };
+    let stats = |session: &harness::Session| session.app.world().resource::<bevy_shadow_fins::FinShadowStats>().0;
+    let mut session = harness::Session::new(&setup);
+    let joint = spawn_skinned_bar_weighted(session.app.world_mut(), at, torn);
+    let straight = session.settle(6).expect("render").visibility;
+    assert_visibility_not_trivial(&straight);
+    assert_eq!(stats(&session).posed_on_gpu, 1, "at rest the torn bar's topology is its own: the GPU poses it");
+    bend(session.app.world_mut(), joint);
+    let bent = session.settle(6).expect("render").visibility;
+    assert_eq!(stats(&session).posed_on_gpu, 0, "a pose that tore the welded corners apart was posed on the GPU");
+
+    let mut fresh = harness::Session::new(&setup);
+    let fresh_joint = spawn_skinned_bar_weighted(fresh.app.world_mut(), at, torn);
+    bend(fresh.app.world_mut(), fresh_joint);
+    let expected = fresh.settle(6).expect("render").visibility;
+    let worst = bent.iter().zip(&expected).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    let (changed, _) = compare(&bent, &straight);
+    println!("torn bar: |V − V fresh| max {worst:.2e}; |V − V straight| {changed:.4}");
+    assert!(changed > 1e-4, "the torn bar's shadow did not bend ({changed})");
+    assert!(worst <= 1e-4, "the torn bar shadows otherwise than in a fresh app (max {worst})");
+}
