@@ -344,6 +344,15 @@ pub struct CasterCutout {
     pub uvs: [Vec2; 3],
 }
 
+/// Whether caster `k` blocks light at its barycentric point `(u, v)`, given
+/// every caster's cut-out (`cutouts`, empty when none is masked; see
+/// [`crate::scene::caster_cutouts`]) and the masks they index: always for a
+/// solid caster.
+#[inline]
+pub fn caster_blocks_at(cutouts: &[Option<CasterCutout>], masks: &[Arc<AlphaMask>], k: usize, u: f32, v: f32) -> bool {
+    cutouts.get(k).copied().flatten().is_none_or(|c| c.blocks_at(masks, u, v))
+}
+
 impl CasterCutout {
     /// True where the triangle is opaque at its barycentric point `(u, v)`
     /// (weights `1 − u − v`, `u`, `v` of its corners), reading `masks`.

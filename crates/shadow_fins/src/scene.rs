@@ -233,6 +233,35 @@ pub fn surface_epsilon(p: Vec3, extent: f32) -> f32 {
     (SURFACE_EPSILON * p.length()).max(1e-7 * extent)
 }
 
+/// Per casting face of `scene` (objects in order, faces in topology order:
+/// [`LightSpaceScene::casters`]' order) its cut-out, and the masks they
+/// index, each mask its instances share once; both empty when no caster is
+/// alpha-masked.
+pub fn caster_cutouts(
+    scene: &Scene,
+) -> (Vec<Option<crate::cutout::CasterCutout>>, Vec<std::sync::Arc<crate::cutout::AlphaMask>>) {
+    let (mut cutouts, mut masks) = (Vec::new(), Vec::<std::sync::Arc<crate::cutout::AlphaMask>>::new());
+    if !scene.objects.iter().any(|o| o.casts_shadows && o.fitting_cutout().is_some()) {
+        return (cutouts, masks);
+    }
+    for o in scene.objects.iter().filter(|o| o.casts_shadows) {
+        match o.fitting_cutout() {
+            Some(c) => {
+                let mask = match masks.iter().position(|m| std::sync::Arc::ptr_eq(m, &c.mask)) {
+                    Some(i) => i as u32,
+                    None => {
+                        masks.push(c.mask.clone());
+                        masks.len() as u32 - 1
+                    }
+                };
+                cutouts.extend(c.face_uvs.iter().map(|uvs| Some(crate::cutout::CasterCutout { mask, uvs: *uvs })));
+            }
+            None => cutouts.extend(o.topology.faces.iter().map(|_| None)),
+        }
+    }
+    (cutouts, masks)
+}
+
 impl LightSpaceScene {
     pub fn new(scene: &Scene, light: Light) -> Self {
         let (lo, hi) = scene.bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
@@ -249,8 +278,7 @@ impl LightSpaceScene {
         let object_frames: Vec<ObjectToFrame> = scene.objects.iter().map(|o| ObjectToFrame::new(o, &frame)).collect();
         let mut casters = Vec::with_capacity(scene.triangle_count());
         let mut deepest = f32::NEG_INFINITY;
-        let cut = scene.objects.iter().any(|o| o.casts_shadows && o.fitting_cutout().is_some());
-        let (mut caster_cutouts, mut masks) = (Vec::new(), Vec::new());
+        let (caster_cutouts, masks) = caster_cutouts(scene);
         for (o, to_frame) in scene.objects.iter().zip(&object_frames) {
             let pts: Vec<Vec3> = o.topology.positions.iter().map(|&p| to_frame.point(p)).collect();
             if o.receives_shadows || o.casts_shadows {
@@ -258,24 +286,6 @@ impl LightSpaceScene {
             }
             if o.casts_shadows {
                 casters.extend(o.topology.faces.iter().map(|f| f.map(|i| pts[i as usize])));
-                if cut {
-                    match o.fitting_cutout() {
-                        Some(c) => {
-                            // One copy of a mask its instances share.
-                            let mask = match masks.iter().position(|m| std::sync::Arc::ptr_eq(m, &c.mask)) {
-                                Some(i) => i as u32,
-                                None => {
-                                    masks.push(c.mask.clone());
-                                    masks.len() as u32 - 1
-                                }
-                            };
-                            caster_cutouts.extend(
-                                c.face_uvs.iter().map(|uvs| Some(crate::cutout::CasterCutout { mask, uvs: *uvs })),
-                            );
-                        }
-                        None => caster_cutouts.extend(o.topology.faces.iter().map(|_| None)),
-                    }
-                }
             }
         }
         // A scene entirely behind the light still needs a positive L0.
@@ -355,7 +365,7 @@ impl LightSpaceScene {
     /// caster, where its alpha passes the cutoff for a masked one.
     #[inline]
     pub fn blocks_at(&self, k: usize, u: f32, v: f32) -> bool {
-        self.cutout(k).is_none_or(|c| c.blocks_at(&self.masks, u, v))
+        crate::cutout::caster_blocks_at(&self.caster_cutouts, &self.masks, k, u, v)
     }
 
     /// Moves the reference plane `L0` down to the deepest of `receivers` (light

@@ -63,7 +63,7 @@ use glam::{Vec2, Vec3};
 
 use crate::{
     light::{Aperture, LightFrame},
-    oracle::{MapRegion, MapTriangle, RASTER_MAP_LIMIT, Receiver},
+    oracle::{MapRegion, RASTER_MAP_LIMIT, Receiver},
     scene::{LightSpaceScene, surface_epsilon},
 };
 
@@ -410,11 +410,7 @@ impl ConvolutionModel {
         let min_near = light_space.reference_depth * 1e-5;
         let near_clip = if perspective { min_near } else { f32::NEG_INFINITY };
         // Alpha-masked casters cut out of the shadow map, as the fins' maps do.
-        let triangles: Vec<MapTriangle> = (light_space.casters.iter().enumerate())
-            .flat_map(|(k, t)| {
-                MapTriangle::clipped_with_cutout(t, light_space.cutout(k), &frame, near_clip, perspective)
-            })
-            .collect();
+        let triangles = crate::coverage::reference::map_triangles(light_space, near_clip);
         let limit = frame.map_limit(RASTER_MAP_LIMIT);
         // Padded by the widest search rectangle, so that a receiver's
         // kernel beyond the casters sees empty texels, not the map's edge.

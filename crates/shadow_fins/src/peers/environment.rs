@@ -237,35 +237,36 @@ pub struct WorldReceiver {
 }
 
 /// Every casting face of `scene` in world space, in a BVH, with each
-/// face's alpha mask and UVs when its object is cut out: the rays of the
-/// hard, exact and truth paths alpha-test them, as the ground truth does
+/// face's cut-out ([`crate::scene::caster_cutouts`]): the rays of the hard,
+/// exact and truth paths alpha-test them, as the ground truth does
 /// (`ground_truth.rs`) and as the convolution maps do.
 struct WorldCasters {
     bvh: Bvh,
-    cutouts: Vec<Option<(std::sync::Arc<crate::cutout::AlphaMask>, [glam::Vec2; 3])>>,
+    cutouts: Vec<Option<crate::cutout::CasterCutout>>,
+    masks: Vec<std::sync::Arc<crate::cutout::AlphaMask>>,
 }
 
 impl WorldCasters {
     fn new(scene: &Scene) -> Self {
-        let (mut triangles, mut cutouts) = (Vec::new(), Vec::new());
-        for o in scene.objects.iter().filter(|o| o.casts_shadows) {
-            let world: Vec<Vec3> = o.topology.positions.iter().map(|p| o.transform.transform_point3(*p)).collect();
-            triangles.extend(o.topology.faces.iter().map(|f| f.map(|i| world[i as usize])));
-            match o.fitting_cutout() {
-                Some(c) => cutouts.extend(c.face_uvs.iter().map(|uvs| Some((c.mask.clone(), *uvs)))),
-                None => cutouts.extend(o.topology.faces.iter().map(|_| None)),
-            }
-        }
-        Self { bvh: Bvh::new(&triangles), cutouts }
+        let triangles: Vec<[Vec3; 3]> = (scene.objects.iter().filter(|o| o.casts_shadows))
+            .flat_map(|o| {
+                let world: Vec<Vec3> = o.topology.positions.iter().map(|p| o.transform.transform_point3(*p)).collect();
+                o.topology.faces.iter().map(move |f| f.map(|i| world[i as usize])).collect::<Vec<_>>()
+            })
+            .collect();
+        let (cutouts, masks) = crate::scene::caster_cutouts(scene);
+        Self { bvh: Bvh::new(&triangles), cutouts, masks }
     }
 
     /// True when the segment `origin + t·dir`, `t ∈ (t_min, t_max)`, crosses
     /// a face where it is opaque.
     fn blocked(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> bool {
-        self.bvh.any_hit_where(origin, dir, t_min, t_max, |k, u, v| match &self.cutouts[k as usize] {
-            None => true,
-            Some((mask, uvs)) => mask.opaque(uvs[0] * (1.0 - u - v) + uvs[1] * u + uvs[2] * v),
-        })
+        if self.cutouts.is_empty() {
+            return self.bvh.any_hit(origin, dir, t_min, t_max);
+        }
+        let blocks =
+            |k: u32, u: f32, v: f32| crate::cutout::caster_blocks_at(&self.cutouts, &self.masks, k as usize, u, v);
+        self.bvh.any_hit_where(origin, dir, t_min, t_max, blocks)
     }
 }
 

@@ -60,6 +60,7 @@ use crate::{
     bvh::Bvh,
     cell_grid::{CellGrid, cell_range},
     coverage::index::MAX_ENTRIES,
+    cutout::caster_blocks_at,
     light::{Aperture, Projection},
     oracle::{FinExtractor, Receiver},
     peers::across,
@@ -252,17 +253,11 @@ impl PlateauModel {
         let t_min = eps / dir.length().max(eps);
         // Both shadows alpha-test masked casters (their holes let the light
         // through), as the cones and sheets come from their outlines.
-        let blocks = |k: usize, u: f32, v: f32| {
-            self.cutouts.get(k).copied().flatten().is_none_or(|c| c.blocks_at(&self.masks, u, v))
-        };
+        let blocks = |k: u32, u: f32, v: f32| caster_blocks_at(&self.cutouts, &self.masks, k as usize, u, v);
         if !on_plane {
-            return if self.hard.any_hit_where(o, dir, t_min, t_max, |k, u, v| blocks(k as usize, u, v)) {
-                0.0
-            } else {
-                1.0
-            };
+            return if self.hard.any_hit_where(o, dir, t_min, t_max, blocks) { 0.0 } else { 1.0 };
         }
-        if self.drop.any_hit_where(o, dir, t_min, t_max, |k, u, v| blocks(self.off_plane[k as usize] as usize, u, v)) {
+        if self.drop.any_hit_where(o, dir, t_min, t_max, |k, u, v| blocks(self.off_plane[k as usize], u, v)) {
             return 0.0;
         }
         self.texture.value(p)

@@ -23,7 +23,6 @@ use super::{
     convergence::view_receivers,
 };
 
-/// The light centre's hard shadow by the same ray the peers trace.
 /// The hard shadow from the light's centre: every caster solid, or (`masked`)
 /// alpha-masked casters cut out along the ray as the ground truth does.
 fn hard(ls: &LightSpaceScene, bvh: &Bvh, r: Receiver, masked: bool) -> f32 {
