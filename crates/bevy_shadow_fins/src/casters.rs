@@ -239,7 +239,7 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
         // other mesh as stored, converted once per asset.
         let posable = Some(&mut *self.posable).filter(|_| self.gpu_posing);
         let posed = posed_mesh(entity, mesh3d.id(), mesh, self.posed, self.cache, posable, self.poses);
-        let (entry, world, gpu_posed) = match posed {
+        let (entry, world, gpu_pose) = match posed {
             Some(p) => (&p.mesh, p.world, p.gpu.clone()),
             None => {
                 let entry = self.cache.entry(mesh3d.id()).or_insert_with(|| {
@@ -272,13 +272,9 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
                     .map(|c| object.transform.transform_point3(c))
                     .into_iter()
                     .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));
-                let (gpu_mesh, gpu_pose) = match gpu_posed {
-                    Some((posable, pose)) => (posable, Some(pose)),
-                    None => (geometry.clone(), None),
-                };
                 Slot::Object(Box::new(ObjectSlot {
                     object,
-                    gpu_mesh,
+                    gpu_mesh: geometry.clone(),
                     gpu_pose,
                     bounds: corners,
                     world_box,

@@ -1343,7 +1343,7 @@ fn light_frame(
                 up_to_date: scene.totals[1] == 0,
                 degraded: alloc.degradation,
                 map_resolution: alloc.resolution,
-                posed_on_gpu: scene.pose_sizes[0] as usize,
+                posed_on_gpu: scene.pose_sizes()[0] as usize,
                 ..default()
             };
             FinFrameData {
@@ -1726,13 +1726,12 @@ fn gpu_fin(f: &Fin, layer: u32) -> GpuFin {
 /// A posed caster as last posed: its pose's hash (with its mesh's), the
 /// posed mesh (whose packing is the posable one when the GPU poses it: its
 /// words are the mesh at rest), whether its positions are in world space
-/// (skinned), and — when the GPU can pose it — the mesh's posable packing
-/// and the pose.
+/// (skinned), and — when the GPU poses it — the pose.
 pub(crate) struct PosedCaster {
     key: u64,
     pub mesh: CachedMesh,
     pub world: bool,
-    pub gpu: Option<(Arc<GpuMeshGeometry>, Arc<GpuPose>)>,
+    pub gpu: Option<Arc<GpuPose>>,
 }
 
 /// `entity`'s mesh (asset `mesh_id`) posed (`pose.rs`), from `posed` while
@@ -1768,14 +1767,14 @@ pub(crate) fn posed_mesh<'a>(
         // The GPU poses it when the pose kept the topology at rest (then no
         // packing of the posed mesh is made: the posable one stands for it).
         let gpu = posed_now.as_ref().ok().zip(posable).and_then(|((_, topology), posable)| {
-            let Ok((_, rest, _)) = at_rest.entry(mesh_id).or_insert_with(|| core_mesh(mesh)) else { return None };
-            if rest.faces != topology.faces || rest.positions.len() != topology.positions.len() {
+            let Ok((_, rest, rest_packing)) = at_rest.entry(mesh_id).or_insert_with(|| core_mesh(mesh)) else {
                 return None;
-            }
-            let packing = posable
-                .entry(mesh_id)
-                .or_insert_with(|| GpuMeshGeometry::pack_posable(rest, &crate::pose::pose_source(mesh)).map(Arc::new));
-            Some((packing.clone()?, Arc::new(GpuPose::new(&pose.pose))))
+            };
+            let posable = posable.entry(mesh_id).or_insert_with(|| {
+                GpuMeshGeometry::pack_posable(rest_packing, rest, &crate::pose::pose_source(mesh)).map(Arc::new)
+            });
+            let same_topology = rest.faces == topology.faces && rest.positions.len() == topology.positions.len();
+            Some((posable.clone()?, Arc::new(GpuPose::new(&pose.pose)))).filter(|_| same_topology)
         });
         let cached = posed_now.map(|(core, topology)| {
             let geometry = match &gpu {
@@ -1784,6 +1783,7 @@ pub(crate) fn posed_mesh<'a>(
             };
             (core, topology, geometry)
         });
+        let gpu = gpu.map(|(_, pose)| pose);
         posed.insert(entity, PosedCaster { key, mesh: cached, world: pose.world, gpu });
     }
     posed.get(&entity)

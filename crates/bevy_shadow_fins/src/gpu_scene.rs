@@ -65,6 +65,10 @@ pub(crate) struct GpuMeshGeometry {
 /// The next [`GpuMeshGeometry::packing`].
 static NEXT_PACKING: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
+fn next_packing() -> u64 {
+    NEXT_PACKING.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+}
+
 impl GpuMeshGeometry {
     pub fn pack(t: &Topology) -> Self {
         let (v, f) = (t.positions.len(), t.faces.len());
@@ -135,8 +139,8 @@ impl GpuMeshGeometry {
             csr_at as u32,
             non_manifold_at as u32,
         ]);
-        let packing = NEXT_PACKING.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        Self { words: w, vertices: v as u32, faces: f as u32, edges: e as u32, closed: t.is_closed_manifold(), packing }
+        let (vertices, faces, edges) = (v as u32, f as u32, e as u32);
+        Self { words: w, vertices, faces, edges, closed: t.is_closed_manifold(), packing: next_packing() }
     }
 }
 
@@ -152,20 +156,21 @@ pub(crate) struct PoseSource {
 }
 
 impl GpuMeshGeometry {
-    /// `t` (the topology of the mesh at its bind positions `source.positions`)
-    /// packed with a pose section, for `pose.wgsl` to pose each instance's
-    /// copy on the GPU. Each welded vertex is posed as its first input vertex
-    /// (the one welding kept). `None` when `t` is not that mesh's topology.
-    pub fn pack_posable(t: &Topology, source: &PoseSource) -> Option<Self> {
+    /// `rest` (the packing of `t`, the topology of the mesh at its bind
+    /// positions `source.positions`) with a pose section, for `pose.wgsl` to
+    /// pose each instance's copy on the GPU. Each welded vertex is posed as
+    /// its first input vertex (the one welding kept). `None` when `t` is not
+    /// that mesh's topology.
+    pub fn pack_posable(rest: &Self, t: &Topology, source: &PoseSource) -> Option<Self> {
         let (welded, remap) = shadow_fins::mesh::weld_positions(&source.positions);
-        if welded.len() != t.positions.len() || welded != t.positions {
+        if welded != t.positions {
             return None;
         }
         let mut first = vec![u32::MAX; welded.len()];
         for (input, &w) in remap.iter().enumerate().rev() {
             first[w as usize] = input as u32;
         }
-        let mut g = Self::pack(t);
+        let mut g = Self { words: rest.words.clone(), packing: next_packing(), ..*rest };
         let pose_at = g.words.len();
         let bits = |x: f32| x.to_bits();
         let skinned = source.joints.len() == source.positions.len() && source.weights.len() == source.positions.len();
@@ -241,7 +246,8 @@ impl GpuPose {
             })
             .collect();
         let mut hasher = std::collections::hash_map::DefaultHasher::new();
-        joints.iter().flatten().chain(&pose.morph_weights).for_each(|x| x.to_bits().hash(&mut hasher));
+        crate::extract::hash_floats(&mut hasher, joints.as_flattened());
+        crate::extract::hash_floats(&mut hasher, &pose.morph_weights);
         pose.joints.is_some().hash(&mut hasher);
         Self {
             joints,
@@ -354,10 +360,8 @@ pub(crate) struct GpuScene {
     pub geometry_key: u64,
     pub instances: Vec<GpuInstance>,
     /// What poses the posed instances' copies (`pose.wgsl`): empty when no
-    /// instance is posed on the GPU.
-    pub poses: Vec<u32>,
-    /// (jobs, most vertices, faces, edges of one job): the posing passes' sizes.
-    pub pose_sizes: [u32; 4],
+    /// instance is posed on the GPU; a new `Arc` only when it changed.
+    pub poses: Arc<Vec<u32>>,
     /// (instance vertices, caster faces, caster edges)
     pub totals: [u32; 3],
     pub capacity: GpuCapacity,
@@ -390,6 +394,8 @@ pub(crate) struct GpuSceneBuilder {
     /// The records of the last build, one per object.
     instances: Vec<GpuInstance>,
     totals: [u32; 3],
+    /// The pose buffer of the last build.
+    poses: Arc<Vec<u32>>,
 }
 
 impl GpuSceneBuilder {
@@ -424,11 +430,16 @@ impl GpuSceneBuilder {
                     None => self.offsets.contains_key(&meshes[i].packing) && !self.posed_copies.contains_key(&i),
                 })
         };
-        match dirty.filter(in_place) {
+        let in_place = dirty.filter(in_place);
+        match in_place {
             Some(dirty) => self.update_records(objects, meshes, poses, frame, dirty),
             None => self.build_records(objects, meshes, poses, frame),
         }
-        let (pose_words, pose_sizes) = self.pose_buffer(meshes, poses);
+        // The pose buffer anew only when a posed object's record or any
+        // offset may have changed: a rigid caster moving keeps it.
+        if in_place.is_none_or(|dirty| dirty.iter().any(|&i| poses[i].is_some())) {
+            self.poses = Arc::new(self.pose_buffer(meshes, poses));
+        }
         let (lo, hi) = extent_box;
         let extent = if lo.x <= hi.x { (hi - lo).length().max(1e-30) } else { 1.0 };
         let [_, faces, edges] = self.totals;
@@ -439,8 +450,7 @@ impl GpuSceneBuilder {
             geometry: self.geometry.clone(),
             geometry_key: self.geometry_key,
             instances: self.instances.clone(),
-            poses: pose_words,
-            pose_sizes,
+            poses: self.poses.clone(),
             totals: self.totals,
             capacity,
             max_capacity,
@@ -544,11 +554,11 @@ impl GpuSceneBuilder {
     /// offset here, its joints, its morph weights, 1 when skinned, the
     /// offset of its mesh's shared packing, whose pose section it is posed
     /// from), then each job's joint columns and morph weights.
-    fn pose_buffer(&self, meshes: &[Arc<GpuMeshGeometry>], poses: &[Option<Arc<GpuPose>>]) -> (Vec<u32>, [u32; 4]) {
+    fn pose_buffer(&self, meshes: &[Arc<GpuMeshGeometry>], poses: &[Option<Arc<GpuPose>>]) -> Vec<u32> {
         let jobs: Vec<(usize, &GpuPose)> =
             poses.iter().enumerate().filter_map(|(i, p)| Some((i, &**p.as_ref()?))).collect();
         if jobs.is_empty() {
-            return (Vec::new(), [0; 4]);
+            return Vec::new();
         }
         let mut sizes = [jobs.len() as u32, 0, 0, 0];
         let mut words = vec![0u32; POSES_HEADER_WORDS + POSE_JOB_WORDS * jobs.len()];
@@ -572,7 +582,7 @@ impl GpuSceneBuilder {
             ]);
         }
         words[..4].copy_from_slice(&sizes);
-        (words, sizes)
+        words
     }
 
     /// Object `i`'s record, its first ids left at 0 (`number_records`).
@@ -618,6 +628,12 @@ impl GpuSceneBuilder {
 }
 
 impl GpuScene {
+    /// (jobs, most vertices, faces, edges of one): the posing passes' sizes,
+    /// the pose buffer's first words.
+    pub fn pose_sizes(&self) -> [u32; 4] {
+        self.poses.get(..4).map_or([0; 4], |w| [w[0], w[1], w[2], w[3]])
+    }
+
     /// Bytes of the extraction's buffers that the scene sizes by itself.
     pub fn input_bytes(&self) -> [(&'static str, u64); 5] {
         let [vertices, faces, edges] = self.totals.map(|x| x as u64);
@@ -701,7 +717,8 @@ mod tests {
             morph_targets: vec![vec![Vec3::X; n], vec![Vec3::splat(f32::NAN); n], vec![Vec3::Y; 3]],
         };
         source.weights[0][2] = f32::NAN;
-        let g = GpuMeshGeometry::pack_posable(&topology, &source).expect("its own topology");
+        let g = GpuMeshGeometry::pack_posable(&GpuMeshGeometry::pack(&topology), &topology, &source)
+            .expect("its own topology");
         assert!(g.posable() && !GpuMeshGeometry::pack(&topology).posable());
         let at = g.words[G_POSE_AT] as usize;
         // Two whole targets (the third is short and left out).
@@ -722,7 +739,7 @@ mod tests {
         assert!(g.words[deltas + 24..deltas + 48].iter().all(|w| *w == 0));
         // Another mesh's topology is not this one's.
         let other = Topology::build(&shapes::cuboid(Vec3::splat(2.0)));
-        assert!(GpuMeshGeometry::pack_posable(&other, &source).is_none());
+        assert!(GpuMeshGeometry::pack_posable(&GpuMeshGeometry::pack(&other), &other, &source).is_none());
     }
 
     /// A split cuboid (24 input vertices welded to 8), packed to be posed,
@@ -738,7 +755,7 @@ mod tests {
             positions: split,
             morph_targets: vec![],
         };
-        GpuMeshGeometry::pack_posable(&topology, &source).unwrap()
+        GpuMeshGeometry::pack_posable(&GpuMeshGeometry::pack(&topology), &topology, &source).unwrap()
     }
 
     fn pose_at(x: f32) -> Arc<GpuPose> {
@@ -774,7 +791,7 @@ mod tests {
             assert_eq!(first.geometry[copy..copy + part.len()], *part, "a posed instance's own copy");
         }
         // The pose buffer: two jobs, each naming its copy, its joints and the shared packing.
-        assert_eq!(first.pose_sizes, [2, 8, 12, 18]);
+        assert_eq!(first.pose_sizes(), [2, 8, 12, 18]);
         let shared = rest.words.len() as u32;
         for (k, copy) in [b, c].into_iter().enumerate() {
             let job = &first.poses[POSES_HEADER_WORDS + POSE_JOB_WORDS * k..][..6];

@@ -131,11 +131,7 @@ impl Poses<'_, '_> {
     /// unloaded skin, a mesh without joint attributes — then Bevy draws it
     /// unposed too, or not at all).
     pub(crate) fn pose(&self, entity: Entity, mesh: &Mesh) -> Option<Posed> {
-        let Ok(Some(VertexAttributeValues::Float32x3(base))) = mesh.try_attribute_option(Mesh::ATTRIBUTE_POSITION)
-        else {
-            return None;
-        };
-        let mut positions: Vec<Vec3> = base.iter().map(|p| Vec3::from_array(*p)).collect();
+        let mut positions = bind_positions(mesh)?;
         // Morph targets (`Mesh::morph_targets`, target-major) at their weights.
         let morph = self.morph_weights(entity).zip(mesh.try_morph_targets().ok());
         let mut pose = Pose::default();
@@ -143,24 +139,20 @@ impl Poses<'_, '_> {
             let n = positions.len();
             // The weights of the targets the mesh has; a weight the GPU would
             // read as a NaN is no displacement.
-            let applied = weights.len().min(targets.len().checked_div(n).unwrap_or(0));
-            pose.morph_weights = weights[..applied].iter().map(|w| if w.is_finite() { *w } else { 0.0 }).collect();
-            for (t, w) in pose.morph_weights.iter().enumerate().filter(|(_, w)| **w != 0.0) {
-                let Some(target) = targets.get(t * n..(t + 1) * n) else { break };
+            let count = targets.len().checked_div(n).unwrap_or(0);
+            pose.morph_weights = weights.iter().take(count).map(|w| if w.is_finite() { *w } else { 0.0 }).collect();
+            for (target, w) in targets.chunks_exact(n.max(1)).zip(&pose.morph_weights).filter(|(_, w)| **w != 0.0) {
                 for (p, d) in positions.iter_mut().zip(target) {
                     *p += d.position * *w;
                 }
             }
         }
-        let morphed =
-            Some(Posed { positions: positions.clone(), world: false, pose: pose.clone() }).filter(|_| morph.is_some());
-        let Ok((_, skin)) = self.skins.get(entity) else { return morphed };
-        let Some(matrices) = self.joint_matrices(skin) else { return morphed };
-        let (Ok(Some(VertexAttributeValues::Uint16x4(joints))), Ok(Some(VertexAttributeValues::Float32x4(weights)))) = (
-            mesh.try_attribute_option(Mesh::ATTRIBUTE_JOINT_INDEX),
-            mesh.try_attribute_option(Mesh::ATTRIBUTE_JOINT_WEIGHT),
-        ) else {
-            return morphed;
+        // Skinned when the skin, its matrices and the mesh's joint attributes
+        // are all there; else morphed only (in the entity's space), or unposed.
+        let skin =
+            self.skins.get(entity).ok().and_then(|(_, skin)| self.joint_matrices(skin)).zip(skin_attributes(mesh));
+        let Some((matrices, (joints, weights))) = skin else {
+            return morph.is_some().then_some(Posed { positions, world: false, pose });
         };
         for ((p, j), w) in positions.iter_mut().zip(joints).zip(weights) {
             *p = skinned(*p, j, w, &matrices);
@@ -182,20 +174,33 @@ impl Poses<'_, '_> {
     }
 }
 
+/// `mesh`'s positions as stored: its bind pose.
+fn bind_positions(mesh: &Mesh) -> Option<Vec<Vec3>> {
+    match mesh.try_attribute_option(Mesh::ATTRIBUTE_POSITION) {
+        Ok(Some(VertexAttributeValues::Float32x3(p))) => Some(p.iter().map(|p| Vec3::from_array(*p)).collect()),
+        _ => None,
+    }
+}
+
+/// `mesh`'s joint indices and weights, when it has both in Bevy's formats.
+fn skin_attributes(mesh: &Mesh) -> Option<(&[[u16; 4]], &[[f32; 4]])> {
+    match (
+        mesh.try_attribute_option(Mesh::ATTRIBUTE_JOINT_INDEX),
+        mesh.try_attribute_option(Mesh::ATTRIBUTE_JOINT_WEIGHT),
+    ) {
+        (Ok(Some(VertexAttributeValues::Uint16x4(j))), Ok(Some(VertexAttributeValues::Float32x4(w)))) => Some((j, w)),
+        _ => None,
+    }
+}
+
 /// What poses `mesh` on the GPU (`gpu_scene::PoseSource`): its bind
 /// positions, its joints and weights (none when either attribute is missing
 /// or of another format: then it is not skinned, as [`Poses::pose`] finds),
 /// its morph targets' position displacements, target-major.
 pub(crate) fn pose_source(mesh: &Mesh) -> crate::gpu_scene::PoseSource {
-    let mut source = crate::gpu_scene::PoseSource::default();
-    if let Ok(Some(VertexAttributeValues::Float32x3(p))) = mesh.try_attribute_option(Mesh::ATTRIBUTE_POSITION) {
-        source.positions = p.iter().map(|p| Vec3::from_array(*p)).collect();
-    }
-    if let (Ok(Some(VertexAttributeValues::Uint16x4(j))), Ok(Some(VertexAttributeValues::Float32x4(w)))) = (
-        mesh.try_attribute_option(Mesh::ATTRIBUTE_JOINT_INDEX),
-        mesh.try_attribute_option(Mesh::ATTRIBUTE_JOINT_WEIGHT),
-    ) {
-        (source.joints, source.weights) = (j.clone(), w.clone());
+    let mut source = crate::gpu_scene::PoseSource { positions: bind_positions(mesh).unwrap_or_default(), ..default() };
+    if let Some((j, w)) = skin_attributes(mesh) {
+        (source.joints, source.weights) = (j.to_vec(), w.to_vec());
     }
     let n = source.positions.len();
     if let Ok(targets) = mesh.try_morph_targets()

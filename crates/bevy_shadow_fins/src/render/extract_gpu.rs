@@ -2,7 +2,7 @@
 //! and compute passes of `extract.wgsl`, run before the penumbra-map passes
 //! whenever the fin frame changed, and the read-back of their counts.
 
-use std::borrow::Cow;
+use std::sync::Arc;
 
 use bevy::{
     asset::{embedded_asset, load_embedded_asset},
@@ -271,16 +271,9 @@ impl ExtractPipelines {
             ),
         );
         let queue = |shader: &Handle<Shader>, layout: &BindGroupLayoutDescriptor, entries: &[&'static str]| {
-            entries
-                .iter()
+            (entries.iter())
                 .map(|entry| {
-                    pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
-                        label: Some(format!("fin_extract_{entry}").into()),
-                        layout: vec![layout.clone()],
-                        shader: shader.clone(),
-                        entry_point: Some(Cow::from(*entry)),
-                        ..default()
-                    })
+                    super::queue_compute(pipeline_cache, format!("fin_extract_{entry}"), layout, shader, entry)
                 })
                 .collect()
         };
@@ -289,14 +282,11 @@ impl ExtractPipelines {
             queue(&load_embedded_asset!(asset_server, "shaders/pose.wgsl"), &pose_layout, &POSE_ENTRY_POINTS);
         Self { layout, ids, pose_layout, pose_ids }
     }
+}
 
-    fn ready<'a>(&self, cache: &'a PipelineCache) -> Option<Vec<&'a ComputePipeline>> {
-        self.ids.iter().map(|&id| cache.get_compute_pipeline(id)).collect()
-    }
-
-    fn pose_ready<'a>(&self, cache: &'a PipelineCache) -> Option<Vec<&'a ComputePipeline>> {
-        self.pose_ids.iter().map(|&id| cache.get_compute_pipeline(id)).collect()
-    }
+/// Every pipeline of `ids`, once all are compiled.
+fn all_ready<'a>(ids: &[CachedComputePipelineId], cache: &'a PipelineCache) -> Option<Vec<&'a ComputePipeline>> {
+    ids.iter().map(|&id| cache.get_compute_pipeline(id)).collect()
 }
 
 /// GPU copies of the extraction's inputs and its work buffers.
@@ -315,11 +305,16 @@ pub(super) struct ExtractBuffers {
     positions: Option<Buffer>,
     silhouettes: Option<Buffer>,
     bind_group: Option<BindGroup>,
-    /// What poses the posed instances' geometry copies (`pose.wgsl`), and
-    /// the posing passes' sizes (jobs; most vertices, faces, edges of one).
+    /// What poses the posed instances' geometry copies (`pose.wgsl`), as
+    /// uploaded, and the posing passes' sizes (jobs; most vertices, faces,
+    /// edges of one).
     poses: Option<Buffer>,
+    uploaded_poses: Option<Arc<Vec<u32>>>,
     pose_bind_group: Option<BindGroup>,
     pose_sizes: [u32; 4],
+    /// The posing passes must run before the next extraction (new poses,
+    /// or the geometry went up at rest).
+    pose_pending: bool,
     /// (instance vertices, caster faces, caster edges, sub-layers)
     sizes: [u32; 4],
     /// Instances whose records changed this frame: how many (`FULL` when
@@ -470,13 +465,16 @@ pub(super) fn prepare(
         queue.write_buffer(buffers.geometry.as_ref().unwrap(), 0, geometry_bytes);
         buffers.geometry_key = scene.geometry_key;
     }
-    // The poses go up whole (a few joints each); the posing passes pose every
-    // posed copy again before each extraction (also after the geometry went
-    // up at rest). A new pose changed its instance's record, so the maps are
-    // redrawn under that instance only.
-    buffers.pose_sizes = scene.pose_sizes;
-    buffers.pose_bind_group = None;
-    if scene.pose_sizes[0] > 0 {
+    // The poses go up (whole: a few joints each) when they changed or the
+    // geometry went up at rest; then, and only then, the posing passes pose
+    // every posed copy again before the extraction (`record`). A new pose
+    // changed its instance's record, so the maps are redrawn under it only.
+    buffers.pose_sizes = scene.pose_sizes();
+    let jobs = buffers.pose_sizes[0];
+    let new_poses = !buffers.uploaded_poses.as_ref().is_some_and(|p| Arc::ptr_eq(p, &scene.poses));
+    if jobs == 0 {
+        (buffers.pose_bind_group, buffers.pose_pending) = (None, false);
+    } else if new_poses || !same_geometry || buffers.pose_bind_group.is_none() {
         let pose_bytes: &[u8] = bytemuck::cast_slice(scene.poses.as_slice());
         ensure(&mut buffers.poses, device, "fin_extract_poses", pose_bytes.len() as u64, storage, cap);
         queue.write_buffer(buffers.poses.as_ref().unwrap(), 0, pose_bytes);
@@ -488,7 +486,9 @@ pub(super) fn prepare(
                 buffers.geometry.as_ref().unwrap().as_entire_binding(),
             )),
         ));
+        buffers.pose_pending = true;
     }
+    buffers.uploaded_poses = Some(scene.poses.clone());
     let instances = scene.instances.len() as u64;
     let history = C_HISTOGRAM + s.sub_layers as u64;
     let dirty_list = history + H_FOOTPRINTS + 4 * instances;
@@ -568,7 +568,7 @@ pub(super) fn record(
     encoder: &mut CommandEncoder,
 ) -> bool {
     let (Some(ready), Some(bind_group), Some(control)) =
-        (pipelines.ready(pipeline_cache), buffers.bind_group.as_ref(), buffers.control.as_ref())
+        (all_ready(&pipelines.ids, pipeline_cache), buffers.bind_group.as_ref(), buffers.control.as_ref())
     else {
         return false;
     };
@@ -602,20 +602,17 @@ pub(super) fn record(
         encoder.copy_buffer_to_buffer(control, from * 4, args, from * 4, (to - from) * 4);
     };
     let entry = |name: &str| ready[ENTRY_POINTS.iter().position(|e| *e == name).expect("an entry point")];
-    if let Some(pose_bind_group) = &buffers.pose_bind_group {
-        let Some(pose) = pipelines.pose_ready(pipeline_cache) else { return false };
+    if let Some(pose_bind_group) = buffers.pose_bind_group.as_ref().filter(|_| buffers.pose_pending) {
+        let Some(pose) = all_ready(&pipelines.pose_ids, pipeline_cache) else { return false };
         let [jobs, vertices, faces, edges] = buffers.pose_sizes;
         let mut pass =
             encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("fin_posing"), timestamp_writes: None });
         pass.set_bind_group(0, pose_bind_group, &[]);
+        // Jobs along y, past 65 535 along z too (`pose.wgsl`'s `job_of`).
+        let (y, z) = super::workgroups(jobs);
         for (pipeline, n) in pose.into_iter().zip([vertices, faces, vertices, edges]) {
-            // Jobs along y, past 65 535 along z too (`pose.wgsl`'s `job_of`).
             pass.set_pipeline(pipeline);
-            pass.dispatch_workgroups(
-                n.div_ceil(WORKGROUP).clamp(1, MAX_POSE_GROUPS),
-                jobs.min(65535),
-                jobs.div_ceil(65535),
-            );
+            pass.dispatch_workgroups(n.div_ceil(WORKGROUP).clamp(1, MAX_POSE_GROUPS), y, z);
         }
     }
     begin(encoder, &mut |pass| {
@@ -651,6 +648,7 @@ pub(super) fn record(
         copy_stats(control, stats, offset, encoder);
     }
     buffers.recorded = true;
+    buffers.pose_pending = false;
     true
 }
 

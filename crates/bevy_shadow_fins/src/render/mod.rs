@@ -190,7 +190,7 @@ struct FinPipelines {
 /// Queues a compute pipeline of one bind group (every pass of the plugin).
 pub(super) fn queue_compute(
     pipeline_cache: &PipelineCache,
-    label: &'static str,
+    label: impl Into<Cow<'static, str>>,
     layout: &BindGroupLayoutDescriptor,
     shader: &Handle<Shader>,
     entry: &'static str,
