@@ -138,7 +138,6 @@ const C_REDRAWN: u32 = 14u; // texels (all layers) this update cleared and redre
 const C_UNBOUNDED: u32 = 15u; // 1: a primitive with bounds not finite (it may reach any texel)
 const C_HEADER: u32 = 16u;
 const C_PARAMS: u32 = 16u; // 36 words: the maps' `FinParams`
-const PARAMS_WORDS: u32 = 36u;
 const C_ARGS_CLEAR: u32 = 56u;
 const C_ARGS_CASTERS: u32 = 59u;
 const C_ARGS_FINS: u32 = 62u;

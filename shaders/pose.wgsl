@@ -51,7 +51,6 @@ const NO_FACE: u32 = 0xffffffffu;
 const EDGE_CREASE: u32 = 4u;
 const EDGE_NON_MANIFOLD: u32 = 8u;
 const FACE_MASK: u32 = 0x7fffffffu;
-const NO_JOINT: u32 = 0xffffu;
 
 const WORKGROUP: u32 = 64u;
 
@@ -157,10 +156,10 @@ fn pose_vertices(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation
     let pose_at = geometry[source + G_POSE_AT];
     let targets = min(geometry[source + G_MORPH_TARGETS], job_word(job, J_MORPHS));
     let weights_at = job_word(job, J_DATA) + job_word(job, J_JOINTS) * 16u;
+    let deltas = pose_at + n * POSE_VERTEX_WORDS;
     for (var v = wg.x * WORKGROUP + lane; v < n; v += groups.x * WORKGROUP) {
         let at = pose_at + v * POSE_VERTEX_WORDS;
         var p = s3(job, at);
-        let deltas = pose_at + n * POSE_VERTEX_WORDS;
         for (var t = 0u; t < targets; t++) {
             let w = pf(weights_at + t);
             if (w != 0.0) {

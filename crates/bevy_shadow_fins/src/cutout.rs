@@ -267,7 +267,8 @@ impl CasterMaterials<'_, '_> {
                 waiting_for = Some(texture.id());
                 return None;
             };
-            let default_sampler = self.default_sampler.as_deref().cloned().unwrap_or_default();
+            let fallback = FinDefaultImageSampler::default();
+            let default_sampler = self.default_sampler.as_deref().unwrap_or(&fallback);
             match mask_of_image(image, base_alpha, cutoff, &default_sampler.0) {
                 // Every texel passes: solid, and no cut-out to pay for.
                 Ok(mask) if mask.is_solid() => None,

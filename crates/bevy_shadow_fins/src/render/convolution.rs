@@ -9,7 +9,7 @@ use bevy::{
     asset::{embedded_asset, load_embedded_asset},
     core_pipeline::{
         prepass::ViewPrepassTextures,
-        schedule::{Core3d, Core3dSystems, camera_driver},
+        schedule::{Core3d, Core3dSystems},
     },
     prelude::*,
     render::{
@@ -62,7 +62,7 @@ pub(super) fn finish(app: &mut App) {
                 prepare_view_bind_groups.in_set(RenderSystems::PrepareBindGroups),
             ),
         )
-        .add_systems(RenderGraph, render_basis.after(super::render_maps).before(camera_driver))
+        .add_systems(RenderGraph, render_basis.after(super::render_maps).in_set(super::FinLightPasses))
         .add_systems(Core3d, convolution_visibility.after(Core3dSystems::Prepass).before(Core3dSystems::MainPass));
 }
 

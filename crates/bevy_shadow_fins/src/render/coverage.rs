@@ -8,7 +8,7 @@ use bevy::{
     asset::{embedded_asset, load_embedded_asset},
     core_pipeline::{
         prepass::ViewPrepassTextures,
-        schedule::{Core3d, Core3dSystems, camera_driver},
+        schedule::{Core3d, Core3dSystems},
     },
     prelude::*,
     render::{
@@ -54,7 +54,7 @@ pub(super) fn finish(app: &mut App) {
                 prepare_view_bind_groups.in_set(RenderSystems::PrepareBindGroups),
             ),
         )
-        .add_systems(RenderGraph, render_lists.before(camera_driver))
+        .add_systems(RenderGraph, render_lists.in_set(super::FinLightPasses))
         .add_systems(Core3d, coverage_visibility.after(Core3dSystems::Prepass).before(Core3dSystems::MainPass));
 }
 

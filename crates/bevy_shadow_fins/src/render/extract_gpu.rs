@@ -31,7 +31,7 @@ use shadow_fins::light::Aperture;
 /// `control` buffer layout (u32 words), as in `extract.wgsl`.
 pub(super) const C_PARAMS: u64 = 16;
 /// The maps' `FinParams`, bytes.
-const PARAMS_BYTES: u64 = 36 * 4;
+const PARAMS_BYTES: u64 = size_of::<super::FinParams>() as u64;
 pub(super) const C_ARGS_CLEAR: u64 = 56;
 pub(super) const C_ARGS_CASTERS: u64 = 59;
 pub(super) const C_ARGS_FINS: u64 = 62;
@@ -53,7 +53,7 @@ const H_FOOTPRINTS: u64 = 76;
 const FULL: u32 = u32::MAX;
 /// The most moved instances a partial redraw takes; past it the maps are
 /// redrawn whole (many moved: their footprints would cover much of the maps).
-pub(crate) const MAX_REDRAWN_INSTANCES: usize = 256;
+const MAX_REDRAWN_INSTANCES: usize = 256;
 /// Words 0..16 of `control` go back to the main world: counts, generation, layers.
 const STATS_WORDS: u64 = 16;
 const FACE_WORDS: u64 = crate::gpu_scene::FACE_STATE_WORDS;
@@ -436,8 +436,8 @@ pub(super) fn prepare(
     let old_instances = buffers.instances.as_ref().map(|b| b.id());
     ensure(&mut buffers.instances, device, "fin_extract_instances", instance_bytes.len() as u64, storage, cap);
     // One caster of many moved: only its record goes up.
-    let kept = old_instances == buffers.instances.as_ref().map(|b| b.id())
-        && buffers.uploaded_instances.len() == instance_bytes.len();
+    // (A count that changed changes the parameters too: no partial redraw.)
+    let kept = old_instances == buffers.instances.as_ref().map(|b| b.id());
     let old = if kept { buffers.uploaded_instances.as_slice() } else { &[] };
     let runs = changed_runs(old, instance_bytes, size_of::<GpuInstance>());
     for run in &runs {

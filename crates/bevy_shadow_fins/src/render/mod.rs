@@ -117,7 +117,8 @@ pub(crate) fn finish(app: &mut App) {
             ),
         )
         // In `Render`, after `Begin`: the diagnostics recorder clears the spans recorded before it.
-        .add_systems(RenderGraph, render_maps.in_set(RenderGraphSystems::Render).before(camera_driver))
+        .configure_sets(RenderGraph, FinLightPasses.in_set(RenderGraphSystems::Render).before(camera_driver))
+        .add_systems(RenderGraph, render_maps.in_set(FinLightPasses))
         .add_systems(Core3d, fin_visibility.after(Core3dSystems::Prepass).before(Core3dSystems::MainPass));
     coverage::finish(app);
     convolution::finish(app);
@@ -186,6 +187,12 @@ struct FinPipelines {
     visibility: CachedComputePipelineId,
     extract: extract_gpu::ExtractPipelines,
 }
+
+/// The per-light passes of the root render graph (maps, coverage lists,
+/// convolution basis): before the cameras' schedules, which read what they
+/// write, and after the diagnostics recorder begins its frame.
+#[derive(SystemSet, Debug, Clone, PartialEq, Eq, Hash)]
+struct FinLightPasses;
 
 /// Queues a compute pipeline of one bind group (every pass of the plugin).
 pub(super) fn queue_compute(
