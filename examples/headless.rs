@@ -11,7 +11,7 @@
 //! scene is one) and a light bright enough for Bevy's default exposure.
 
 use shadow_fins::scenes::SceneId;
-use shadow_fins_app::harness::{Setup, render, save_srgb8};
+use shadow_fins_app::harness::{Setup, render};
 
 fn main() {
     if let Err(e) = run() {
@@ -55,21 +55,12 @@ fn run() -> Result<(), String> {
     setup.hdr = true;
     setup.tonemapping = bevy::core_pipeline::tonemapping::Tonemapping::TonyMcMapface;
     let shot = render(&setup, 8)?;
-    let gray: Vec<[u8; 4]> = shot
-        .visibility
-        .iter()
-        .map(|v| {
-            let g = (v.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8;
-            [g, g, g, 255]
-        })
-        .collect();
     let visibility_out = match out.strip_suffix(".png") {
         Some(stem) => format!("{stem}_visibility.png"),
         None => format!("{out}_visibility.png"),
     };
-    for (pixels, path) in [(&shot.color, &out), (&gray, &visibility_out)] {
-        save_srgb8(width, height, pixels, path)?;
-    }
+    shot.save_color(&out)?;
+    shot.save_visibility(&visibility_out)?;
     println!("wrote {visibility_out}");
     let s = shot.stats;
     println!(

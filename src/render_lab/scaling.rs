@@ -206,14 +206,14 @@ fn time(session: &mut Session, frames: u32, motion: Motion) -> Medians {
     let median = |v: &[f64]| Spread::of(v).median;
     let mut medians =
         Medians { main: median(&main), render: median(&render), frame: median(&frame), ..Default::default() };
-    if let Motion::Cube(_) | Motion::Joint(_) = motion {
+    if !matches!(motion, Motion::Still) {
         // A frame's counts come back a frame or two late, and only count for
         // the frame still current: a few still frames, then the last move's.
         for _ in 0..4 {
             split_frame(&mut session.app);
         }
         let stats = session.app.world().resource::<FinShadowStats>().0;
-        let whole = stats.layers as f64 * (stats.map_resolution as f64).powi(2);
+        let whole = stats.map_texels() as f64;
         medians.partial = stats.partial_redraw;
         medians.posed_on_gpu = stats.posed_on_gpu;
         medians.redrawn = if whole > 0.0 { stats.redrawn_texels as f64 / whole } else { 0.0 };
@@ -236,22 +236,22 @@ pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
         };
         session.settle(6)?;
         let scans = |s: &Session| s.app.world().resource::<FinCasterScans>().0;
+        let updates = |s: &Session| *s.app.world().resource::<FinCasterUpdates>();
         let before = scans(&session);
         let still = time(&mut session, run.frames, Motion::Still);
         let static_scans = scans(&session) - before;
-        let (scans_before, records_before) =
-            (scans(&session), session.app.world().resource::<FinCasterUpdates>().records);
+        let (scans_before, records_before) = (scans(&session), updates(&session).records);
         let moving = time(&mut session, run.frames, Motion::Cube(mover));
         let moving_scans = scans(&session) - scans_before;
-        let moving_records = session.app.world().resource::<FinCasterUpdates>().records - records_before;
+        let moving_records = updates(&session).records - records_before;
         session.app.insert_resource(FinPartialRedraw(false));
         let whole = time(&mut session, run.frames, Motion::Cube(mover));
         session.app.insert_resource(FinPartialRedraw(true));
         let bend = spawn_skinned_bar(session.app.world_mut(), Vec3::new(1.2, 0.9, 1.2));
         session.settle(6)?;
-        let in_place_before = session.app.world().resource::<FinCasterUpdates>().frames;
+        let in_place_before = updates(&session).frames;
         let posed = time(&mut session, run.frames, Motion::Joint(bend));
-        let posed_in_place = session.app.world().resource::<FinCasterUpdates>().frames - in_place_before;
+        let posed_in_place = updates(&session).frames - in_place_before;
         session.app.insert_resource(FinGpuPosing(false));
         session.settle(6)?;
         let posed_on_cpu = time(&mut session, run.frames, Motion::Joint(bend));

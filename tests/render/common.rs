@@ -83,6 +83,16 @@ pub fn compare(visibility: &[f32], oracle: &[f32]) -> (f32, f32) {
     (mad, far)
 }
 
+/// The largest per-pixel difference of two visibility buffers.
+pub fn max_difference(visibility: &[f32], other: &[f32]) -> f32 {
+    visibility.iter().zip(other).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max)
+}
+
+/// The first fin-shadowed light's stats ([`bevy_shadow_fins::FinShadowStats`]) now.
+pub fn fin_stats(session: &shadow_fins_app::harness::Session) -> bevy_shadow_fins::FinFrameStats {
+    session.app.world().resource::<bevy_shadow_fins::FinShadowStats>().0
+}
+
 /// Mean and 99th percentile of per-pixel errors (at least one).
 pub fn mean_and_p99(mut errors: Vec<f32>) -> (f32, f32) {
     assert!(!errors.is_empty(), "no pixel to compare");

@@ -18,7 +18,7 @@ use bevy_shadow_fins::FinSnapshotApproximation;
 use shadow_fins::{light::Light, oracle::Method};
 use shadow_fins_app::harness::{Session, Setup, Shot};
 
-use super::common::{HEIGHT, WIDTH, assert_not_trivial, asset, compare, oracle, per_pixel, save, settings};
+use super::common::{HEIGHT, WIDTH, assert_not_trivial, asset, compare, fin_stats, oracle, per_pixel, save, settings};
 
 /// `name` loaded by Bevy, seen from above the side its shadows fall to, under a
 /// low fin-shadowed sun (long shadows of a thin arm), twice the usual size.
@@ -76,7 +76,7 @@ fn settled_pose(session: &mut Session, setup: &Setup, name: &str, label: &str) -
     matches_its_oracle(session, setup, &shot, label);
     // The GPU extraction posed it itself (`pose.wgsl`), from the joints'
     // matrices and the morph weights.
-    let stats = session.app.world().resource::<bevy_shadow_fins::FinShadowStats>().0;
+    let stats = fin_stats(session);
     println!("{label}: {stats:?}");
     assert_eq!(stats.posed_on_gpu, 1, "{label}: not posed on the GPU: {stats:?}");
     shot

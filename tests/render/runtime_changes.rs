@@ -324,14 +324,13 @@ fn one_cube_of_many_moving_redraws_only_its_part_of_the_maps_and_shadows_as_a_fr
     let cubes = spawn_cubes(session.app.world_mut(), 100);
     let before = session.settle(6).expect("render").visibility;
     assert_visibility_not_trivial(&before);
-    let stats = |session: &harness::Session| session.app.world().resource::<bevy_shadow_fins::FinShadowStats>().0;
-    let full = stats(&session);
+    let full = fin_stats(&session);
     assert!(!full.partial_redraw, "the first update must draw the maps whole");
-    let whole = full.layers as u64 * (full.map_resolution as u64).pow(2);
+    let whole = full.map_texels();
     assert_eq!(full.redrawn_texels, whole, "a full redraw clears every texel of every layer");
     session.app.world_mut().get_mut::<Transform>(cubes[mover]).expect("a transform").translation += offset;
     let after = session.settle(6).expect("render").visibility;
-    let partial = stats(&session);
+    let partial = fin_stats(&session);
     println!(
         "one cube of 100 moved: partial {}, {} of {whole} texels redrawn",
         partial.partial_redraw, partial.redrawn_texels
@@ -348,7 +347,7 @@ fn one_cube_of_many_moving_redraws_only_its_part_of_the_maps_and_shadows_as_a_fr
     fresh.app.world_mut().get_mut::<Transform>(fresh_cubes[mover]).expect("a transform").translation += offset;
     let expected = fresh.settle(6).expect("render").visibility;
     let (mad, _) = compare(&after, &expected);
-    let worst = after.iter().zip(&expected).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    let worst = max_difference(&after, &expected);
     let (changed, _) = compare(&after, &before);
     println!("partial redraw: |V − V fresh| mean {mad:.2e}, max {worst:.2e}; |V − V before| {changed:.4}");
     assert!(changed > 1e-4, "the moved cube's shadow did not move ({changed})");
@@ -361,14 +360,14 @@ fn one_cube_of_many_moving_redraws_only_its_part_of_the_maps_and_shadows_as_a_fr
     world.get_mut::<Transform>(cubes[mover]).expect("a transform").translation -= offset * 0.5;
     world.get_mut::<Transform>(cubes[neighbour]).expect("a transform").translation += second;
     let again = session.settle(6).expect("render").visibility;
-    assert!(stats(&session).partial_redraw, "two cubes of 100 moved redrew the maps whole");
+    assert!(fin_stats(&session).partial_redraw, "two cubes of 100 moved redrew the maps whole");
     let mut fresh = harness::Session::new(&setup);
     let fresh_cubes = spawn_cubes(fresh.app.world_mut(), 100);
     let world = fresh.app.world_mut();
     world.get_mut::<Transform>(fresh_cubes[mover]).expect("a transform").translation += offset * 0.5;
     world.get_mut::<Transform>(fresh_cubes[neighbour]).expect("a transform").translation += second;
     let expected = fresh.settle(6).expect("render").visibility;
-    let worst = again.iter().zip(&expected).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    let worst = max_difference(&again, &expected);
     let (changed, _) = compare(&again, &after);
     println!("second partial redraw: |V − V fresh| max {worst:.2e}; |V − V before| {changed:.4}");
     assert!(changed > 1e-4, "the second move changed no shadow ({changed})");
@@ -392,12 +391,11 @@ fn a_skinned_bar_bending_among_many_cubes_is_posed_on_the_gpu_and_redraws_only_i
     let joint = spawn_skinned_bar(session.app.world_mut(), at);
     let straight = session.settle(6).expect("render").visibility;
     assert_visibility_not_trivial(&straight);
-    let stats = |session: &harness::Session| session.app.world().resource::<bevy_shadow_fins::FinShadowStats>().0;
-    assert_eq!(stats(&session).posed_on_gpu, 1, "the bar was not posed on the GPU");
+    assert_eq!(fin_stats(&session).posed_on_gpu, 1, "the bar was not posed on the GPU");
     bend(session.app.world_mut(), joint);
     let bent = session.settle(6).expect("render").visibility;
-    let partial = stats(&session);
-    let whole = partial.layers as u64 * (partial.map_resolution as u64).pow(2);
+    let partial = fin_stats(&session);
+    let whole = partial.map_texels();
     println!(
         "bar bent among 100 cubes: posed on the GPU {}, partial {}, {} of {whole} texels redrawn",
         partial.posed_on_gpu, partial.partial_redraw, partial.redrawn_texels
@@ -411,7 +409,7 @@ fn a_skinned_bar_bending_among_many_cubes_is_posed_on_the_gpu_and_redraws_only_i
     let fresh_joint = spawn_skinned_bar(fresh.app.world_mut(), at);
     bend(fresh.app.world_mut(), fresh_joint);
     let expected = fresh.settle(6).expect("render").visibility;
-    let worst = bent.iter().zip(&expected).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    let worst = max_difference(&bent, &expected);
     let (changed, _) = compare(&bent, &straight);
     println!("bent bar: |V − V fresh| max {worst:.2e}; |V − V straight| {changed:.4}");
     assert!(changed > 1e-4, "the bar's shadow did not bend ({changed})");
@@ -421,7 +419,7 @@ fn a_skinned_bar_bending_among_many_cubes_is_posed_on_the_gpu_and_redraws_only_i
     // rounding (the GPU's arithmetic is its own), the maps redrawn whole.
     session.app.insert_resource(bevy_shadow_fins::FinGpuPosing(false));
     let on_cpu = session.settle(6).expect("render").visibility;
-    let cpu = stats(&session);
+    let cpu = fin_stats(&session);
     assert_eq!(cpu.posed_on_gpu, 0, "FinGpuPosing off still posed on the GPU");
     let (mad, far) = compare(&on_cpu, &bent);
     println!("posed on the CPU vs on the GPU: mean {mad:.2e}, {:.3}% of pixels by > 0.1", far * 100.0);
@@ -443,21 +441,20 @@ fn a_pose_that_tears_welded_vertices_apart_is_posed_on_the_cpu_and_still_shadows
     let bend = |world: &mut World, joint: Entity| {
         world.get_mut::<Transform>(joint).expect("a transform").rotate_z(0.5);
     };
-    let stats = |session: &harness::Session| session.app.world().resource::<bevy_shadow_fins::FinShadowStats>().0;
     let mut session = harness::Session::new(&setup);
     let joint = spawn_skinned_bar_weighted(session.app.world_mut(), at, torn);
     let straight = session.settle(6).expect("render").visibility;
     assert_visibility_not_trivial(&straight);
-    assert_eq!(stats(&session).posed_on_gpu, 1, "at rest the torn bar's topology is its own: the GPU poses it");
+    assert_eq!(fin_stats(&session).posed_on_gpu, 1, "at rest the torn bar's topology is its own: the GPU poses it");
     bend(session.app.world_mut(), joint);
     let bent = session.settle(6).expect("render").visibility;
-    assert_eq!(stats(&session).posed_on_gpu, 0, "a pose that tore the welded corners apart was posed on the GPU");
+    assert_eq!(fin_stats(&session).posed_on_gpu, 0, "a pose that tore the welded corners apart was posed on the GPU");
 
     let mut fresh = harness::Session::new(&setup);
     let fresh_joint = spawn_skinned_bar_weighted(fresh.app.world_mut(), at, torn);
     bend(fresh.app.world_mut(), fresh_joint);
     let expected = fresh.settle(6).expect("render").visibility;
-    let worst = bent.iter().zip(&expected).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    let worst = max_difference(&bent, &expected);
     let (changed, _) = compare(&bent, &straight);
     println!("torn bar: |V − V fresh| max {worst:.2e}; |V − V straight| {changed:.4}");
     assert!(changed > 1e-4, "the torn bar's shadow did not bend ({changed})");

@@ -1098,6 +1098,12 @@ pub(crate) fn publish_light_stats(
 }
 
 impl FinFrameStats {
+    /// Texels of the penumbra maps, all layers: what a full redraw clears
+    /// and draws again ([`Self::redrawn_texels`]).
+    pub fn map_texels(&self) -> u64 {
+        self.layers as u64 * (self.map_resolution as u64).pow(2)
+    }
+
     /// One light's stats from its frames' (a point light's six faces): the
     /// work summed (silhouettes, fins, extraction time), the casters and
     /// triangles of the face that sees the most (faces share them), the most
