@@ -2,9 +2,9 @@
 // the same semantics as the core crate's `FinExtractor` (silhouette.rs,
 // fins.rs, layers.rs), stage for stage:
 //
-//  0. reset, forget_footprints, reset_footprints
-//                          counters; the moved instances' old footprints
-//                          into the dirty rectangle, every footprint anew
+//  0. reset, begin         counters; whether this update may extract only the
+//     forget_footprints    moved instances (below); their old footprints into
+//                          the dirty rectangle
 //  1. transform_vertices   every vertex into the light frame; deepest depth → L0
 //  2. classify_faces       facing test against the light in object space
 //  3. join_patches         patches = connected light-facing regions: lock-free
@@ -42,7 +42,23 @@
 // texel for texel what a full redraw writes there, and the rest of the maps
 // is what it was. Otherwise (`H_DIRTY_COUNT` = `FULL`, the plan moved) the
 // maps are redrawn whole.
-#import bevy_shadow_fins::fin_types::{Caster, Fin, cross2, fin_bounds, CONTROL_LIST_CASTERS, CONTROL_LIST_FINS}
+//
+// Incremental extraction (the same item, one step up): stages 1–9 first run
+// over the listed instances only (`STAGE_ATTEMPT`: a thread's item comes from
+// the dirty table, `item_of`), appending to last frame's silhouettes, fins
+// and casters. Everything else last frame extracted is still valid when
+// what depends on all instances came out the same: L0 (the deepest vertex),
+// the silhouette depth range the histogram's sub-layers divide, and nothing
+// past a capacity — each instance keeps its deepest vertex and silhouette
+// depth range in `history`, and `decide` compares their union with last
+// frame's. Then (`STAGE_ACCEPTED`) the moved instances' old records are
+// retired (`retire_moved`: marked `RETIRED_LAYER`, their silhouettes taken
+// out of the histogram) and stages 10–12 run over every record, as after a
+// full extraction: the output is record for record a full extraction's, in
+// another order, with retired records among them (the maps skip those).
+// Otherwise (`STAGE_FULL`) stages 1–9 run again over every instance, from
+// nothing. Retired records take room until a full extraction drops them.
+#import bevy_shadow_fins::fin_types::{Caster, Fin, cross2, fin_bounds, CONTROL_LIST_CASTERS, CONTROL_LIST_FINS, RETIRED_LAYER}
 
 struct ExtractParams {
     // (instances, instance vertices, caster faces, caster edges)
@@ -123,6 +139,8 @@ struct Silhouette {
 @group(0) @binding(8) var<storage, read_write> casters: array<Caster>;
 
 // `control` layout (u32 words). Keep in sync with `render/extract_gpu.rs`.
+// The live records (what a full extraction emits; read back as what the
+// frame wanted) ...
 const C_SILHOUETTES: u32 = 0u;
 const C_FINS: u32 = 1u;
 const C_CASTERS: u32 = 2u;
@@ -133,7 +151,7 @@ const C_REGION: u32 = 6u; // min x, min y (ordered-key minima), max x, max y (ma
 const C_LAYERS_WANTED: u32 = 10u;
 const C_GENERATION: u32 = 11u;
 const C_LAYERS: u32 = 12u;
-const C_PARTIAL: u32 = 13u; // 1: this update redraws the maps in part
+const C_PARTIAL: u32 = 13u; // bit 0: this update redraws the maps in part; bit 1: it extracted the moved instances only
 const C_REDRAWN: u32 = 14u; // texels (all layers) this update cleared and redrew
 const C_UNBOUNDED: u32 = 15u; // 1: a primitive with bounds not finite (it may reach any texel)
 const C_HEADER: u32 = 16u;
@@ -145,8 +163,18 @@ const C_ARGS_SILHOUETTES: u32 = 65u;
 const C_ARGS_FIN_THREADS: u32 = 68u;
 const C_ARGS_CASTER_THREADS: u32 = 71u;
 const C_PLANES: u32 = 74u; // count, then up to 31 planes
+// 106, 107: CONTROL_LIST_CASTERS, CONTROL_LIST_FINS (fin_types.wgsl)
+const C_STAGE: u32 = 108u; // STAGE_*
+// ... and the records in the buffers, retired ones included (where the next goes).
+const C_CURSORS: u32 = 109u; // silhouettes, fins, casters
+// Stages 1–9's dispatch sizes: vertices, faces, edges, instances (3 words each).
+const C_ARGS_ITEMS: u32 = 112u;
+const C_ARGS_RETIRE: u32 = 124u;
 const C_HISTOGRAM: u32 = 128u;
 
+const STAGE_FULL: u32 = 0u;
+const STAGE_ATTEMPT: u32 = 1u;
+const STAGE_ACCEPTED: u32 = 2u;
 
 // After the histogram, `control` keeps what a partial redraw needs from
 // frame to frame (`history`, words relative to C_HISTOGRAM + sub-layers);
@@ -154,10 +182,27 @@ const C_HISTOGRAM: u32 = 128u;
 const H_PLAN: u32 = 0u; // last frame's FinParams words 0..32, then its planes (count + 31)
 const H_DIRTY_COUNT: u32 = 64u; // written by the CPU: dirty instances listed, or FULL
 const H_VALID: u32 = 65u; // 1 once a plan is kept
+const H_INCREMENTAL: u32 = 66u; // written by the CPU: 1 when the listed instances may be extracted alone
 const H_DIRTY_RECT: u32 = 68u; // union of the dirty footprints (ordered keys: min x, min y, max x, max y)
 const H_REDRAW_AREA: u32 = 72u; // the redrawn texel centres' map-space bounds (f32 bits)
-const H_FOOTPRINTS: u32 = 76u; // 4 words (ordered keys) per instance, then MAX_DIRTY
-                               // dirty instances, then the redraw lists
+// Last frame's C_CURSORS (3), live counts (3), depth range keys (2), deepest key.
+const H_KEPT: u32 = 76u;
+// This frame's union of the instances' deepest key and depth range keys.
+const H_UNION: u32 = 85u;
+const H_DIRTY_ITEMS: u32 = 88u; // the listed instances' vertices, faces, edges
+const H_EPOCH: u32 = 91u; // counts updates; an instance listed this update is marked with it
+const H_INSTANCES: u32 = 96u; // INSTANCE_WORDS per instance, then MAX_DIRTY
+                              // dirty entries, then the redraw lists
+// Per instance: its footprint (ordered keys: min x, min y, max x, max y),
+// deepest vertex key, silhouette depth range keys (min, max), the epoch it
+// was last listed in.
+const INSTANCE_WORDS: u32 = 8u;
+const I_DEEPEST: u32 = 4u;
+const I_DEPTH_MIN: u32 = 5u;
+const I_DEPTH_MAX: u32 = 6u;
+const I_LISTED: u32 = 7u;
+// A dirty entry: (instance, its first vertex, face, edge among the listed instances').
+const DIRTY_WORDS: u32 = 4u;
 const FULL: u32 = 0xffffffffu;
 const MAX_DIRTY: u32 = 256u;
 
@@ -348,19 +393,15 @@ fn valid(d: vec2<f32>) -> bool {
     return dot(d, d) > 0.0;
 }
 
-// Grows the maps' region and the footprint of `instance`, which emitted the
-// primitive, by the primitive's bounds.
+// Grows the footprint of `instance`, which emitted the primitive, by the
+// primitive's bounds (the maps' region is their union: `reduce_footprints`).
 fn grow_region(lo: vec2<f32>, hi: vec2<f32>, instance: u32) {
     if (!(finite(lo.x) && finite(lo.y) && finite(hi.x) && finite(hi.y))) {
         // No footprint holds it: this frame and the next redraw whole.
         atomicStore(&control[C_UNBOUNDED], 1u);
         return;
     }
-    atomicMin(&control[C_REGION], order_key(lo.x));
-    atomicMin(&control[C_REGION + 1u], order_key(lo.y));
-    atomicMax(&control[C_REGION + 2u], order_key(hi.x));
-    atomicMax(&control[C_REGION + 3u], order_key(hi.y));
-    grow_keys(H_FOOTPRINTS + 4u * instance, order_key(lo.x), order_key(lo.y), order_key(hi.x), order_key(hi.y));
+    grow_keys(instance_word(instance, 0u), order_key(lo.x), order_key(lo.y), order_key(hi.x), order_key(hi.y));
 }
 
 // `history` word i's index in `control`.
@@ -368,9 +409,20 @@ fn h(i: u32) -> u32 {
     return C_HISTOGRAM + params.layering.x + i;
 }
 
+// `history` word of instance k's word `word` (INSTANCE_WORDS per instance).
+fn instance_word(k: u32, word: u32) -> u32 {
+    return H_INSTANCES + INSTANCE_WORDS * k + word;
+}
+
+// The i-th dirty entry's word `word` (0 its instance; 1, 2, 3 its first
+// vertex, face, edge among the listed instances').
+fn dirty_entry(i: u32, word: u32) -> u32 {
+    return atomicLoad(&control[h(H_INSTANCES + INSTANCE_WORDS * params.totals.x + DIRTY_WORDS * i + word)]);
+}
+
 // A partial redraw's caster list (count, then indices), and its fin list.
 fn list_casters() -> u32 {
-    return h(H_FOOTPRINTS + 4u * params.totals.x + MAX_DIRTY);
+    return h(H_INSTANCES + INSTANCE_WORDS * params.totals.x + DIRTY_WORDS * MAX_DIRTY);
 }
 
 fn list_fins() -> u32 {
@@ -385,6 +437,18 @@ fn grow_keys(at: u32, lo_x: u32, lo_y: u32, hi_x: u32, hi_y: u32) {
     atomicMax(&control[h(at + 3u)], hi_y);
 }
 
+// No footprint, no vertex, no silhouette: what an instance starts from.
+fn clear_instance(k: u32) {
+    let at = instance_word(k, 0u);
+    atomicStore(&control[h(at)], 0xffffffffu);
+    atomicStore(&control[h(at + 1u)], 0xffffffffu);
+    atomicStore(&control[h(at + 2u)], 0u);
+    atomicStore(&control[h(at + 3u)], 0u);
+    atomicStore(&control[h(at + I_DEEPEST)], 0u);
+    atomicStore(&control[h(at + I_DEPTH_MIN)], 0xffffffffu);
+    atomicStore(&control[h(at + I_DEPTH_MAX)], 0u);
+}
+
 fn clear_keys(at: u32) {
     atomicStore(&control[h(at)], 0xffffffffu);
     atomicStore(&control[h(at + 1u)], 0xffffffffu);
@@ -397,13 +461,13 @@ fn dirty_count() -> u32 {
     return select(min(n, MAX_DIRTY), 0u, n == FULL);
 }
 
-// The i-th dirty instance (the list follows the footprints).
+// The i-th dirty instance.
 fn dirty_instance(i: u32) -> u32 {
-    return atomicLoad(&control[h(H_FOOTPRINTS + 4u * params.totals.x + i)]);
+    return dirty_entry(i, 0u);
 }
 
 fn grow_dirty_rect(instance: u32) {
-    let at = H_FOOTPRINTS + 4u * instance;
+    let at = instance_word(instance, 0u);
     grow_keys(
         H_DIRTY_RECT,
         atomicLoad(&control[h(at)]),
@@ -411,6 +475,57 @@ fn grow_dirty_rect(instance: u32) {
         atomicLoad(&control[h(at + 2u)]),
         atomicLoad(&control[h(at + 3u)]),
     );
+}
+
+fn stage() -> u32 {
+    return atomicLoad(&control[C_STAGE]);
+}
+
+// Instance k was listed (it moved) this update.
+fn listed(k: u32) -> bool {
+    return atomicLoad(&control[h(instance_word(k, I_LISTED))]) == atomicLoad(&control[h(H_EPOCH)]);
+}
+
+// Thread t's item in range `which` (1 vertices, 2 faces, 3 edges) and its
+// instance: every instance's items on a full extraction, the listed
+// instances' while the update extracts those only; NONE past the last.
+fn item_of(t: u32, which: u32) -> vec2<u32> {
+    if (stage() == STAGE_FULL) {
+        if (t >= params.totals[which]) {
+            return vec2<u32>(NONE);
+        }
+        return vec2<u32>(t, instance_of(t, which));
+    }
+    if (t >= atomicLoad(&control[h(H_DIRTY_ITEMS + which - 1u)])) {
+        return vec2<u32>(NONE);
+    }
+    // The last entry whose first item is ≤ t (entries with no item share
+    // the next one's first item, which the search passes over).
+    var lo = 0u;
+    var hi = dirty_count();
+    while (hi - lo > 1u) {
+        let mid = (lo + hi) / 2u;
+        if (dirty_entry(mid, which) <= t) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let k = dirty_entry(lo, 0u);
+    return vec2<u32>(instances[k].ids[which] + t - dirty_entry(lo, which), k);
+}
+
+// Appends to a list: its live count (what a full extraction emits) and its
+// cursor (live and retired records) both grow; returns the record's index.
+fn append(list: u32) -> u32 {
+    atomicAdd(&control[list], 1u);
+    return atomicAdd(&control[C_CURSORS + list], 1u);
+}
+
+// The records in a list (`C_SILHOUETTES`, `C_FINS`, `C_CASTERS`), retired
+// ones included, within its capacity.
+fn records(list: u32) -> u32 {
+    return min(atomicLoad(&control[C_CURSORS + list]), params.capacity[list]);
 }
 
 // ---------------------------------------------------------------- 0. reset
@@ -427,30 +542,182 @@ fn reset(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
         if (i == 0u) {
             clear_keys(H_DIRTY_RECT);
         }
-    } else if (i < C_HISTOGRAM + params.layering.x) {
+    } else if (i < C_HISTOGRAM + params.layering.x && !may_extract_listed()) {
+        // Kept for an update that may extract the listed instances only.
         atomicStore(&control[i], 0u);
     }
 }
 
+// Last frame's extraction is there whole (`H_VALID`) and the CPU listed what
+// moved since (the same light, settings, geometry and buffers), and lets
+// the listed instances be extracted alone (`FinIncrementalExtraction`).
+fn may_extract_listed() -> bool {
+    return atomicLoad(&control[h(H_DIRTY_COUNT)]) != FULL && atomicLoad(&control[h(H_VALID)]) == 1u
+        && atomicLoad(&control[h(H_INCREMENTAL)]) == 1u;
+}
+
+// Whether this update tries the listed instances only; if so, last frame's
+// counts, cursors and depths come back, and stages 1–9 run over the listed
+// instances' items.
+@compute @workgroup_size(1, 1, 1)
+fn begin() {
+    atomicAdd(&control[h(H_EPOCH)], 1u);
+    atomicStore(&control[h(H_UNION)], 0u);
+    atomicStore(&control[h(H_UNION + 1u)], 0xffffffffu);
+    atomicStore(&control[h(H_UNION + 2u)], 0u);
+    if (!may_extract_listed()) {
+        atomicStore(&control[C_STAGE], STAGE_FULL);
+        return;
+    }
+    atomicStore(&control[C_STAGE], STAGE_ATTEMPT);
+    for (var i = 0u; i < 3u; i++) {
+        atomicStore(&control[C_CURSORS + i], atomicLoad(&control[h(H_KEPT + i)]));
+        atomicStore(&control[i], atomicLoad(&control[h(H_KEPT + 3u + i)]));
+    }
+    atomicStore(&control[C_DEPTH_MIN], atomicLoad(&control[h(H_KEPT + 6u)]));
+    atomicStore(&control[C_DEPTH_MAX], atomicLoad(&control[h(H_KEPT + 7u)]));
+    atomicStore(&control[C_DEEPEST], atomicLoad(&control[h(H_KEPT + 8u)]));
+    let n = dirty_count();
+    var items = vec3<u32>(0u);
+    if (n > 0u) {
+        let k = dirty_entry(n - 1u, 0u);
+        items = vec3<u32>(dirty_entry(n - 1u, 1u), dirty_entry(n - 1u, 2u), dirty_entry(n - 1u, 3u)) + instances[k].info.yzw;
+    }
+    for (var i = 0u; i < 3u; i++) {
+        atomicStore(&control[h(H_DIRTY_ITEMS + i)], items[i]);
+        write_args(C_ARGS_ITEMS + 3u * i, items[i], WORKGROUP);
+    }
+    write_args(C_ARGS_ITEMS + 9u, 0u, WORKGROUP);
+}
+
 // Before anything is emitted: the dirty instances' old footprints go into
-// the dirty rectangle (what they covered must be redrawn without them) ...
+// the dirty rectangle (what they covered must be redrawn without them) and,
+// when the listed instances are extracted alone, they start anew.
 @compute @workgroup_size(64, 1, 1)
 fn forget_footprints(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let i = thread_index(wg, lane);
-    if (i < dirty_count()) {
+    if (i < dirty_count() && stage() == STAGE_ATTEMPT) {
         let instance = dirty_instance(i);
         if (instance < params.totals.x) {
             grow_dirty_rect(instance);
+            clear_instance(instance);
+            atomicStore(&control[h(instance_word(instance, I_LISTED))], atomicLoad(&control[h(H_EPOCH)]));
         }
     }
 }
 
-// ... and every footprint starts anew (each instance emits again every frame).
+// Every instance starts anew (a full extraction: each emits again).
 @compute @workgroup_size(64, 1, 1)
 fn reset_footprints(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let i = thread_index(wg, lane);
     if (i < params.totals.x) {
-        clear_keys(H_FOOTPRINTS + 4u * i);
+        clear_instance(i);
+    }
+}
+
+// The union of every instance's deepest vertex and silhouette depth range,
+// kept and listed alike: what `decide` compares with last frame's.
+@compute @workgroup_size(64, 1, 1)
+fn reduce_instances(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (i < params.totals.x && stage() == STAGE_ATTEMPT) {
+        atomicMax(&control[h(H_UNION)], atomicLoad(&control[h(instance_word(i, I_DEEPEST))]));
+        atomicMin(&control[h(H_UNION + 1u)], atomicLoad(&control[h(instance_word(i, I_DEPTH_MIN))]));
+        atomicMax(&control[h(H_UNION + 2u)], atomicLoad(&control[h(instance_word(i, I_DEPTH_MAX))]));
+    }
+}
+
+// Keeps the listed instances' extraction when L0, the silhouette depth range
+// and the capacities allow (see the top of this file); else starts a full
+// one: stages 1–9 again, over every instance, from nothing.
+@compute @workgroup_size(1, 1, 1)
+fn decide() {
+    if (stage() == STAGE_ATTEMPT) {
+        var keep = atomicLoad(&control[h(H_UNION)]) == atomicLoad(&control[h(H_KEPT + 8u)])
+            && atomicLoad(&control[h(H_UNION + 1u)]) == atomicLoad(&control[h(H_KEPT + 6u)])
+            && atomicLoad(&control[h(H_UNION + 2u)]) == atomicLoad(&control[h(H_KEPT + 7u)])
+            && atomicLoad(&control[C_UNBOUNDED]) == 0u;
+        var most = 0u;
+        for (var i = 0u; i < 3u; i++) {
+            keep = keep && atomicLoad(&control[C_CURSORS + i]) <= params.capacity[i];
+            most = max(most, atomicLoad(&control[h(H_KEPT + i)]));
+        }
+        if (keep) {
+            atomicStore(&control[C_STAGE], STAGE_ACCEPTED);
+            for (var i = 0u; i < 4u; i++) {
+                write_args(C_ARGS_ITEMS + 3u * i, 0u, WORKGROUP);
+            }
+            write_args(C_ARGS_RETIRE, most, WORKGROUP);
+            return;
+        }
+    }
+    atomicStore(&control[C_STAGE], STAGE_FULL);
+    for (var i = 0u; i < 3u; i++) {
+        atomicStore(&control[i], 0u);
+        atomicStore(&control[C_CURSORS + i], 0u);
+    }
+    atomicStore(&control[C_DEPTH_MIN], 0xffffffffu);
+    atomicStore(&control[C_DEPTH_MAX], 0u);
+    atomicStore(&control[C_DEEPEST], 0u);
+    atomicStore(&control[C_UNBOUNDED], 0u);
+    for (var i = 0u; i < params.layering.x; i++) {
+        atomicStore(&control[C_HISTOGRAM + i], 0u);
+    }
+    for (var i = 0u; i < 4u; i++) {
+        write_args(C_ARGS_ITEMS + 3u * i, params.totals[(i + 1u) % 4u], WORKGROUP);
+    }
+    write_args(C_ARGS_RETIRE, 0u, WORKGROUP);
+}
+
+// The histogram bin of a silhouette edge's mid depth (§4.1's sub-layers).
+fn histogram_bin(mid: f32) -> u32 {
+    let lo = order_value(atomicLoad(&control[C_DEPTH_MIN]));
+    let hi = order_value(atomicLoad(&control[C_DEPTH_MAX]));
+    if (!(hi > lo)) {
+        return 0u;
+    }
+    let step = (hi - lo) / f32(params.layering.x);
+    return min(u32(max((mid - lo) / step, 0.0)), params.layering.x - 1u);
+}
+
+// The listed instances' records of last frame (they emitted anew): retired,
+// their silhouettes out of the histogram, out of the live counts.
+@compute @workgroup_size(64, 1, 1)
+fn retire_moved(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (i < atomicLoad(&control[h(H_KEPT)])) {
+        let k = silhouettes[i].ids.x;
+        if (k != NONE && listed(k)) {
+            let mid = 0.5 * (silhouettes[i].a.z + silhouettes[i].b.z);
+            atomicSub(&control[C_HISTOGRAM + histogram_bin(mid)], 1u);
+            silhouettes[i].ids.x = NONE;
+            atomicSub(&control[C_SILHOUETTES], 1u);
+        }
+    }
+    if (i < atomicLoad(&control[h(H_KEPT + 1u)])) {
+        if (fins[i].header.z != RETIRED_LAYER && listed(instance_of(fins[i].header.w, 2u))) {
+            fins[i].header.z = RETIRED_LAYER;
+            atomicSub(&control[C_FINS], 1u);
+        }
+    }
+    if (i < atomicLoad(&control[h(H_KEPT + 2u)])) {
+        if (casters[i].layer != RETIRED_LAYER && listed(instance_of(casters[i].patch_id, 2u))) {
+            casters[i].layer = RETIRED_LAYER;
+            atomicSub(&control[C_CASTERS], 1u);
+        }
+    }
+}
+
+// The maps' region: the union of every instance's footprint.
+@compute @workgroup_size(64, 1, 1)
+fn reduce_footprints(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = thread_index(wg, lane);
+    if (i < params.totals.x) {
+        let at = h(instance_word(i, 0u));
+        atomicMin(&control[C_REGION], atomicLoad(&control[at]));
+        atomicMin(&control[C_REGION + 1u], atomicLoad(&control[at + 1u]));
+        atomicMax(&control[C_REGION + 2u], atomicLoad(&control[at + 2u]));
+        atomicMax(&control[C_REGION + 3u], atomicLoad(&control[at + 3u]));
     }
 }
 
@@ -458,27 +725,30 @@ fn reset_footprints(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocat
 
 @compute @workgroup_size(64, 1, 1)
 fn transform_vertices(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let i = thread_index(wg, lane);
-    if (i >= params.totals.y) {
+    let item = item_of(thread_index(wg, lane), 1u);
+    let i = item.x;
+    if (i == NONE) {
         return;
     }
-    let inst = instances[instance_of(i, 1u)];
+    let inst = instances[item.y];
     let p = vertex_position(inst, i - inst.ids.y);
     let q = inst.linear0.xyz * p.x + inst.linear1.xyz * p.y + inst.linear2.xyz * p.z + inst.translation.xyz;
     positions[i] = vec4<f32>(q, 1.0);
     // L0 is the deepest receiver; every mesh receives.
     atomicMax(&control[C_DEEPEST], order_key(q.z));
+    atomicMax(&control[h(instance_word(item.y, I_DEEPEST))], order_key(q.z));
 }
 
 // ---------------------------------------------------------------- 2. facing
 
 @compute @workgroup_size(64, 1, 1)
 fn classify_faces(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let i = thread_index(wg, lane);
-    if (i >= params.totals.z) {
+    let item = item_of(thread_index(wg, lane), 2u);
+    let i = item.x;
+    if (i == NONE) {
         return;
     }
-    let inst = instances[instance_of(i, 2u)];
+    let inst = instances[item.y];
     let at = g(inst, G_FACES_AT) + 7u * (i - inst.ids.z);
     let n = vec3<f32>(gf(inst, at + 3u), gf(inst, at + 4u), gf(inst, at + 5u));
     let facing = (dot(n, inst.light.xyz) > gf(inst, at + 6u) * inst.light.w) != ((inst.info.x & 4u) != 0u);
@@ -533,11 +803,12 @@ fn edge_at(inst: Instance, e: u32) -> u32 {
 
 @compute @workgroup_size(64, 1, 1)
 fn join_patches(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let i = thread_index(wg, lane);
-    if (i >= params.totals.w) {
+    let item = item_of(thread_index(wg, lane), 3u);
+    let i = item.x;
+    if (i == NONE) {
         return;
     }
-    let inst = instances[instance_of(i, 3u)];
+    let inst = instances[item.y];
     let at = edge_at(inst, i - inst.ids.w);
     let f1 = g(inst, at + 3u);
     if ((g(inst, at + 4u) & EDGE_NON_MANIFOLD) != 0u || f1 == EDGE_BACK_FACE_MISSING) {
@@ -554,8 +825,8 @@ fn join_patches(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
 
 @compute @workgroup_size(64, 1, 1)
 fn flatten_patches(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let i = thread_index(wg, lane);
-    if (i >= params.totals.z || atomicLoad(&state[FACE_WORDS * i]) == NONE) {
+    let i = item_of(thread_index(wg, lane), 2u).x;
+    if (i == NONE || atomicLoad(&state[FACE_WORDS * i]) == NONE) {
         return;
     }
     atomicStore(&state[FACE_WORDS * i], find_root(i));
@@ -584,7 +855,7 @@ fn emit_silhouette(k: u32, inst: Instance, edge: u32, v0: u32, v1: u32, forward:
         return;
     }
     let patch_id = atomicLoad(&state[FACE_WORDS * (inst.ids.z + face)]);
-    let index = atomicAdd(&control[C_SILHOUETTES], 1u);
+    let index = append(C_SILHOUETTES);
     if (index >= params.capacity.x) {
         atomicStore(&state[edge_silhouette_slot(edge)], NONE);
         return;
@@ -603,6 +874,8 @@ fn emit_silhouette(k: u32, inst: Instance, edge: u32, v0: u32, v1: u32, forward:
     let mid = 0.5 * (a.z + b.z);
     atomicMin(&control[C_DEPTH_MIN], order_key(mid));
     atomicMax(&control[C_DEPTH_MAX], order_key(mid));
+    atomicMin(&control[h(instance_word(k, I_DEPTH_MIN))], order_key(mid));
+    atomicMax(&control[h(instance_word(k, I_DEPTH_MAX))], order_key(mid));
     // The patch_id's mean silhouette depth picks its layer: sum mid/L0 + 1 in
     // fixed point (64 bits: low word with carry into the high word).
     let q = u32(clamp(mid / reference_depth() + 1.0, 0.0, 2.0) * FIXED_ONE);
@@ -615,11 +888,12 @@ fn emit_silhouette(k: u32, inst: Instance, edge: u32, v0: u32, v1: u32, forward:
 
 @compute @workgroup_size(64, 1, 1)
 fn find_silhouettes(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let i = thread_index(wg, lane);
-    if (i >= params.totals.w) {
+    let item = item_of(thread_index(wg, lane), 3u);
+    let i = item.x;
+    if (i == NONE) {
         return;
     }
-    let k = instance_of(i, 3u);
+    let k = item.y;
     let inst = instances[k];
     let at = edge_at(inst, i - inst.ids.w);
     let v0 = g(inst, at);
@@ -684,13 +958,16 @@ fn write_args(at: u32, n: u32, per_group: u32) {
     atomicStore(&control[at + 2u], select(0u, 1u, groups > 0u));
 }
 
-fn silhouette_count() -> u32 {
-    return min(atomicLoad(&control[C_SILHOUETTES]), params.capacity.x);
+// The first silhouette this stage found: past last frame's while the
+// listed instances are extracted alone.
+fn first_silhouette() -> u32 {
+    return select(0u, atomicLoad(&control[h(H_KEPT)]), stage() == STAGE_ATTEMPT);
 }
 
 @compute @workgroup_size(1, 1, 1)
 fn silhouette_args() {
-    write_args(C_ARGS_SILHOUETTES, silhouette_count(), WORKGROUP);
+    let n = select(records(C_SILHOUETTES) - min(first_silhouette(), records(C_SILHOUETTES)), 0u, stage() == STAGE_ACCEPTED);
+    write_args(C_ARGS_SILHOUETTES, n, WORKGROUP);
 }
 
 // ---------------------------------------------------------------- 7. vertices of the silhouette
@@ -708,9 +985,10 @@ fn emit_fin(kind: u32, outer: bool, patch_id: u32, instance: u32, data: array<f3
     if (!method_has_fins() || (!outer && !method_has_inner_fins())) {
         return;
     }
-    let index = atomicAdd(&control[C_FINS], 1u);
+    let index = append(C_FINS);
     if (index < params.capacity.y) {
-        fins[index] = Fin(vec4<u32>(kind, select(0u, 1u, outer), patch_id, 0u), data);
+        // Its layer (z) is assigned once the plan is known; its patch (w) stays.
+        fins[index] = Fin(vec4<u32>(kind, select(0u, 1u, outer), 0u, patch_id), data);
         grow_region(lo, hi, instance);
     }
 }
@@ -905,23 +1183,13 @@ fn owns_vertex(s: u32, inst: Instance, v: u32) -> bool {
 
 @compute @workgroup_size(64, 1, 1)
 fn silhouette_vertices(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let s = thread_index(wg, lane);
-    if (s >= silhouette_count()) {
+    let s = first_silhouette() + thread_index(wg, lane);
+    if (s >= records(C_SILHOUETTES)) {
         return;
     }
     let ids = silhouettes[s].ids;
     // Sub-layer histogram of edge midpoints (§4.1).
-    let lo = order_value(atomicLoad(&control[C_DEPTH_MIN]));
-    let hi = order_value(atomicLoad(&control[C_DEPTH_MAX]));
-    let bins = params.layering.x;
-    let mid = 0.5 * (end_a(s).z + end_b(s).z);
-    if (hi > lo) {
-        let step = (hi - lo) / f32(bins);
-        let bin = min(u32(max((mid - lo) / step, 0.0)), bins - 1u);
-        atomicAdd(&control[C_HISTOGRAM + bin], 1u);
-    } else {
-        atomicAdd(&control[C_HISTOGRAM], 1u);
-    }
+    atomicAdd(&control[C_HISTOGRAM + histogram_bin(0.5 * (end_a(s).z + end_b(s).z))], 1u);
     let inst = instances[ids.x];
     for (var e = 0u; e < 2u; e++) {
         let v = select(ids.z, ids.y, e == 0u);
@@ -935,8 +1203,8 @@ fn silhouette_vertices(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invo
 
 @compute @workgroup_size(64, 1, 1)
 fn silhouette_quads(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let s = thread_index(wg, lane);
-    if (s >= silhouette_count()) {
+    let s = first_silhouette() + thread_index(wg, lane);
+    if (s >= records(C_SILHOUETTES)) {
         return;
     }
     let sil = silhouettes[s];
@@ -981,7 +1249,7 @@ fn emit_caster(p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, normal: vec3<f32>, o
     if (!(abs(area) > 0.0) || !finite(area)) {
         return;
     }
-    let index = atomicAdd(&control[C_CASTERS], 1u);
+    let index = append(C_CASTERS);
     if (index >= params.capacity.z) {
         return;
     }
@@ -991,23 +1259,25 @@ fn emit_caster(p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, normal: vec3<f32>, o
         offset,
         min(p0.z, min(p1.z, p2.z)),
         max(p0.z, max(p1.z, p2.z)),
-        patch_id,
+        0u, // its layer, once the plan is known
         0u, // solid: frames with alpha-masked casters extract on the CPU
+        patch_id,
     );
     grow_region(min(c0, min(c1, c2)), max(c0, max(c1, c2)), instance);
 }
 
 @compute @workgroup_size(64, 1, 1)
 fn map_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let i = thread_index(wg, lane);
-    if (i >= params.totals.z) {
+    let item = item_of(thread_index(wg, lane), 2u);
+    let i = item.x;
+    if (i == NONE) {
         return;
     }
     let patch_id = atomicLoad(&state[FACE_WORDS * i]);
     if (patch_id == NONE) {
         return;
     }
-    let instance = instance_of(i, 2u);
+    let instance = item.y;
     let inst = instances[instance];
     let at = g(inst, G_FACES_AT) + 7u * (i - inst.ids.z);
     let p = array<vec3<f32>, 3>(
@@ -1077,7 +1347,8 @@ fn plane(j: u32) -> f32 {
 
 @compute @workgroup_size(1, 1, 1)
 fn plan_layers() {
-    let total = silhouette_count();
+    // The histogram holds the live silhouettes within the capacity.
+    let total = min(atomicLoad(&control[C_SILHOUETTES]), params.capacity.x);
     let lo = order_value(atomicLoad(&control[C_DEPTH_MIN]));
     let hi = order_value(atomicLoad(&control[C_DEPTH_MAX]));
     let bins = params.layering.x;
@@ -1114,10 +1385,11 @@ fn plan_layers() {
         }
     }
     atomicStore(&control[C_PLANES], planes);
-    let n_casters = min(atomicLoad(&control[C_CASTERS]), params.capacity.z);
-    let n_fins = min(atomicLoad(&control[C_FINS]), params.capacity.y);
+    // The maps raster every record (they skip the retired ones).
+    let n_casters = records(C_CASTERS);
+    let n_fins = records(C_FINS);
     // Nothing casts: no layer, no map.
-    let used = select(planes + 1u, 0u, n_casters == 0u && n_fins == 0u);
+    let used = select(planes + 1u, 0u, atomicLoad(&control[C_CASTERS]) == 0u && atomicLoad(&control[C_FINS]) == 0u);
     atomicStore(&control[C_LAYERS_WANTED], select(wanted + 1u, 0u, used == 0u));
     atomicStore(&control[C_LAYERS], used);
     atomicStore(&control[C_GENERATION], params.flags.w);
@@ -1191,9 +1463,9 @@ fn plan_redraw(p: array<u32, 32>, region_min: vec2<f32>, texel: f32, resolution:
     // Nothing dropped for want of room (which primitives are dropped may
     // differ frame to frame) and every primitive inside a footprint: else
     // this frame is redrawn whole, and its maps are no base for the next.
-    let complete = atomicLoad(&control[C_SILHOUETTES]) <= params.capacity.x
-        && atomicLoad(&control[C_FINS]) <= params.capacity.y
-        && atomicLoad(&control[C_CASTERS]) <= params.capacity.z
+    let complete = atomicLoad(&control[C_CURSORS + C_SILHOUETTES]) <= params.capacity.x
+        && atomicLoad(&control[C_CURSORS + C_FINS]) <= params.capacity.y
+        && atomicLoad(&control[C_CURSORS + C_CASTERS]) <= params.capacity.z
         && atomicLoad(&control[C_LAYERS_WANTED]) <= params.layering.z
         && atomicLoad(&control[C_UNBOUNDED]) == 0u;
     atomicStore(&control[h(H_VALID)], select(0u, 1u, complete));
@@ -1225,7 +1497,15 @@ fn plan_redraw(p: array<u32, 32>, region_min: vec2<f32>, texel: f32, resolution:
     for (var i = 0u; i < 4u; i++) {
         atomicStore(&control[C_PARAMS + 32u + i], rect[i]);
     }
-    atomicStore(&control[C_PARTIAL], select(0u, 1u, partial));
+    atomicStore(&control[C_PARTIAL], select(0u, 1u, partial) | select(0u, 2u, stage() == STAGE_ACCEPTED));
+    // What the next update starts from if it extracts its listed instances only.
+    for (var i = 0u; i < 3u; i++) {
+        atomicStore(&control[h(H_KEPT + i)], atomicLoad(&control[C_CURSORS + i]));
+        atomicStore(&control[h(H_KEPT + 3u + i)], atomicLoad(&control[i]));
+    }
+    atomicStore(&control[h(H_KEPT + 6u)], atomicLoad(&control[C_DEPTH_MIN]));
+    atomicStore(&control[h(H_KEPT + 7u)], atomicLoad(&control[C_DEPTH_MAX]));
+    atomicStore(&control[h(H_KEPT + 8u)], atomicLoad(&control[C_DEEPEST]));
     // The redrawn texel centres' map-space bounds, for `gather_redraw_*`,
     // widened by half a texel: `texel_range` divides where this multiplies,
     // and a primitive gathered in excess is clipped by the raster anyway.
@@ -1267,25 +1547,25 @@ fn patch_layer(patch_id: u32) -> u32 {
 @compute @workgroup_size(64, 1, 1)
 fn assign_fin_layers(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let i = thread_index(wg, lane);
-    if (i >= min(atomicLoad(&control[C_FINS]), params.capacity.y)) {
+    if (i >= records(C_FINS) || fins[i].header.z == RETIRED_LAYER) {
         return;
     }
-    fins[i].header.z = patch_layer(fins[i].header.z);
+    fins[i].header.z = patch_layer(fins[i].header.w);
 }
 
 @compute @workgroup_size(64, 1, 1)
 fn assign_caster_layers(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let i = thread_index(wg, lane);
-    if (i >= min(atomicLoad(&control[C_CASTERS]), params.capacity.z)) {
+    if (i >= records(C_CASTERS) || casters[i].layer == RETIRED_LAYER) {
         return;
     }
-    casters[i].layer = patch_layer(casters[i].layer);
+    casters[i].layer = patch_layer(casters[i].patch_id);
 }
 
 // ---------------------------------------------------------------- 12. partial redraw
 
 fn partial_redraw() -> bool {
-    return atomicLoad(&control[C_PARTIAL]) == 1u;
+    return (atomicLoad(&control[C_PARTIAL]) & 1u) != 0u;
 }
 
 // Whether bounds [lo, hi] reach the centre of a redrawn texel.
@@ -1299,7 +1579,7 @@ fn reaches_redraw_area(lo: vec2<f32>, hi: vec2<f32>) -> bool {
 @compute @workgroup_size(64, 1, 1)
 fn gather_redraw_fins(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let i = thread_index(wg, lane);
-    if (!partial_redraw() || i >= min(atomicLoad(&control[C_FINS]), params.capacity.y)) {
+    if (!partial_redraw() || i >= records(C_FINS) || fins[i].header.z == RETIRED_LAYER) {
         return;
     }
     let bounds = fin_bounds(fins[i]);
@@ -1311,7 +1591,7 @@ fn gather_redraw_fins(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invoc
 @compute @workgroup_size(64, 1, 1)
 fn gather_redraw_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let i = thread_index(wg, lane);
-    if (!partial_redraw() || i >= min(atomicLoad(&control[C_CASTERS]), params.capacity.z)) {
+    if (!partial_redraw() || i >= records(C_CASTERS) || casters[i].layer == RETIRED_LAYER) {
         return;
     }
     let c = casters[i];

@@ -35,7 +35,8 @@ fn partial_redraw(params: FinParams) -> bool {
 
 // One caster triangle in light-map space (`GpuCaster`, the core's `MapTriangle`):
 // corners, plane `normal · X = offset` in the light frame, depth range, layer,
-// and its cut-out (`cutout.wgsl`): 0 solid, else 1 + its index.
+// its cut-out (`cutout.wgsl`): 0 solid, else 1 + its index, and the GPU
+// extraction's patch it belongs to (0 from the CPU).
 struct Caster {
     corners: array<f32, 6>,
     normal: array<f32, 3>,
@@ -44,11 +45,16 @@ struct Caster {
     max_depth: f32,
     layer: u32,
     cutout: u32,
+    patch_id: u32,
 }
 
+// The layer of a caster or fin the GPU extraction retired (its instance
+// moved and emitted anew, `extract.wgsl`'s `retire_moved`): the maps skip it.
+const RETIRED_LAYER: u32 = 0xffffffffu;
+
 // One fin (`GpuFin`): header = (kind 0 quad / 1 sector, side 0 inner / 1 outer,
-// layer, 0); a quad's data is m0, m1, d0, d1, w0, w1, z0, z1, a sector's is
-// centre, from, to, radius, depth.
+// layer, the GPU extraction's patch; 0 from the CPU); a quad's data is m0, m1,
+// d0, d1, w0, w1, z0, z1, a sector's is centre, from, to, radius, depth.
 struct Fin {
     header: vec4<u32>,
     data: array<f32, 12>,

@@ -4,7 +4,7 @@
 #import bevy_shadow_fins::fin_types::{
     FinParams, Caster, Fin, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, INF_BITS, texel_index, min_key, max_key,
     texel_center, cross2, orthographic, caster_depth_at, fin_bounds, partial_redraw, CONTROL_LIST_CASTERS,
-    CONTROL_LIST_FINS,
+    CONTROL_LIST_FINS, RETIRED_LAYER,
 }
 #import bevy_shadow_fins::cutout::caster_opaque
 
@@ -88,6 +88,9 @@ fn raster_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocatio
         return;
     }
     let c = casters[i];
+    if (c.layer == RETIRED_LAYER) {
+        return;
+    }
     let a = vec2<f32>(c.corners[0], c.corners[1]);
     let b = vec2<f32>(c.corners[2], c.corners[3]);
     let d = vec2<f32>(c.corners[4], c.corners[5]);
@@ -226,6 +229,9 @@ fn raster_fin(i: u32, lane: u32, depths: bool) {
         return;
     }
     let f = fins[i];
+    if (f.header.z == RETIRED_LAYER) {
+        return;
+    }
     let bounds = fin_bounds(f);
     let range = texel_range(bounds.xy, bounds.zw);
     if (range.x > range.y || range.z > range.w) {

@@ -1,8 +1,9 @@
 //! Big scenes (issue 16): the frame cost against the number of objects —
 //! 10, 100, 1000, 10 000 cubes sharing one mesh over the box-over-plane
 //! scene, under one fin-shadowed `SpotLight` — static and with one object
-//! moving every frame (maps redrawn in part, then with
-//! [`FinPartialRedraw`] off, whole), then with a skinned bar among them bent
+//! moving every frame (only it extracted and its part of the maps redrawn;
+//! then every caster extracted, [`FinIncrementalExtraction`] off; then the
+//! maps redrawn whole too, [`FinPartialRedraw`] off), then with a skinned bar among them bent
 //! a little further every frame (a new pose each frame), split into the
 //! main world's and the render world's time (`shadow-fins-render-lab
 //! scaling`).
@@ -22,7 +23,8 @@ use std::time::Instant;
 
 use bevy::prelude::*;
 use bevy_shadow_fins::{
-    FinCasterScans, FinCasterUpdates, FinGpuPosing, FinPartialRedraw, FinShadowSettings, FinShadowStats, FinShadows,
+    FinCasterScans, FinCasterUpdates, FinGpuPosing, FinIncrementalExtraction, FinPartialRedraw, FinShadowSettings,
+    FinShadowStats, FinShadows,
 };
 use shadow_fins::scenes::SceneId;
 use shadow_fins_lab::results::Spread;
@@ -55,12 +57,19 @@ pub struct ScalingRow {
     /// (walks should be 0, records one per frame).
     pub moving_scans: u64,
     pub moving_records: u64,
-    /// The last move's map update (read once the GPU's counts of it came
-    /// back, a few still frames later): a partial redraw
+    /// The last move's update (read once the GPU's counts of it came back,
+    /// a few still frames later): only the moved cube extracted
+    /// (`FinFrameStats::incremental_extraction`), a partial redraw
     /// (`FinFrameStats::partial_redraw`), and the share of the maps' texels
     /// it redrew.
+    pub moving_incremental: bool,
     pub moving_partial: bool,
     pub moving_redrawn: f64,
+    /// One moving again with [`FinIncrementalExtraction`] off (every caster
+    /// extracted each update, the maps still redrawn in part): main, render
+    /// world ms.
+    pub all_extracted_main_ms: f64,
+    pub all_extracted_render_ms: f64,
     /// One moving again with [`FinPartialRedraw`] off (every update redraws
     /// the maps whole): main, render world ms.
     pub whole_main_ms: f64,
@@ -181,6 +190,7 @@ struct Medians {
     main: f64,
     render: f64,
     frame: f64,
+    incremental: bool,
     partial: bool,
     redrawn: f64,
     posed_on_gpu: usize,
@@ -214,6 +224,7 @@ fn time(session: &mut Session, frames: u32, motion: Motion) -> Medians {
         }
         let stats = session.app.world().resource::<FinShadowStats>().0;
         let whole = stats.map_texels() as f64;
+        medians.incremental = stats.incremental_extraction;
         medians.partial = stats.partial_redraw;
         medians.posed_on_gpu = stats.posed_on_gpu;
         medians.redrawn = if whole > 0.0 { stats.redrawn_texels as f64 / whole } else { 0.0 };
@@ -244,6 +255,9 @@ pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
         let moving = time(&mut session, run.frames, Motion::Cube(mover));
         let moving_scans = scans(&session) - scans_before;
         let moving_records = updates(&session).records - records_before;
+        session.app.insert_resource(FinIncrementalExtraction(false));
+        let all_extracted = time(&mut session, run.frames, Motion::Cube(mover));
+        session.app.insert_resource(FinIncrementalExtraction(true));
         session.app.insert_resource(FinPartialRedraw(false));
         let whole = time(&mut session, run.frames, Motion::Cube(mover));
         session.app.insert_resource(FinPartialRedraw(true));
@@ -274,8 +288,11 @@ pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
             moving_frame_ms: moving.frame,
             moving_scans,
             moving_records,
+            moving_incremental: moving.incremental,
             moving_partial: moving.partial,
             moving_redrawn: moving.redrawn,
+            all_extracted_main_ms: all_extracted.main,
+            all_extracted_render_ms: all_extracted.render,
             whole_main_ms: whole.main,
             whole_render_ms: whole.render,
             posed_main_ms: posed.main,
@@ -298,17 +315,18 @@ pub fn markdown(rows: &[ScalingRow]) -> String {
     let mut out = String::from(
         "| objects | static main ms | static render ms | static frame ms | mesh walks while static | \
          one moving: main ms | render ms | frame ms | mesh walks | records rebuilt | \
-         last update partial | texels it redrew | \
-         one moving, maps redrawn whole: main ms | render ms | \
+         only it extracted | last update partial | texels it redrew | \
+         one moving, every caster extracted: main ms | render ms | \
+         one moving, every caster extracted, maps redrawn whole: main ms | render ms | \
          a skinned bar bending: main ms | render ms | frames updated in place | posed on the GPU | \
          last update partial | texels it redrew | \
          the bar posed on the CPU (FinGpuPosing off): main ms | render ms | \
          FinShadows removed (Bevy's map), static: main ms | render ms |\n\
-         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         out += &format!(
-            "| {} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {:.2}% | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {:.2}% | {:.1} | {:.1} | {:.1} | {:.1} |\n",
+            "| {} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {} | {:.2}% | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {:.2}% | {:.1} | {:.1} | {:.1} | {:.1} |\n",
             r.objects,
             r.static_main_ms,
             r.static_render_ms,
@@ -319,8 +337,11 @@ pub fn markdown(rows: &[ScalingRow]) -> String {
             r.moving_frame_ms,
             r.moving_scans,
             r.moving_records,
+            r.moving_incremental,
             r.moving_partial,
             r.moving_redrawn * 100.0,
+            r.all_extracted_main_ms,
+            r.all_extracted_render_ms,
             r.whole_main_ms,
             r.whole_render_ms,
             r.posed_main_ms,

@@ -332,10 +332,17 @@ fn one_cube_of_many_moving_redraws_only_its_part_of_the_maps_and_shadows_as_a_fr
     let after = session.settle(6).expect("render").visibility;
     let partial = fin_stats(&session);
     println!(
-        "one cube of 100 moved: partial {}, {} of {whole} texels redrawn",
-        partial.partial_redraw, partial.redrawn_texels
+        "one cube of 100 moved: extracted alone {}, partial {}, {} of {whole} texels redrawn",
+        partial.incremental_extraction, partial.partial_redraw, partial.redrawn_texels
     );
+    assert!(!full.incremental_extraction, "the first update must extract every caster");
+    assert!(partial.incremental_extraction, "one cube of 100 moved sideways was not extracted alone");
     assert!(partial.partial_redraw, "one cube of 100 moved sideways redrew the maps whole");
+    assert_eq!(
+        (partial.silhouettes, partial.fins),
+        (full.silhouettes, full.fins),
+        "a cube moved sideways keeps its silhouettes and fins: the retired ones must not count"
+    );
     assert!(
         partial.redrawn_texels > 0 && partial.redrawn_texels * 20 < whole,
         "a partial redraw of one small cube redrew {} of {whole} texels",
@@ -360,7 +367,9 @@ fn one_cube_of_many_moving_redraws_only_its_part_of_the_maps_and_shadows_as_a_fr
     world.get_mut::<Transform>(cubes[mover]).expect("a transform").translation -= offset * 0.5;
     world.get_mut::<Transform>(cubes[neighbour]).expect("a transform").translation += second;
     let again = session.settle(6).expect("render").visibility;
-    assert!(fin_stats(&session).partial_redraw, "two cubes of 100 moved redrew the maps whole");
+    let twice = fin_stats(&session);
+    assert!(twice.partial_redraw, "two cubes of 100 moved redrew the maps whole");
+    assert!(twice.incremental_extraction, "two cubes of 100 moved were not extracted alone");
     let mut fresh = harness::Session::new(&setup);
     let fresh_cubes = spawn_cubes(fresh.app.world_mut(), 100);
     let world = fresh.app.world_mut();
@@ -372,6 +381,80 @@ fn one_cube_of_many_moving_redraws_only_its_part_of_the_maps_and_shadows_as_a_fr
     println!("second partial redraw: |V − V fresh| max {worst:.2e}; |V − V before| {changed:.4}");
     assert!(changed > 1e-4, "the second move changed no shadow ({changed})");
     assert!(worst <= 1e-4, "the second partial redraw differs from a fresh app's maps (max {worst})");
+
+    // A cube lifted above every other caster (and out of the scene's box:
+    // the CPU asks for a full update) is extracted anew with all the
+    // others, from incremental updates' leftovers — exactly a fresh app's
+    // shadow.
+    let lift = Vec3::new(0.0, 2.5, 0.0);
+    session.app.world_mut().get_mut::<Transform>(cubes[neighbour]).expect("a transform").translation += lift;
+    let lifted = session.settle(6).expect("render").visibility;
+    let stats = fin_stats(&session);
+    println!("a cube lifted: extracted alone {}, partial {}", stats.incremental_extraction, stats.partial_redraw);
+    assert!(!stats.incremental_extraction, "a cube lifted out of the scene's box was extracted alone");
+    let mut fresh = harness::Session::new(&setup);
+    let fresh_cubes = spawn_cubes(fresh.app.world_mut(), 100);
+    let world = fresh.app.world_mut();
+    world.get_mut::<Transform>(fresh_cubes[mover]).expect("a transform").translation += offset * 0.5;
+    world.get_mut::<Transform>(fresh_cubes[neighbour]).expect("a transform").translation += second + lift;
+    let expected = fresh.settle(6).expect("render").visibility;
+    let worst = max_difference(&lifted, &expected);
+    let (changed, _) = compare(&lifted, &again);
+    println!("lifted cube: |V − V fresh| max {worst:.2e}; |V − V before| {changed:.4}");
+    assert!(changed > 1e-4, "lifting a cube changed no shadow ({changed})");
+    assert!(worst <= 1e-4, "a full extraction after incremental ones differs from a fresh app's (max {worst})");
+}
+
+#[test]
+fn a_cube_lifted_out_of_the_kept_silhouette_depth_range_is_extracted_with_every_other_in_the_same_update() {
+    // Incremental extraction (`extract.wgsl`'s `decide`): the moved cube's
+    // new silhouettes are the nearest to the light, so the histogram's depth
+    // range — and with it every silhouette's sub-layer — is not last
+    // frame's. The update must throw away its incremental attempt and
+    // extract every caster anew before it plans the layers. A tall pole that
+    // casts nothing keeps the scene's box (and so the light's parameters)
+    // as they were: only the GPU can see the range moved.
+    use shadow_fins_app::render_lab::scaling::spawn_cubes;
+    let setup = setup(SceneId::BoxOverPlane, settings());
+    let spawn_pole = |world: &mut World| {
+        let mesh = world.resource_mut::<Assets<Mesh>>().add(Cuboid::new(0.1, 3.6, 0.1));
+        let material = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial::default());
+        let at = Transform::from_xyz(4.5, 1.8, -4.5);
+        world.spawn((Mesh3d(mesh), MeshMaterial3d(material), at, bevy::light::NotShadowCaster));
+    };
+    let (sideways, lifted) = ((21, Vec3::new(0.1, 0.0, 0.0)), (44, Vec3::new(0.0, 2.5, 0.0)));
+    let mut session = harness::Session::new(&setup);
+    let cubes = spawn_cubes(session.app.world_mut(), 100);
+    spawn_pole(session.app.world_mut());
+    let before = session.settle(6).expect("render").visibility;
+    assert_visibility_not_trivial(&before);
+    let world = session.app.world_mut();
+    world.get_mut::<Transform>(cubes[sideways.0]).expect("a transform").translation += sideways.1;
+    session.settle(6).expect("render");
+    assert!(fin_stats(&session).incremental_extraction, "a cube moved sideways was not extracted alone");
+    session.app.world_mut().get_mut::<Transform>(cubes[lifted.0]).expect("a transform").translation += lifted.1;
+    let after = session.settle(6).expect("render").visibility;
+    let stats = fin_stats(&session);
+    println!("a cube lifted within the scene's box: extracted alone {}", stats.incremental_extraction);
+    assert!(!stats.incremental_extraction, "a cube holding the nearest silhouette now was extracted alone");
+
+    let mut fresh = harness::Session::new(&setup);
+    let fresh_cubes = spawn_cubes(fresh.app.world_mut(), 100);
+    spawn_pole(fresh.app.world_mut());
+    let world = fresh.app.world_mut();
+    world.get_mut::<Transform>(fresh_cubes[sideways.0]).expect("a transform").translation += sideways.1;
+    world.get_mut::<Transform>(fresh_cubes[lifted.0]).expect("a transform").translation += lifted.1;
+    let expected = fresh.settle(6).expect("render").visibility;
+    let worst = max_difference(&after, &expected);
+    let (changed, _) = compare(&after, &before);
+    println!("lifted cube: |V − V fresh| max {worst:.2e}; |V − V before| {changed:.4}");
+    assert!(changed > 1e-4, "lifting a cube changed no shadow ({changed})");
+    assert_eq!(
+        (stats.silhouettes, stats.fins, stats.layers),
+        (fin_stats(&fresh).silhouettes, fin_stats(&fresh).fins, fin_stats(&fresh).layers),
+        "the update extracted otherwise than a fresh app"
+    );
+    assert!(worst <= 1e-4, "the update that fell back differs from a fresh app's (max {worst})");
 }
 
 #[test]
@@ -402,6 +485,7 @@ fn a_skinned_bar_bending_among_many_cubes_is_posed_on_the_gpu_and_redraws_only_i
     );
     assert_eq!(partial.posed_on_gpu, 1, "the bent bar was not posed on the GPU");
     assert!(partial.partial_redraw, "a new pose of one caster of 101 redrew the maps whole");
+    assert!(partial.incremental_extraction, "a new pose of one caster of 101 was not extracted alone");
     assert!(partial.redrawn_texels * 10 < whole, "the bend redrew {} of {whole} texels", partial.redrawn_texels);
 
     let mut fresh = harness::Session::new(&setup);

@@ -87,6 +87,12 @@ pub struct FinFrameStats {
     /// extraction), a partial redraw's few; 0 for the coverage method (no
     /// penumbra maps).
     pub redrawn_texels: u64,
+    /// The GPU extraction's last update extracted only the casters that
+    /// moved, and kept every other caster's silhouettes, fins and map
+    /// triangles from before (`extract.wgsl`): a few moved, and the
+    /// reference depth and the silhouettes' depth range stayed. `false`:
+    /// everything extracted anew, or on the CPU.
+    pub incremental_extraction: bool,
     /// Skinned or morphed casters the GPU posed itself (`pose.wgsl`): a new
     /// pose of one of them is a changed instance, like a moved caster. The
     /// others posed are posed on the CPU (the CPU extraction, or a pose that
@@ -113,6 +119,8 @@ pub(crate) struct GpuCaster {
     pub layer: u32,
     /// 0: solid; else 1 + its index in the frame's [`GpuCutout`]s.
     pub cutout: u32,
+    /// The GPU extraction's patch of the caster (`extract.wgsl`); 0 here.
+    pub patch_id: u32,
 }
 
 /// An alpha-masked map triangle's cut-out (the core's `MapCutout`;
@@ -218,13 +226,15 @@ pub(crate) fn gpu_casters(
                 max_depth: t.max_depth,
                 layer: layers.map_or(0, |l| l[i]),
                 cutout,
+                patch_id: 0,
             }
         })
         .collect();
     (casters, cutouts, mask_words)
 }
 
-/// One fin: `header = [kind (0 quad, 1 sector), side (0 inner, 1 outer), layer, 0]`,
+/// One fin: `header = [kind (0 quad, 1 sector), side (0 inner, 1 outer), layer,
+/// the GPU extraction's patch (0 here)]`,
 /// then the shape's numbers (see `maps.wgsl`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -1122,6 +1132,7 @@ impl FinFrameStats {
             map_resolution: a.map_resolution.min(b.map_resolution),
             extraction: a.extraction,
             partial_redraw: a.partial_redraw && b.partial_redraw,
+            incremental_extraction: a.incremental_extraction && b.incremental_extraction,
             redrawn_texels: a.redrawn_texels + b.redrawn_texels,
             posed_on_gpu: a.posed_on_gpu.max(b.posed_on_gpu),
         })
@@ -1459,6 +1470,7 @@ fn coverage_data(
         map_resolution: coverage.region.resolution,
         extraction: FinExtraction::Cpu,
         partial_redraw: false,
+        incremental_extraction: false,
         redrawn_texels: 0,
         posed_on_gpu: 0,
     };
@@ -1652,6 +1664,7 @@ fn cpu_frame(
         map_resolution: region.resolution,
         extraction: FinExtraction::Cpu,
         partial_redraw: false,
+        incremental_extraction: false,
         redrawn_texels: (model.plan.len() as u64) * (region.resolution as u64).pow(2),
         posed_on_gpu: 0,
     };

@@ -274,6 +274,13 @@ pub(crate) struct GpuInstance {
     pose: [u32; 4],
 }
 
+impl GpuInstance {
+    /// (flags 1 casts / 2 closed / 4 mirrors, vertices, caster faces, caster edges)
+    pub fn info(&self) -> [u32; 4] {
+        self.info
+    }
+}
+
 /// Sizes of the GPU extraction's output buffers. They start from the scene's
 /// size and grow when a read-back shows a frame needed more (see
 /// `FinShadowStats`); they never shrink.
@@ -650,7 +657,7 @@ impl GpuScene {
 /// Bytes per record of the extraction's outputs (`extract.wgsl`).
 pub(crate) const SILHOUETTE_BYTES: u64 = 7 * 16;
 pub(crate) const FIN_BYTES: u64 = 64;
-pub(crate) const CASTER_BYTES: u64 = 56;
+pub(crate) const CASTER_BYTES: u64 = size_of::<crate::extract::GpuCaster>() as u64;
 /// `state` words per caster face (`FACE_WORDS` in `extract.wgsl`).
 pub(crate) const FACE_STATE_WORDS: u64 = 5;
 

@@ -41,10 +41,12 @@
 //! again is rebuilt in its slot and only its instance record (with its
 //! pose: a skinned or morphed caster is posed on the GPU from its joint
 //! matrices and morph weights, `shaders/pose.wgsl`, [`FinFrameStats::posed_on_gpu`];
-//! or its new geometry) goes up to the GPU, [`FinCasterUpdates`]; the GPU's extraction
-//! then runs for the whole light, and its maps are redrawn only under the
-//! casters that moved when their plan stayed, [`FinPartialRedraw`]; a still
-//! scene runs no read-back),
+//! or its new geometry) goes up to the GPU, [`FinCasterUpdates`]; the GPU then
+//! extracts only the casters that moved, keeping every other's records, when
+//! the reference depth and the silhouettes' depth range stayed,
+//! [`FinIncrementalExtraction`], and redraws its maps only under the casters
+//! that moved when their plan stayed, [`FinPartialRedraw`]; a still scene
+//! runs no read-back),
 //! its own visibility layer per camera and its own [`FinLightStats`]. A light
 //! only sees the casters in its range and in front of its disk: a light that
 //! sees none runs no extraction or map pass (its visibility pass writes 1). The
@@ -219,7 +221,7 @@ pub use light::{
 };
 pub use pose::FinGpuPosing;
 pub use receivers::FinReceivers;
-pub use render::{FinForwardShading, FinPartialRedraw};
+pub use render::{FinForwardShading, FinIncrementalExtraction, FinPartialRedraw};
 pub use shadow_fins;
 pub use snapshot::{FinSceneSnapshot, FinSnapshotApproximation, FinSnapshotSkip, scene_snapshot};
 

@@ -256,10 +256,12 @@ fn panels(
                     "layers in use {} · maps {}² · CPU {:.2} ms",
                     s.layers, s.map_resolution, s.extract_ms
                 ));
-                // What the last update redid: the maps in part or whole, and who posed.
+                // What the last update redid: the casters extracted, the maps
+                // in part or whole, and who posed.
                 let redraw = if s.partial_redraw { "partial" } else { "whole" };
+                let extracted = if s.incremental_extraction { "the moved casters" } else { "every caster" };
                 ui.label(format!(
-                    "last map update {redraw}: {} texels · {} posed on the GPU",
+                    "last update extracted {extracted} · maps {redraw}: {} texels · {} posed on the GPU",
                     s.redrawn_texels, s.posed_on_gpu
                 ));
                 // What the GPU's limits or the budget cut, said where the user looks.

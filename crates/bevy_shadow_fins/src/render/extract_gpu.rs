@@ -38,17 +38,27 @@ pub(super) const C_ARGS_FINS: u64 = 62;
 const C_ARGS_SILHOUETTES: u64 = 65;
 const C_ARGS_FIN_THREADS: u64 = 68;
 const C_ARGS_CASTER_THREADS: u64 = 71;
+/// Stages 1–9's dispatch sizes (vertices, faces, edges, instances), and
+/// `retire_moved`'s.
+const C_ARGS_ITEMS: u64 = 112;
+const C_ARGS_RETIRE: u64 = 124;
 const C_HISTOGRAM: u64 = 128;
-/// Stats words: whether the last update redrew the maps in part, and the
-/// texels it cleared and drew again.
+/// Stats words: whether the last update redrew the maps in part (bit 0) and
+/// extracted the moved instances only (bit 1), and the texels it cleared
+/// and drew again.
 const C_PARTIAL: usize = 13;
 const C_REDRAWN: usize = 14;
 /// After the histogram, what a partial redraw keeps between frames
 /// (`history` in `extract.wgsl`, words relative to its start): the dirty
-/// list's length (or [`FULL`]), then per instance its footprint, then the
-/// dirty instances, then the redraw lists.
+/// list's length (or [`FULL`]), then `INSTANCE_WORDS` per instance (its
+/// footprint, deepest vertex, silhouette depths), then `DIRTY_WORDS` per
+/// dirty instance, then the redraw lists.
 const H_DIRTY_COUNT: u64 = 64;
-const H_FOOTPRINTS: u64 = 76;
+/// 1: the GPU may extract the moved instances alone ([`FinIncrementalExtraction`](super::FinIncrementalExtraction)).
+const H_INCREMENTAL: u64 = 66;
+const H_INSTANCES: u64 = 96;
+const INSTANCE_WORDS: u64 = 8;
+const DIRTY_WORDS: u64 = 4;
 /// Redraw the maps whole.
 const FULL: u32 = u32::MAX;
 /// The most moved instances a partial redraw takes; past it the maps are
@@ -68,9 +78,14 @@ const POSE_ENTRY_POINTS: [&str; 4] = ["pose_vertices", "pose_faces", "pose_norma
 const MAX_POSE_GROUPS: u32 = 1024;
 
 /// The entry points, in the order they run.
-const ENTRY_POINTS: [&str; 18] = [
+const ENTRY_POINTS: [&str; 23] = [
     "reset",
+    "begin",
     "forget_footprints",
+    "reduce_instances",
+    "decide",
+    "retire_moved",
+    "reduce_footprints",
     "reset_footprints",
     "transform_vertices",
     "classify_faces",
@@ -207,7 +222,8 @@ fn stats_of_readback(f: &FinFrameData, w: &[u32], state: &mut crate::extract::Li
         fins: w[1].min(gpu.capacity.fins) as usize,
         layers: w[12] as usize,
         redrawn_texels: w[C_REDRAWN] as u64,
-        partial_redraw: w[C_PARTIAL] == 1,
+        partial_redraw: w[C_PARTIAL] & 1 != 0,
+        incremental_extraction: w[C_PARTIAL] & 2 != 0,
         up_to_date: grown.is_none(),
         degraded: if grown.is_none() { shortfall.or(f.stats.degraded) } else { f.stats.degraded },
         ..f.stats
@@ -315,8 +331,8 @@ pub(super) struct ExtractBuffers {
     /// The posing passes must run before the next extraction (new poses,
     /// or the geometry went up at rest).
     pose_pending: bool,
-    /// (instance vertices, caster faces, caster edges, sub-layers)
-    sizes: [u32; 4],
+    /// The histogram's sub-layers (`reset` clears `control` up to past them).
+    sub_layers: u32,
     /// Instances whose records changed this frame: how many (`FULL` when
     /// the maps must be redrawn whole), the dispatch of `forget_footprints`.
     dirty: u32,
@@ -327,6 +343,10 @@ pub(super) struct ExtractBuffers {
     /// list never reached the GPU, or another path drew the maps since, and
     /// the next update must redraw whole).
     recorded: bool,
+    /// The buffers last frame's extraction left its records in (control,
+    /// state, positions, silhouettes, fins, casters): an update may extract
+    /// the moved instances only while they are all still there.
+    work_buffers: Vec<BufferId>,
 }
 
 /// Allocates `buf` (half again as large, so a growing scene does not reallocate
@@ -375,7 +395,8 @@ fn changed_runs(old: &[u8], new: &[u8], record: usize) -> Vec<std::ops::Range<us
 /// binds the work buffers; `fins` and `casters` are the maps' input buffers.
 /// `maps_kept`: the maps buffer still holds the last update's maps and
 /// [`FinPartialRedraw`](super::FinPartialRedraw) is on (a partial redraw may
-/// keep them; see the top of `extract.wgsl`).
+/// keep them; see the top of `extract.wgsl`); `incremental`: the GPU may then
+/// extract the moved instances alone ([`FinIncrementalExtraction`](super::FinIncrementalExtraction)).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn prepare(
     buffers: &mut ExtractBuffers,
@@ -385,6 +406,7 @@ pub(super) fn prepare(
     fins: &Buffer,
     casters: &Buffer,
     maps_kept: bool,
+    incremental: bool,
     pipelines: &ExtractPipelines,
     pipeline_cache: &PipelineCache,
     device: &RenderDevice,
@@ -491,11 +513,13 @@ pub(super) fn prepare(
     buffers.uploaded_poses = Some(scene.poses.clone());
     let instances = scene.instances.len() as u64;
     let history = C_HISTOGRAM + s.sub_layers as u64;
-    let dirty_list = history + H_FOOTPRINTS + 4 * instances;
+    let dirty_list = history + H_INSTANCES + INSTANCE_WORDS * instances;
     // ... then the dirty list and the redraw lists (a count, then indices).
-    let control_words =
-        dirty_list + MAX_REDRAWN_INSTANCES as u64 + 2 + scene.capacity.casters as u64 + scene.capacity.fins as u64;
-    let old_control = buffers.control.as_ref().map(|b| b.id());
+    let control_words = dirty_list
+        + DIRTY_WORDS * MAX_REDRAWN_INSTANCES as u64
+        + 2
+        + scene.capacity.casters as u64
+        + scene.capacity.fins as u64;
     ensure(
         &mut buffers.control,
         device,
@@ -504,22 +528,6 @@ pub(super) fn prepare(
         BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST,
         cap,
     );
-    // Partial when the last update reached the GPU, the same maps, light,
-    // settings, geometry and history are there, and few instances moved.
-    let partial = buffers.recorded
-        && maps_kept
-        && kept
-        && same_params
-        && same_geometry
-        && old_control == buffers.control.as_ref().map(|b| b.id())
-        && moved.len() <= MAX_REDRAWN_INSTANCES;
-    buffers.dirty = if partial { moved.len() as u32 } else { FULL };
-    let control = buffers.control.as_ref().unwrap();
-    queue.write_buffer(control, (history + H_DIRTY_COUNT) * 4, bytemuck::bytes_of(&buffers.dirty));
-    if partial && !moved.is_empty() {
-        queue.write_buffer(control, dirty_list * 4, bytemuck::cast_slice(&moved));
-    }
-    buffers.recorded = false;
     ensure(
         &mut buffers.indirect,
         device,
@@ -539,6 +547,35 @@ pub(super) fn prepare(
         storage,
         cap,
     );
+    // Partial when the last update reached the GPU, the same maps, light,
+    // settings, geometry, history and records are there, and few instances
+    // moved. The GPU then extracts the moved instances only, if it can
+    // (`extract.wgsl`'s `decide`), from the dirty table: per moved instance
+    // its index and where its vertices, faces and edges start among the
+    // moved instances'.
+    let work_buffers: Vec<BufferId> = [&buffers.control, &buffers.state, &buffers.positions, &buffers.silhouettes]
+        .into_iter()
+        .flatten()
+        .chain([fins, casters])
+        .map(|b| b.id())
+        .collect();
+    let partial = buffers.recorded
+        && maps_kept
+        && kept
+        && same_params
+        && same_geometry
+        && buffers.work_buffers == work_buffers
+        && moved.len() <= MAX_REDRAWN_INSTANCES;
+    buffers.work_buffers = work_buffers;
+    buffers.dirty = if partial { moved.len() as u32 } else { FULL };
+    let control = buffers.control.as_ref().unwrap();
+    queue.write_buffer(control, (history + H_DIRTY_COUNT) * 4, bytemuck::bytes_of(&buffers.dirty));
+    queue.write_buffer(control, (history + H_INCREMENTAL) * 4, bytemuck::bytes_of(&(incremental as u32)));
+    if partial && !moved.is_empty() {
+        let table = dirty_table(&moved, |k| scene.instances[k as usize].info());
+        queue.write_buffer(control, dirty_list * 4, bytemuck::cast_slice(&table));
+    }
+    buffers.recorded = false;
     buffers.bind_group = Some(device.create_bind_group(
         "fin_extract_bind_group",
         &pipeline_cache.get_bind_group_layout(&pipelines.layout),
@@ -554,7 +591,24 @@ pub(super) fn prepare(
             casters.as_entire_binding(),
         )),
     ));
-    buffers.sizes = [vertices, faces, edges, s.sub_layers];
+    buffers.sub_layers = s.sub_layers;
+}
+
+/// The dirty table `extract.wgsl`'s `item_of` reads: per moved instance
+/// (`DIRTY_WORDS`) its index, then where its vertices, faces and edges start
+/// among the moved instances' (`info`: an instance's
+/// [`GpuInstance::info`], whose words 1..4 count them).
+fn dirty_table(moved: &[u32], info: impl Fn(u32) -> [u32; 4]) -> Vec<u32> {
+    let mut first = [0u32; 3];
+    (moved.iter())
+        .flat_map(|&k| {
+            let entry = [k, first[0], first[1], first[2]];
+            for (at, n) in first.iter_mut().zip(&info(k)[1..]) {
+                *at += n;
+            }
+            entry
+        })
+        .collect()
 }
 
 /// Records the extraction passes; then copies the maps' parameters into their
@@ -572,12 +626,12 @@ pub(super) fn record(
     else {
         return false;
     };
-    let [vertices, faces, edges, sub_layers] = buffers.sizes;
+    let sub_layers = buffers.sub_layers;
     let Some(args) = buffers.indirect.as_ref() else { return false };
     let threads = |n: u32| super::workgroups(n.div_ceil(WORKGROUP));
     let instances = buffers.uploaded_instances.len() / size_of::<GpuInstance>();
     let dirty = if buffers.dirty == FULL { 0 } else { buffers.dirty };
-    // Dispatch sizes known here: the scene's vertices, faces, edges.
+    // Dispatch sizes known here: the scene's instances, the moved ones.
     fn direct(pass: &mut ComputePass, pipeline: &ComputePipeline, (x, y): (u32, u32)) {
         if x > 0 {
             pass.set_pipeline(pipeline);
@@ -615,22 +669,41 @@ pub(super) fn record(
             pass.dispatch_workgroups(n.div_ceil(WORKGROUP).clamp(1, MAX_POSE_GROUPS), y, z);
         }
     }
+    // Stages 1–9 (`extract.wgsl`), over the items `item_of` gives: the
+    // moved instances' (the first time), or every instance's (the second).
+    let stages_1_to_9 = |encoder: &mut CommandEncoder| {
+        copy_args(encoder, C_ARGS_ITEMS, C_ARGS_ITEMS + 12);
+        begin(encoder, &mut |pass| {
+            indirect(pass, entry("reset_footprints"), args, C_ARGS_ITEMS + 9);
+            indirect(pass, entry("transform_vertices"), args, C_ARGS_ITEMS);
+            indirect(pass, entry("classify_faces"), args, C_ARGS_ITEMS + 3);
+            indirect(pass, entry("join_patches"), args, C_ARGS_ITEMS + 6);
+            indirect(pass, entry("flatten_patches"), args, C_ARGS_ITEMS + 3);
+            indirect(pass, entry("find_silhouettes"), args, C_ARGS_ITEMS + 6);
+            direct(pass, entry("silhouette_args"), (1, 1));
+        });
+        copy_args(encoder, C_ARGS_SILHOUETTES, C_ARGS_SILHOUETTES + 3);
+        begin(encoder, &mut |pass| {
+            indirect(pass, entry("silhouette_vertices"), args, C_ARGS_SILHOUETTES);
+            indirect(pass, entry("silhouette_quads"), args, C_ARGS_SILHOUETTES);
+            indirect(pass, entry("map_casters"), args, C_ARGS_ITEMS + 3);
+        });
+    };
     begin(encoder, &mut |pass| {
         direct(pass, entry("reset"), threads(C_HISTOGRAM as u32 + sub_layers));
+        direct(pass, entry("begin"), (1, 1));
         direct(pass, entry("forget_footprints"), threads(dirty));
-        direct(pass, entry("reset_footprints"), threads(instances as u32));
-        direct(pass, entry("transform_vertices"), threads(vertices));
-        direct(pass, entry("classify_faces"), threads(faces));
-        direct(pass, entry("join_patches"), threads(edges));
-        direct(pass, entry("flatten_patches"), threads(faces));
-        direct(pass, entry("find_silhouettes"), threads(edges));
-        direct(pass, entry("silhouette_args"), (1, 1));
     });
-    copy_args(encoder, C_ARGS_SILHOUETTES, C_ARGS_SILHOUETTES + 3);
+    stages_1_to_9(encoder);
     begin(encoder, &mut |pass| {
-        indirect(pass, entry("silhouette_vertices"), args, C_ARGS_SILHOUETTES);
-        indirect(pass, entry("silhouette_quads"), args, C_ARGS_SILHOUETTES);
-        direct(pass, entry("map_casters"), threads(faces));
+        direct(pass, entry("reduce_instances"), threads(instances as u32));
+        direct(pass, entry("decide"), (1, 1));
+    });
+    stages_1_to_9(encoder);
+    copy_args(encoder, C_ARGS_RETIRE, C_ARGS_RETIRE + 3);
+    begin(encoder, &mut |pass| {
+        indirect(pass, entry("retire_moved"), args, C_ARGS_RETIRE);
+        direct(pass, entry("reduce_footprints"), threads(instances as u32));
         direct(pass, entry("plan_layers"), (1, 1));
     });
     copy_args(encoder, C_ARGS_FIN_THREADS, C_ARGS_CASTER_THREADS + 3);
@@ -682,7 +755,23 @@ pub(super) fn stats_buffer<'a>(
 
 #[cfg(test)]
 mod tests {
-    use super::changed_runs;
+    use super::{DIRTY_WORDS, changed_runs, dirty_table};
+
+    #[test]
+    fn the_dirty_table_starts_each_moved_instance_after_the_ones_before_it() {
+        // Instances 2, 5, 9 moved: (flags, vertices, faces, edges) each;
+        // instance 5 casts nothing (no face, no edge).
+        let info = |k: u32| match k {
+            2 => [1, 8, 12, 18],
+            5 => [0, 4, 0, 0],
+            9 => [3, 24, 44, 66],
+            _ => unreachable!("only moved instances are looked up"),
+        };
+        let table = dirty_table(&[2, 5, 9], info);
+        assert_eq!(table.len(), 3 * DIRTY_WORDS as usize);
+        assert_eq!(table, vec![2, 0, 0, 0, 5, 8, 12, 18, 9, 12, 12, 18]);
+        assert!(dirty_table(&[], info).is_empty());
+    }
 
     #[test]
     fn only_the_records_that_differ_are_written() {

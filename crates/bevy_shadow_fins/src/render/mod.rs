@@ -53,9 +53,10 @@ pub(crate) fn build(app: &mut App) {
     load_shader_library!(app, "shaders/fin_view.wgsl");
     embedded_asset!(app, "shaders/maps.wgsl");
     embedded_asset!(app, "shaders/visibility.wgsl");
-    app.init_resource::<FinPartialRedraw>().add_plugins((
+    app.init_resource::<FinPartialRedraw>().init_resource::<FinIncrementalExtraction>().add_plugins((
         ExtractResourcePlugin::<FinFrames>::default(),
         ExtractResourcePlugin::<FinPartialRedraw>::default(),
+        ExtractResourcePlugin::<FinIncrementalExtraction>::default(),
         ExtractResourcePlugin::<crate::BevyShadowMapsKept>::default(),
         ExtractComponentPlugin::<FinShadowView>::default(),
     ));
@@ -77,6 +78,22 @@ pub(crate) fn build(app: &mut App) {
 pub struct FinPartialRedraw(pub bool);
 
 impl Default for FinPartialRedraw {
+    fn default() -> Self {
+        Self(true)
+    }
+}
+
+/// Whether the GPU extraction may extract only the casters that moved, when
+/// a few of many moved, and keep every other caster's silhouettes, fins and
+/// map triangles from the update before (see
+/// `FinFrameStats::incremental_extraction`). On by default: the result is
+/// record for record a full extraction's. Off, every update extracts every
+/// caster — for measuring what it saves (`shadow-fins-render-lab scaling`).
+/// It applies where a partial redraw may ([`FinPartialRedraw`]).
+#[derive(Resource, Clone, Copy, Debug, PartialEq, Eq, bevy::render::extract_resource::ExtractResource)]
+pub struct FinIncrementalExtraction(pub bool);
+
+impl Default for FinIncrementalExtraction {
     fn default() -> Self {
         Self(true)
     }
@@ -350,8 +367,12 @@ fn prepare_maps(
     pipelines: Option<Res<FinPipelines>>,
     pipeline_cache: Res<PipelineCache>,
     partial: Option<Res<FinPartialRedraw>>,
+    incremental: Option<Res<FinIncrementalExtraction>>,
 ) {
-    let partial = partial.is_none_or(|p| p.0);
+    let scope = UpdateScope {
+        partial_redraw: partial.is_none_or(|p| p.0),
+        incremental_extraction: incremental.is_none_or(|i| i.0),
+    };
     lights.0.retain(|key, _| frames.on_coverage(false).any(|f| f.key() == *key));
     let Some(pipelines) = pipelines else {
         lights.0.clear();
@@ -359,8 +380,16 @@ fn prepare_maps(
     };
     for frame in frames.on_coverage(false) {
         let gpu = lights.0.entry(frame.key()).or_default();
-        prepare_light_maps(&frame.data, gpu, &device, &queue, &pipelines, &pipeline_cache, partial);
+        prepare_light_maps(&frame.data, gpu, &device, &queue, &pipelines, &pipeline_cache, scope);
     }
+}
+
+/// What an update of the GPU extraction may leave as it was
+/// ([`FinPartialRedraw`], [`FinIncrementalExtraction`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct UpdateScope {
+    pub partial_redraw: bool,
+    pub incremental_extraction: bool,
 }
 
 /// One light's maps: uploaded when its frame changed.
@@ -371,7 +400,7 @@ fn prepare_light_maps(
     queue: &RenderQueue,
     pipelines: &FinPipelines,
     pipeline_cache: &PipelineCache,
-    partial: bool,
+    scope: UpdateScope,
 ) {
     if f.generation == gpu.generation && gpu.bind_group.is_some() {
         return;
@@ -396,7 +425,7 @@ fn prepare_light_maps(
     let old_maps = gpu.maps.as_ref().map(|b| b.id());
     ensure(&mut gpu.maps, device, "fin_maps", maps_size, storage | BufferUsages::COPY_SRC, cap.min(f.map_limit_bytes));
     // New maps hold nothing a partial redraw could keep.
-    let maps_kept = partial && old_maps == gpu.maps.as_ref().map(|b| b.id());
+    let maps_kept = scope.partial_redraw && old_maps == gpu.maps.as_ref().map(|b| b.id());
     let (caster_bytes, fin_bytes) = match &f.gpu {
         Some(scene) => (
             scene.capacity.casters as u64 * extract_gpu::CASTER_BYTES,
@@ -431,6 +460,7 @@ fn prepare_light_maps(
                 fins.as_ref().unwrap(),
                 casters.as_ref().unwrap(),
                 maps_kept,
+                scope.incremental_extraction,
                 &pipelines.extract,
                 pipeline_cache,
                 device,
