@@ -167,7 +167,8 @@ const C_PLANES: u32 = 74u; // count, then up to 31 planes
 const C_STAGE: u32 = 108u; // STAGE_*
 // ... and the records in the buffers, retired ones included (where the next goes).
 const C_CURSORS: u32 = 109u; // silhouettes, fins, casters
-// Stages 1–9's dispatch sizes: vertices, faces, edges, instances (3 words each).
+// Stages 1–9's dispatch sizes: vertices, faces, edges, then instances or
+// sub-layers, whichever are more (`reset_footprints`); 3 words each.
 const C_ARGS_ITEMS: u32 = 112u;
 const C_ARGS_RETIRE: u32 = 124u;
 const C_HISTOGRAM: u32 = 128u;
@@ -542,10 +543,9 @@ fn reset(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
         if (i == 0u) {
             clear_keys(H_DIRTY_RECT);
         }
-    } else if (i < C_HISTOGRAM + params.layering.x && !may_extract_listed()) {
-        // Kept for an update that may extract the listed instances only.
-        atomicStore(&control[i], 0u);
     }
+    // The histogram stays: an update that extracts the listed instances
+    // alone goes on from it; a full one clears it (`reset_footprints`).
 }
 
 // Last frame's extraction is there whole (`H_VALID`) and the CPU listed what
@@ -561,7 +561,9 @@ fn may_extract_listed() -> bool {
 // instances' items.
 @compute @workgroup_size(1, 1, 1)
 fn begin() {
-    atomicAdd(&control[h(H_EPOCH)], 1u);
+    if (atomicAdd(&control[h(H_EPOCH)], 1u) == 0xffffffffu) {
+        atomicStore(&control[h(H_EPOCH)], 1u);
+    }
     atomicStore(&control[h(H_UNION)], 0u);
     atomicStore(&control[h(H_UNION + 1u)], 0xffffffffu);
     atomicStore(&control[h(H_UNION + 2u)], 0u);
@@ -591,27 +593,36 @@ fn begin() {
 }
 
 // Before anything is emitted: the dirty instances' old footprints go into
-// the dirty rectangle (what they covered must be redrawn without them) and,
-// when the listed instances are extracted alone, they start anew.
+// the dirty rectangle (what they covered must be redrawn without them,
+// however they are extracted) and, when the listed instances are extracted
+// alone, they start anew, marked as listed in this update.
 @compute @workgroup_size(64, 1, 1)
 fn forget_footprints(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let i = thread_index(wg, lane);
-    if (i < dirty_count() && stage() == STAGE_ATTEMPT) {
+    if (i < dirty_count()) {
         let instance = dirty_instance(i);
         if (instance < params.totals.x) {
             grow_dirty_rect(instance);
-            clear_instance(instance);
-            atomicStore(&control[h(instance_word(instance, I_LISTED))], atomicLoad(&control[h(H_EPOCH)]));
+            if (stage() == STAGE_ATTEMPT) {
+                clear_instance(instance);
+                atomicStore(&control[h(instance_word(instance, I_LISTED))], atomicLoad(&control[h(H_EPOCH)]));
+            }
         }
     }
 }
 
-// Every instance starts anew (a full extraction: each emits again).
+// A full extraction: every instance starts anew (each emits again), listed
+// in no update (the epoch is never 0; a word left from another layout of
+// `control` must not pass for this update's mark), and the histogram empty.
 @compute @workgroup_size(64, 1, 1)
 fn reset_footprints(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let i = thread_index(wg, lane);
     if (i < params.totals.x) {
         clear_instance(i);
+        atomicStore(&control[h(instance_word(i, I_LISTED))], 0u);
+    }
+    if (i < params.layering.x) {
+        atomicStore(&control[C_HISTOGRAM + i], 0u);
     }
 }
 
@@ -660,12 +671,11 @@ fn decide() {
     atomicStore(&control[C_DEPTH_MAX], 0u);
     atomicStore(&control[C_DEEPEST], 0u);
     atomicStore(&control[C_UNBOUNDED], 0u);
-    for (var i = 0u; i < params.layering.x; i++) {
-        atomicStore(&control[C_HISTOGRAM + i], 0u);
+    // `reset_footprints` clears every instance and the histogram.
+    for (var i = 0u; i < 3u; i++) {
+        write_args(C_ARGS_ITEMS + 3u * i, params.totals[i + 1u], WORKGROUP);
     }
-    for (var i = 0u; i < 4u; i++) {
-        write_args(C_ARGS_ITEMS + 3u * i, params.totals[(i + 1u) % 4u], WORKGROUP);
-    }
+    write_args(C_ARGS_ITEMS + 9u, max(params.totals.x, params.layering.x), WORKGROUP);
     write_args(C_ARGS_RETIRE, 0u, WORKGROUP);
 }
 

@@ -455,6 +455,27 @@ fn a_cube_lifted_out_of_the_kept_silhouette_depth_range_is_extracted_with_every_
         "the update extracted otherwise than a fresh app"
     );
     assert!(worst <= 1e-4, "the update that fell back differs from a fresh app's (max {worst})");
+
+    // With `FinIncrementalExtraction` off every caster is extracted, and the
+    // maps are still redrawn only under the moved cube's old and new
+    // footprints: its old shadow must go.
+    session.app.insert_resource(bevy_shadow_fins::FinIncrementalExtraction(false));
+    let back = Vec3::new(-0.4, 0.0, 0.0);
+    session.app.world_mut().get_mut::<Transform>(cubes[sideways.0]).expect("a transform").translation += back;
+    let moved_back = session.settle(6).expect("render").visibility;
+    let stats = fin_stats(&session);
+    assert!(!stats.incremental_extraction, "FinIncrementalExtraction(false) extracted the moved cube alone");
+    assert!(stats.partial_redraw, "a cube moved sideways redrew the maps whole");
+    let mut fresh = harness::Session::new(&setup);
+    let fresh_cubes = spawn_cubes(fresh.app.world_mut(), 100);
+    spawn_pole(fresh.app.world_mut());
+    let world = fresh.app.world_mut();
+    world.get_mut::<Transform>(fresh_cubes[sideways.0]).expect("a transform").translation += sideways.1 + back;
+    world.get_mut::<Transform>(fresh_cubes[lifted.0]).expect("a transform").translation += lifted.1;
+    let expected = fresh.settle(6).expect("render").visibility;
+    let worst = max_difference(&moved_back, &expected);
+    println!("every caster extracted, maps redrawn in part: |V − V fresh| max {worst:.2e}");
+    assert!(worst <= 1e-4, "the partial redraw after a full extraction differs from a fresh app's (max {worst})");
 }
 
 #[test]

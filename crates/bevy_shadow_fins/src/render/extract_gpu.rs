@@ -331,8 +331,6 @@ pub(super) struct ExtractBuffers {
     /// The posing passes must run before the next extraction (new poses,
     /// or the geometry went up at rest).
     pose_pending: bool,
-    /// The histogram's sub-layers (`reset` clears `control` up to past them).
-    sub_layers: u32,
     /// Instances whose records changed this frame: how many (`FULL` when
     /// the maps must be redrawn whole), the dispatch of `forget_footprints`.
     dirty: u32,
@@ -591,7 +589,6 @@ pub(super) fn prepare(
             casters.as_entire_binding(),
         )),
     ));
-    buffers.sub_layers = s.sub_layers;
 }
 
 /// The dirty table `extract.wgsl`'s `item_of` reads: per moved instance
@@ -626,7 +623,6 @@ pub(super) fn record(
     else {
         return false;
     };
-    let sub_layers = buffers.sub_layers;
     let Some(args) = buffers.indirect.as_ref() else { return false };
     let threads = |n: u32| super::workgroups(n.div_ceil(WORKGROUP));
     let instances = buffers.uploaded_instances.len() / size_of::<GpuInstance>();
@@ -690,7 +686,7 @@ pub(super) fn record(
         });
     };
     begin(encoder, &mut |pass| {
-        direct(pass, entry("reset"), threads(C_HISTOGRAM as u32 + sub_layers));
+        direct(pass, entry("reset"), threads(C_HISTOGRAM as u32));
         direct(pass, entry("begin"), (1, 1));
         direct(pass, entry("forget_footprints"), threads(dirty));
     });
