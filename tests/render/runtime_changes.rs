@@ -433,7 +433,9 @@ fn a_cube_lifted_out_of_the_kept_silhouette_depth_range_is_extracted_with_every_
     session.settle(6).expect("render");
     assert!(fin_stats(&session).incremental_extraction, "a cube moved sideways was not extracted alone");
     session.app.world_mut().get_mut::<Transform>(cubes[lifted.0]).expect("a transform").translation += lifted.1;
-    let after = session.settle(6).expect("render").visibility;
+    let lifted_shot = session.settle(6).expect("render");
+    save(&lifted_shot, "incremental_cube_lifted");
+    let after = lifted_shot.visibility;
     let stats = fin_stats(&session);
     println!("a cube lifted within the scene's box: extracted alone {}", stats.incremental_extraction);
     assert!(!stats.incremental_extraction, "a cube holding the nearest silhouette now was extracted alone");
@@ -462,7 +464,9 @@ fn a_cube_lifted_out_of_the_kept_silhouette_depth_range_is_extracted_with_every_
     session.app.insert_resource(bevy_shadow_fins::FinIncrementalExtraction(false));
     let back = Vec3::new(-0.4, 0.0, 0.0);
     session.app.world_mut().get_mut::<Transform>(cubes[sideways.0]).expect("a transform").translation += back;
-    let moved_back = session.settle(6).expect("render").visibility;
+    let moved_back_shot = session.settle(6).expect("render");
+    save(&moved_back_shot, "incremental_off_cube_moved_back");
+    let moved_back = moved_back_shot.visibility;
     let stats = fin_stats(&session);
     assert!(!stats.incremental_extraction, "FinIncrementalExtraction(false) extracted the moved cube alone");
     assert!(stats.partial_redraw, "a cube moved sideways redrew the maps whole");
