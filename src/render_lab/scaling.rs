@@ -137,6 +137,8 @@ enum Motion {
     Cube(Entity),
     /// This joint turns a little further every frame.
     Joint(Entity),
+    /// This light turns a little further every frame.
+    Light(Entity),
 }
 
 /// A bar (of one size whatever the cube count) skinned to two joints — the root at `at`,
@@ -206,6 +208,7 @@ fn time(session: &mut Session, frames: u32, motion: Motion) -> Medians {
         match motion {
             Motion::Cube(cube) => world.get_mut::<Transform>(cube).map(|mut t| t.translation.x += 1e-3 * step),
             Motion::Joint(joint) => world.get_mut::<Transform>(joint).map(|mut t| t.rotate_z(0.01 * step)),
+            Motion::Light(light) => world.get_mut::<Transform>(light).map(|mut t| t.rotate_y(2e-3 * step)),
             Motion::Still => None,
         };
         let (m, r) = split_frame(&mut session.app);
@@ -308,6 +311,79 @@ pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
         });
     }
     Ok(rows)
+}
+
+/// One object count under a turning sun: the cubes of one mesh aligned (all
+/// but one read the first one's facing and patches, `SharedFacing` in
+/// `gpu_scene.rs`) against the same cubes each turned by its own hair of an
+/// angle (each classifies its own faces), render world ms a frame and how
+/// many cubes shared.
+#[derive(Debug, Clone, Copy)]
+pub struct SharingRow {
+    pub objects: usize,
+    pub aligned_render_ms: f64,
+    pub aligned_sharing: usize,
+    pub turned_render_ms: f64,
+    pub turned_sharing: usize,
+}
+
+/// The sun turns a little every frame, so every frame extracts every caster
+/// anew: what sharing the facing test saves is what a sun moving through
+/// the day saves (`shadow-fins-render-lab sharing`).
+pub fn run_sharing(run: &ScalingRun) -> Result<Vec<SharingRow>, String> {
+    let mut rows = vec![];
+    for &n in &run.counts {
+        let mut timed = [(0.0, 0); 2];
+        for (turned, slot) in [false, true].into_iter().zip(&mut timed) {
+            let built = SceneId::BoxOverPlane.build();
+            let shadow_fins::light::Light::Disk(disk) = built.light else {
+                return Err("the box-over-plane scene has a disk light".into());
+            };
+            let sun = shadow_fins::light::Light::Sun(crate::render_lab::sun::sun_over(&disk, None));
+            let settings = FinShadowSettings { map_resolution: run.map_resolution, ..default() };
+            let mut setup = Setup::new(built.scene, sun, built.camera, settings, (run.width, run.height));
+            setup.sequential_rendering = true;
+            let mut session = Session::new(&setup);
+            let cubes = spawn_cubes(session.app.world_mut(), n);
+            if turned {
+                for (k, &cube) in cubes.iter().enumerate() {
+                    let mut t =
+                        session.app.world_mut().get_mut::<Transform>(cube).ok_or("a cube without a transform")?;
+                    t.rotate_y((k + 1) as f32 * 1e-4);
+                }
+            }
+            // Bevy's clustering adds a light a few frames late.
+            session.settle(16)?;
+            let world = session.app.world_mut();
+            let sun = world.query_filtered::<Entity, With<DirectionalLight>>().iter(world).next().ok_or("no sun")?;
+            let medians = time(&mut session, run.frames, Motion::Light(sun));
+            *slot = (medians.render, session.app.world().resource::<FinShadowStats>().0.sharing_facing);
+        }
+        rows.push(SharingRow {
+            objects: n,
+            aligned_render_ms: timed[0].0,
+            aligned_sharing: timed[0].1,
+            turned_render_ms: timed[1].0,
+            turned_sharing: timed[1].1,
+        });
+    }
+    Ok(rows)
+}
+
+/// The sharing rows as a markdown table.
+pub fn sharing_markdown(rows: &[SharingRow]) -> String {
+    let mut out = String::from(
+        "| objects | cubes aligned: render ms | cubes reading another's facing | \
+         each cube turned its own way: render ms | cubes reading another's facing |\n\
+         |---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        out += &format!(
+            "| {} | {:.1} | {} | {:.1} | {} |\n",
+            r.objects, r.aligned_render_ms, r.aligned_sharing, r.turned_render_ms, r.turned_sharing
+        );
+    }
+    out
 }
 
 /// The rows as a markdown table.
