@@ -8,10 +8,7 @@
 //  1. transform_vertices   every vertex into the light frame; deepest depth → L0
 //  2. classify_faces       facing test against the light in object space
 //  3. join_patches         patches = connected light-facing regions: lock-free
-//                          union-find over non-silhouette edges (an instance
-//                          of a mesh that sees the light as a lower one does
-//                          reads that one's facing and patches instead,
-//                          `face_patch`; its silhouettes and fins are its own)
+//                          union-find over non-silhouette edges
 //  4. flatten_patches      every face points at its patch_id's root
 //  5. find_silhouettes     per-edge silhouette test, oriented edges appended
 //  6. silhouette_args      indirect dispatch sizes for the silhouette passes
@@ -109,11 +106,8 @@ struct Instance {
     ids: vec4<u32>,
     // (flags: 1 casts, 2 closed mesh, 4 mirrors; vertices; caster faces; caster edges)
     info: vec4<u32>,
-    // (its pose's hash: low, high; its leader; 0): the hash changes with a
-    // pose posed on the GPU (`pose.wgsl` has posed its copy of the geometry
-    // before this runs); the leader is the instance of the same mesh that
-    // sees the light alike whose facing and patches it reads (`face_patch`;
-    // `SharedFacing` in gpu_scene.rs), NONE when it classifies its own.
+    // (its pose's hash: low, high; 0; 0): changes with a pose posed on the
+    // GPU (`pose.wgsl` has posed its copy of the geometry before this runs).
     pose: vec4<u32>,
 }
 
@@ -765,24 +759,17 @@ fn classify_faces(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocatio
         return;
     }
     let inst = instances[item.y];
-    let s = FACE_WORDS * i;
-    atomicStore(&state[s + 2u], 0u);
-    atomicStore(&state[s + 3u], 0u);
-    atomicStore(&state[s + 4u], 0u);
-    if (inst.pose.z != NONE) {
-        // Its leader's faces say how it faces the light; its own words keep
-        // only its patches' silhouette depth sums (at the roots it reads).
-        atomicStore(&state[s], NONE);
-        atomicStore(&state[s + 1u], 0u);
-        return;
-    }
     let at = g(inst, G_FACES_AT) + 7u * (i - inst.ids.z);
     let n = vec3<f32>(gf(inst, at + 3u), gf(inst, at + 4u), gf(inst, at + 5u));
     let facing = (dot(n, inst.light.xyz) > gf(inst, at + 6u) * inst.light.w) != ((inst.info.x & 4u) != 0u);
     // Back faces of closed meshes stay out of the maps.
     let in_maps = facing || (inst.info.x & 2u) == 0u;
+    let s = FACE_WORDS * i;
     atomicStore(&state[s], select(NONE, i, in_maps));
     atomicStore(&state[s + 1u], select(0u, FACING, facing) | select(0u, IN_MAPS, in_maps));
+    atomicStore(&state[s + 2u], 0u);
+    atomicStore(&state[s + 3u], 0u);
+    atomicStore(&state[s + 4u], 0u);
 }
 
 // ---------------------------------------------------------------- 3./4. patches
@@ -834,8 +821,7 @@ fn join_patches(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
     let inst = instances[item.y];
     let at = edge_at(inst, i - inst.ids.w);
     let f1 = g(inst, at + 3u);
-    // A follower's patches are its leader's.
-    if (inst.pose.z != NONE || (g(inst, at + 4u) & EDGE_NON_MANIFOLD) != 0u || f1 == EDGE_BACK_FACE_MISSING) {
+    if ((g(inst, at + 4u) & EDGE_NON_MANIFOLD) != 0u || f1 == EDGE_BACK_FACE_MISSING) {
         return;
     }
     let a = inst.ids.z + g(inst, at + 2u);
@@ -858,30 +844,12 @@ fn flatten_patches(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocati
 
 // ---------------------------------------------------------------- 5. silhouettes
 
-// The instance whose classification `inst` reads: its leader, or itself.
-fn classified(inst: Instance) -> Instance {
-    if (inst.pose.z == NONE) {
-        return inst;
-    }
-    return instances[min(inst.pose.z, params.totals.x - 1u)];
+fn facing_face(f: u32) -> bool {
+    return (atomicLoad(&state[FACE_WORDS * f + 1u]) & FACING) != 0u;
 }
 
-// Local face `face` of `inst` faces the light / is in the maps.
-fn facing_face(inst: Instance, face: u32) -> bool {
-    return (atomicLoad(&state[FACE_WORDS * (classified(inst).ids.z + face) + 1u]) & FACING) != 0u;
-}
-
-fn in_maps_face(inst: Instance, face: u32) -> bool {
-    return (atomicLoad(&state[FACE_WORDS * (classified(inst).ids.z + face) + 1u]) & IN_MAPS) != 0u;
-}
-
-// The patch of local face `face` of `inst` (the global face index of its
-// root), NONE outside the maps: a follower's is its leader's, moved to its
-// own faces (a root is the lowest face of its patch either way).
-fn face_patch(inst: Instance, face: u32) -> u32 {
-    let source = classified(inst);
-    let root = atomicLoad(&state[FACE_WORDS * (source.ids.z + face)]);
-    return select(root - source.ids.z + inst.ids.z, NONE, root == NONE);
+fn in_maps_face(f: u32) -> bool {
+    return (atomicLoad(&state[FACE_WORDS * f + 1u]) & IN_MAPS) != 0u;
 }
 
 fn edge_silhouette_slot(edge: u32) -> u32 {
@@ -896,7 +864,7 @@ fn emit_silhouette(k: u32, inst: Instance, edge: u32, v0: u32, v1: u32, forward:
     if (outside_face_window(a, b)) {
         return;
     }
-    let patch_id = face_patch(inst, face);
+    let patch_id = atomicLoad(&state[FACE_WORDS * (inst.ids.z + face)]);
     let index = append(C_SILHOUETTES);
     if (index >= params.capacity.x) {
         atomicStore(&state[edge_silhouette_slot(edge)], NONE);
@@ -952,7 +920,7 @@ fn find_silhouettes(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocat
         for (var j = 0u; j < count; j++) {
             let entry = g(inst, list + j);
             let face = entry & 0x7fffffffu;
-            if (facing_face(inst, face)) {
+            if (facing_face(inst.ids.z + face)) {
                 if (first == NONE) {
                     first = entry;
                 }
@@ -967,19 +935,19 @@ fn find_silhouettes(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocat
     }
     let f0 = g(inst, at + 2u);
     let f1 = g(inst, at + 3u);
-    let facing0 = facing_face(inst, f0);
+    let facing0 = facing_face(inst.ids.z + f0);
     if (f1 == EDGE_BACK_FACE_MISSING) {
         // A boundary outlines its face's side towards the light: the face's
         // own, or an open mesh's back face's (in the maps too).
         let forward = (flags & EDGE_FORWARD0) != 0u;
         if (facing0) {
             emit_silhouette(k, inst, i, v0, v1, forward, f0, true);
-        } else if (in_maps_face(inst, f0)) {
+        } else if (in_maps_face(inst.ids.z + f0)) {
             emit_silhouette(k, inst, i, v0, v1, !forward, f0, true);
         }
         return;
     }
-    let facing1 = facing_face(inst, f1);
+    let facing1 = facing_face(inst.ids.z + f1);
     if (facing0 != facing1) {
         let crease = (flags & EDGE_CREASE) != 0u;
         if (facing0) {
@@ -1315,12 +1283,12 @@ fn map_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
     if (i == NONE) {
         return;
     }
-    let instance = item.y;
-    let inst = instances[instance];
-    let patch_id = face_patch(inst, i - inst.ids.z);
+    let patch_id = atomicLoad(&state[FACE_WORDS * i]);
     if (patch_id == NONE) {
         return;
     }
+    let instance = item.y;
+    let inst = instances[instance];
     let at = g(inst, G_FACES_AT) + 7u * (i - inst.ids.z);
     let p = array<vec3<f32>, 3>(
         frame_position(inst, g(inst, at)),

@@ -100,14 +100,6 @@ enum Command {
         #[command(flatten)]
         timed: TimedArgs,
     },
-    /// Under a sun turning every frame, cubes of one mesh aligned (sharing one facing test) against each turned its own way.
-    Sharing {
-        /// Object counts, comma-separated (1 to 100 000).
-        #[arg(long, default_value = "100,1000,10000")]
-        counts: String,
-        #[command(flatten)]
-        timed: TimedArgs,
-    },
     /// A fin-shadowed sun (DirectionalLight) against the truth, beside Bevy's cascades.
     Sun {
         /// Built-in scenes, comma-separated (the sun is placed by their disk light).
@@ -216,8 +208,7 @@ fn main() -> ExitCode {
         Command::Measure(args) => run_measure(args).map(|()| ExitCode::SUCCESS),
         Command::Stability { cases, samples, method, out } => run_stability(&cases, samples, &method, out),
         Command::Lights { scene, counts, timed } => run_lights(&scene, &counts, &timed).map(|()| ExitCode::SUCCESS),
-        Command::Scaling { counts, timed } => run_scaling(&counts, &timed, false).map(|()| ExitCode::SUCCESS),
-        Command::Sharing { counts, timed } => run_scaling(&counts, &timed, true).map(|()| ExitCode::SUCCESS),
+        Command::Scaling { counts, timed } => run_scaling(&counts, &timed).map(|()| ExitCode::SUCCESS),
         Command::Sun { scenes, angles, frames, width, height, map_resolution, samples, layers, out } => {
             let parsed = parse_sun(&scenes, &angles);
             parsed
@@ -268,8 +259,7 @@ fn print_table(table: &str, out: &Option<PathBuf>) -> Result<(), LabError> {
     }
 }
 
-/// The scaling run, or (`sharing`) its turning-sun run of shared facing.
-fn run_scaling(counts: &str, timed: &TimedArgs, sharing: bool) -> Result<(), LabError> {
+fn run_scaling(counts: &str, timed: &TimedArgs) -> Result<(), LabError> {
     let TimedArgs { frames, width, height, map_resolution, ref out } = *timed;
     let counts = parse_list("counts", counts, |s| s.parse::<usize>().ok().filter(|n| (1..=100_000).contains(n)))
         .map_err(usage)?;
@@ -280,9 +270,6 @@ fn run_scaling(counts: &str, timed: &TimedArgs, sharing: bool) -> Result<(), Lab
         height: height.clamp(1, 4096),
         map_resolution,
     };
-    if sharing {
-        return print_table(&scaling::sharing_markdown(&scaling::run_sharing(&run).map_err(usage)?), out);
-    }
     print_table(&scaling::markdown(&scaling::run(&run).map_err(usage)?), out)
 }
 

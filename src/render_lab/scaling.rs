@@ -99,15 +99,10 @@ pub struct ScalingRow {
 /// its own size above it (so each casts), within the spot light's cone, row
 /// by row from (−3, −3); their entities in that order.
 pub fn spawn_cubes(world: &mut World, n: usize) -> Vec<Entity> {
-    spawn_grid(world, n, |size| Cuboid::from_length(size).into())
-}
-
-/// `n` copies of one shared mesh (`mesh(size)`) on [`spawn_cubes`]' grid.
-pub fn spawn_grid(world: &mut World, n: usize, mesh: impl Fn(f32) -> Mesh) -> Vec<Entity> {
     let side = (n as f32).sqrt().ceil().max(1.0);
     let spacing = 6.0 / side;
     let size = spacing * 0.4;
-    let mesh = world.resource_mut::<Assets<Mesh>>().add(mesh(size));
+    let mesh = world.resource_mut::<Assets<Mesh>>().add(Cuboid::from_length(size));
     let material = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial::default());
     (0..n)
         .map(|k| {
@@ -142,8 +137,6 @@ enum Motion {
     Cube(Entity),
     /// This joint turns a little further every frame.
     Joint(Entity),
-    /// This light turns a little further every frame.
-    Light(Entity),
 }
 
 /// A bar (of one size whatever the cube count) skinned to two joints — the root at `at`,
@@ -213,7 +206,6 @@ fn time(session: &mut Session, frames: u32, motion: Motion) -> Medians {
         match motion {
             Motion::Cube(cube) => world.get_mut::<Transform>(cube).map(|mut t| t.translation.x += 1e-3 * step),
             Motion::Joint(joint) => world.get_mut::<Transform>(joint).map(|mut t| t.rotate_z(0.01 * step)),
-            Motion::Light(light) => world.get_mut::<Transform>(light).map(|mut t| t.rotate_y(2e-3 * step)),
             Motion::Still => None,
         };
         let (m, r) = split_frame(&mut session.app);
@@ -316,119 +308,6 @@ pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
         });
     }
     Ok(rows)
-}
-
-/// One object count under a turning sun: the cubes of one mesh aligned (all
-/// but one read the first one's facing and patches, `SharedFacing` in
-/// `gpu_scene.rs`) against the same cubes each turned by its own hair of an
-/// angle (each classifies its own faces), render world ms a frame and how
-/// many cubes shared.
-#[derive(Debug, Clone, Copy)]
-pub struct SharingRow {
-    /// What each object is, and its triangles.
-    pub shape: &'static str,
-    pub triangles: usize,
-    pub objects: usize,
-    pub aligned_render_ms: f64,
-    pub aligned_sharing: usize,
-    pub turned_render_ms: f64,
-    pub turned_sharing: usize,
-    /// The extraction's and the penumbra maps' GPU time of the last frame
-    /// (`render/fin_shadows/{extraction,penumbra_maps}/elapsed_gpu`), ms:
-    /// aligned, then turned.
-    pub aligned_passes_ms: (f64, f64),
-    pub turned_passes_ms: (f64, f64),
-}
-
-/// The sun turns a little every frame, so every frame extracts every caster
-/// anew: what sharing the facing test saves is what a sun moving through
-/// the day saves (`shadow-fins-render-lab sharing`). Cubes at every count,
-/// icospheres of 1 280 triangles up to 1 000.
-pub fn run_sharing(run: &ScalingRun) -> Result<Vec<SharingRow>, String> {
-    let shapes: [(&'static str, fn(f32) -> Mesh, usize); 2] = [
-        ("cube", |size| Cuboid::from_length(size).into(), 1 << 20),
-        ("icosphere", |size| Sphere::new(size * 0.5).mesh().ico(3).expect("3 subdivisions are few enough"), 1000),
-    ];
-    let mut rows = vec![];
-    for (shape, make, most) in shapes {
-        for &n in run.counts.iter().filter(|&&n| n <= most) {
-            rows.push(sharing_row(run, shape, make, n)?);
-        }
-    }
-    Ok(rows)
-}
-
-fn sharing_row(run: &ScalingRun, shape: &'static str, make: fn(f32) -> Mesh, n: usize) -> Result<SharingRow, String> {
-    let triangles = make(1.0).indices().map_or(0, |i| i.len() / 3);
-    let mut timed = [(0.0, 0, (f64::NAN, f64::NAN)); 2];
-    for (turned, slot) in [false, true].into_iter().zip(&mut timed) {
-        let built = SceneId::BoxOverPlane.build();
-        let shadow_fins::light::Light::Disk(disk) = built.light else {
-            return Err("the box-over-plane scene has a disk light".into());
-        };
-        let sun = shadow_fins::light::Light::Sun(crate::render_lab::sun::sun_over(&disk, None));
-        let settings = FinShadowSettings { map_resolution: run.map_resolution, ..default() };
-        let mut setup = Setup::new(built.scene, sun, built.camera, settings, (run.width, run.height));
-        setup.sequential_rendering = true;
-        let mut session = Session::new(&setup);
-        let cubes = spawn_grid(session.app.world_mut(), n, make);
-        if turned {
-            for (k, &cube) in cubes.iter().enumerate() {
-                let mut t = session.app.world_mut().get_mut::<Transform>(cube).ok_or("a cube without a transform")?;
-                t.rotate_y((k + 1) as f32 * 1e-4);
-            }
-        }
-        // Bevy's clustering adds a light a few frames late.
-        session.settle(16)?;
-        let world = session.app.world_mut();
-        let sun = world.query_filtered::<Entity, With<DirectionalLight>>().iter(world).next().ok_or("no sun")?;
-        let medians = time(&mut session, run.frames, Motion::Light(sun));
-        let passes = crate::harness::pass_times(session.app.world());
-        let pass = |name: &str| {
-            let path = format!("render/fin_shadows/{name}/elapsed_gpu");
-            passes.iter().find(|(p, _)| *p == path).map_or(f64::NAN, |(_, ms)| *ms)
-        };
-        let sharing = session.app.world().resource::<FinShadowStats>().0.sharing_facing;
-        *slot = (medians.render, sharing, (pass("extraction"), pass("penumbra_maps")));
-    }
-    Ok(SharingRow {
-        shape,
-        triangles,
-        objects: n,
-        aligned_render_ms: timed[0].0,
-        aligned_sharing: timed[0].1,
-        turned_render_ms: timed[1].0,
-        turned_sharing: timed[1].1,
-        aligned_passes_ms: timed[0].2,
-        turned_passes_ms: timed[1].2,
-    })
-}
-
-/// The sharing rows as a markdown table.
-pub fn sharing_markdown(rows: &[SharingRow]) -> String {
-    let mut out = String::from(
-        "| objects | triangles each | aligned: render ms | extraction GPU ms | penumbra maps GPU ms | \
-         objects reading another's facing | each turned its own way: render ms | extraction GPU ms | \
-         penumbra maps GPU ms | objects reading another's facing |\n\
-         |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
-    );
-    for r in rows {
-        out += &format!(
-            "| {} {}s | {} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {} |\n",
-            r.objects,
-            r.shape,
-            r.triangles,
-            r.aligned_render_ms,
-            r.aligned_passes_ms.0,
-            r.aligned_passes_ms.1,
-            r.aligned_sharing,
-            r.turned_render_ms,
-            r.turned_passes_ms.0,
-            r.turned_passes_ms.1,
-            r.turned_sharing
-        );
-    }
-    out
 }
 
 /// The rows as a markdown table.

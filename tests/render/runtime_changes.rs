@@ -41,6 +41,24 @@ fn the_box(world: &mut World) -> Entity {
     meshes.iter(world).find(|(_, _, t)| t.translation().y > 1.0).expect("the box").0
 }
 
+/// The visibility a fresh app renders of `setup` with 100 cubes
+/// (`spawn_cubes`), `extra` spawned, and each cube `(k, by)` moved by `by`,
+/// and its fin stats: what an app updated in place must match.
+fn fresh_cubes(
+    setup: &harness::Setup,
+    extra: impl Fn(&mut World),
+    moves: &[(usize, Vec3)],
+) -> (Vec<f32>, bevy_shadow_fins::FinFrameStats) {
+    let mut fresh = harness::Session::new(setup);
+    let cubes = shadow_fins_app::render_lab::scaling::spawn_cubes(fresh.app.world_mut(), 100);
+    extra(fresh.app.world_mut());
+    for &(k, by) in moves {
+        fresh.app.world_mut().get_mut::<Transform>(cubes[k]).expect("a transform").translation += by;
+    }
+    let visibility = fresh.settle(6).expect("render").visibility;
+    (visibility, fin_stats(&fresh))
+}
+
 #[test]
 fn radius_layers_and_refinement_change_the_read_back() {
     let mut s = setup(SceneId::RingPlate, settings());
@@ -349,10 +367,7 @@ fn one_cube_of_many_moving_redraws_only_its_part_of_the_maps_and_shadows_as_a_fr
         partial.redrawn_texels
     );
 
-    let mut fresh = harness::Session::new(&setup);
-    let fresh_cubes = spawn_cubes(fresh.app.world_mut(), 100);
-    fresh.app.world_mut().get_mut::<Transform>(fresh_cubes[mover]).expect("a transform").translation += offset;
-    let expected = fresh.settle(6).expect("render").visibility;
+    let (expected, _) = fresh_cubes(&setup, |_| {}, &[(mover, offset)]);
     let (mad, _) = compare(&after, &expected);
     let worst = max_difference(&after, &expected);
     let (changed, _) = compare(&after, &before);
@@ -370,12 +385,7 @@ fn one_cube_of_many_moving_redraws_only_its_part_of_the_maps_and_shadows_as_a_fr
     let twice = fin_stats(&session);
     assert!(twice.partial_redraw, "two cubes of 100 moved redrew the maps whole");
     assert!(twice.incremental_extraction, "two cubes of 100 moved were not extracted alone");
-    let mut fresh = harness::Session::new(&setup);
-    let fresh_cubes = spawn_cubes(fresh.app.world_mut(), 100);
-    let world = fresh.app.world_mut();
-    world.get_mut::<Transform>(fresh_cubes[mover]).expect("a transform").translation += offset * 0.5;
-    world.get_mut::<Transform>(fresh_cubes[neighbour]).expect("a transform").translation += second;
-    let expected = fresh.settle(6).expect("render").visibility;
+    let (expected, _) = fresh_cubes(&setup, |_| {}, &[(mover, offset * 0.5), (neighbour, second)]);
     let worst = max_difference(&again, &expected);
     let (changed, _) = compare(&again, &after);
     println!("second partial redraw: |V − V fresh| max {worst:.2e}; |V − V before| {changed:.4}");
@@ -392,12 +402,7 @@ fn one_cube_of_many_moving_redraws_only_its_part_of_the_maps_and_shadows_as_a_fr
     let stats = fin_stats(&session);
     println!("a cube lifted: extracted alone {}, partial {}", stats.incremental_extraction, stats.partial_redraw);
     assert!(!stats.incremental_extraction, "a cube lifted out of the scene's box was extracted alone");
-    let mut fresh = harness::Session::new(&setup);
-    let fresh_cubes = spawn_cubes(fresh.app.world_mut(), 100);
-    let world = fresh.app.world_mut();
-    world.get_mut::<Transform>(fresh_cubes[mover]).expect("a transform").translation += offset * 0.5;
-    world.get_mut::<Transform>(fresh_cubes[neighbour]).expect("a transform").translation += second + lift;
-    let expected = fresh.settle(6).expect("render").visibility;
+    let (expected, _) = fresh_cubes(&setup, |_| {}, &[(mover, offset * 0.5), (neighbour, second + lift)]);
     let worst = max_difference(&lifted, &expected);
     let (changed, _) = compare(&lifted, &again);
     println!("lifted cube: |V − V fresh| max {worst:.2e}; |V − V before| {changed:.4}");
@@ -440,20 +445,14 @@ fn a_cube_lifted_out_of_the_kept_silhouette_depth_range_is_extracted_with_every_
     println!("a cube lifted within the scene's box: extracted alone {}", stats.incremental_extraction);
     assert!(!stats.incremental_extraction, "a cube holding the nearest silhouette now was extracted alone");
 
-    let mut fresh = harness::Session::new(&setup);
-    let fresh_cubes = spawn_cubes(fresh.app.world_mut(), 100);
-    spawn_pole(fresh.app.world_mut());
-    let world = fresh.app.world_mut();
-    world.get_mut::<Transform>(fresh_cubes[sideways.0]).expect("a transform").translation += sideways.1;
-    world.get_mut::<Transform>(fresh_cubes[lifted.0]).expect("a transform").translation += lifted.1;
-    let expected = fresh.settle(6).expect("render").visibility;
+    let (expected, fresh_stats) = fresh_cubes(&setup, spawn_pole, &[sideways, lifted]);
     let worst = max_difference(&after, &expected);
     let (changed, _) = compare(&after, &before);
     println!("lifted cube: |V − V fresh| max {worst:.2e}; |V − V before| {changed:.4}");
     assert!(changed > 1e-4, "lifting a cube changed no shadow ({changed})");
     assert_eq!(
         (stats.silhouettes, stats.fins, stats.layers),
-        (fin_stats(&fresh).silhouettes, fin_stats(&fresh).fins, fin_stats(&fresh).layers),
+        (fresh_stats.silhouettes, fresh_stats.fins, fresh_stats.layers),
         "the update extracted otherwise than a fresh app"
     );
     assert!(worst <= 1e-4, "the update that fell back differs from a fresh app's (max {worst})");
@@ -470,13 +469,7 @@ fn a_cube_lifted_out_of_the_kept_silhouette_depth_range_is_extracted_with_every_
     let stats = fin_stats(&session);
     assert!(!stats.incremental_extraction, "FinIncrementalExtraction(false) extracted the moved cube alone");
     assert!(stats.partial_redraw, "a cube moved sideways redrew the maps whole");
-    let mut fresh = harness::Session::new(&setup);
-    let fresh_cubes = spawn_cubes(fresh.app.world_mut(), 100);
-    spawn_pole(fresh.app.world_mut());
-    let world = fresh.app.world_mut();
-    world.get_mut::<Transform>(fresh_cubes[sideways.0]).expect("a transform").translation += sideways.1 + back;
-    world.get_mut::<Transform>(fresh_cubes[lifted.0]).expect("a transform").translation += lifted.1;
-    let expected = fresh.settle(6).expect("render").visibility;
+    let (expected, _) = fresh_cubes(&setup, spawn_pole, &[(sideways.0, sideways.1 + back), lifted]);
     let worst = max_difference(&moved_back, &expected);
     println!("every caster extracted, maps redrawn in part: |V − V fresh| max {worst:.2e}");
     assert!(worst <= 1e-4, "the partial redraw after a full extraction differs from a fresh app's (max {worst})");

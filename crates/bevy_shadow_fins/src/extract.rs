@@ -100,12 +100,6 @@ pub struct FinFrameStats {
     /// light frame, with those out of the light's reach (their vertices
     /// still bound the receivers' depth); a point light's faces: the most.
     pub posed_on_gpu: usize,
-    /// Casters whose facing test and patches the GPU took from another
-    /// instance of their mesh that sees the light alike (under a sun, the
-    /// same rotation and scale) instead of classifying their own faces
-    /// again; their silhouettes and fins are their own. Counted per light
-    /// frame; a point light's faces: the most.
-    pub sharing_facing: usize,
 }
 
 /// What the first fin-shadowed light's shadows currently model (see
@@ -1141,7 +1135,6 @@ impl FinFrameStats {
             incremental_extraction: a.incremental_extraction && b.incremental_extraction,
             redrawn_texels: a.redrawn_texels + b.redrawn_texels,
             posed_on_gpu: a.posed_on_gpu.max(b.posed_on_gpu),
-            sharing_facing: a.sharing_facing.max(b.sharing_facing),
         })
     }
 }
@@ -1368,7 +1361,6 @@ fn light_frame(
                 degraded: alloc.degradation,
                 map_resolution: alloc.resolution,
                 posed_on_gpu: scene.pose_sizes()[0] as usize,
-                sharing_facing: scene.sharing_facing(),
                 ..default()
             };
             FinFrameData {
@@ -1481,7 +1473,6 @@ fn coverage_data(
         incremental_extraction: false,
         redrawn_texels: 0,
         posed_on_gpu: 0,
-        sharing_facing: 0,
     };
     FinFrameData {
         generation,
@@ -1676,7 +1667,6 @@ fn cpu_frame(
         incremental_extraction: false,
         redrawn_texels: (model.plan.len() as u64) * (region.resolution as u64).pow(2),
         posed_on_gpu: 0,
-        sharing_facing: 0,
     };
     FinFrameData {
         generation,

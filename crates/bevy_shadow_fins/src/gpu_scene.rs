@@ -270,107 +270,8 @@ pub(crate) struct GpuInstance {
     ids: [u32; 4],
     /// (flags 1 casts / 2 closed / 4 mirrors, vertices, caster faces, caster edges)
     info: [u32; 4],
-    /// (its pose's hash, low and high words: a new pose changes the record;
-    /// the instance whose facing and patches it shares, [`SharedFacing`], or
-    /// [`NO_LEADER`]; 0).
+    /// (its pose's hash, low and high words; 0, 0): a new pose changes the record.
     pose: [u32; 4],
-}
-
-/// `GpuInstance.pose[2]` of an instance that classifies its own faces.
-pub(crate) const NO_LEADER: u32 = u32::MAX;
-
-/// Instances of one mesh that see the light alike share its per-light
-/// classification (Cai et al. §3.1's facing test and patches): the facing
-/// test `n·c > d·w` of a face depends only on the mesh and on the light in
-/// object space, so two instances with the same packing, the same light in
-/// object space — bit for bit: under a sun, the same rotation and scale —
-/// and the same flags have the same light-facing faces, and so the same
-/// patches and the same silhouette edges. The GPU classifies the lowest
-/// instance of each such group (its leader) and the others read its faces'
-/// facing and patches (`extract.wgsl`'s `face_patch`); their silhouettes,
-/// fins and map triangles are their own (they depend on where they are).
-/// Under a disk, rectangle or sphere light the light's object-space
-/// position differs with every instance's position, so groups are single.
-/// Kept incrementally: a moved instance leaves its group and joins another,
-/// and a group whose leader changes points all its members at the new one
-/// (their records change, so they count as moved).
-#[derive(Debug, Default)]
-pub(crate) struct SharedFacing {
-    /// Each instance's key (none for an instance that casts no face).
-    keys: Vec<Option<FacingKey>>,
-    groups: HashMap<FacingKey, std::collections::BTreeSet<u32>>,
-}
-
-/// What makes two instances' faces face the light alike: packing offset,
-/// the light in object space (bits), flags.
-type FacingKey = (u32, [u32; 4], u32);
-
-impl SharedFacing {
-    fn key(record: &GpuInstance) -> Option<FacingKey> {
-        (record.info[2] > 0).then(|| (record.ids[0], record.light.map(f32::to_bits), record.info[0]))
-    }
-
-    /// Groups every record anew.
-    fn regroup(&mut self, records: &mut [GpuInstance]) {
-        self.groups.clear();
-        self.keys = records.iter().map(Self::key).collect();
-        for (i, key) in self.keys.iter().enumerate() {
-            if let Some(key) = key {
-                self.groups.entry(*key).or_default().insert(i as u32);
-            }
-        }
-        for (i, record) in records.iter_mut().enumerate() {
-            record.pose[2] = self.leader_of(i as u32);
-        }
-    }
-
-    /// Records `changed` were made again: they move between groups, and
-    /// every member of a group whose leader changed follows the new one.
-    fn update(&mut self, records: &mut [GpuInstance], changed: &[usize]) {
-        if self.keys.len() != records.len() {
-            return self.regroup(records);
-        }
-        let mut touched = Vec::new();
-        for &i in changed {
-            let key = Self::key(&records[i]);
-            if key == self.keys[i] {
-                continue;
-            }
-            for (k, joins) in [(self.keys[i], false), (key, true)] {
-                let Some(k) = k else { continue };
-                let group = self.groups.entry(k).or_default();
-                if joins {
-                    group.insert(i as u32);
-                } else {
-                    group.remove(&(i as u32));
-                }
-                touched.push(k);
-            }
-            self.keys[i] = key;
-        }
-        for k in touched {
-            let Some(group) = self.groups.get(&k) else { continue };
-            if group.is_empty() {
-                self.groups.remove(&k);
-                continue;
-            }
-            for &member in group {
-                records[member as usize].pose[2] = self.leader_of(member);
-            }
-        }
-        for &i in changed {
-            records[i].pose[2] = self.leader_of(i as u32);
-        }
-    }
-
-    /// The leader instance `i` shares the classification of, or [`NO_LEADER`].
-    fn leader_of(&self, i: u32) -> u32 {
-        let leader = self.keys[i as usize]
-            .and_then(|k| self.groups.get(&k))
-            .and_then(|g| g.first().copied())
-            .unwrap_or(NO_LEADER);
-        if leader == i { NO_LEADER } else { leader }
-    }
 }
 
 impl GpuInstance {
@@ -502,8 +403,6 @@ pub(crate) struct GpuSceneBuilder {
     totals: [u32; 3],
     /// The pose buffer of the last build.
     poses: Arc<Vec<u32>>,
-    /// Which records share another's classification.
-    shared: SharedFacing,
 }
 
 impl GpuSceneBuilder {
@@ -618,7 +517,6 @@ impl GpuSceneBuilder {
         }
         self.instances =
             (0..objects.len()).map(|i| self.record(i, &objects[i], &meshes[i], &poses[i], frame)).collect();
-        self.shared.regroup(&mut self.instances);
         self.number_records();
     }
 
@@ -640,7 +538,6 @@ impl GpuSceneBuilder {
             // packed already); its first ids stay unless a count moved.
             *old = GpuInstance { ids: [record.ids[0], old.ids[1], old.ids[2], old.ids[3]], ..record };
         }
-        self.shared.update(&mut self.instances, dirty);
         if counts_moved {
             self.number_records();
         }
@@ -732,17 +629,12 @@ impl GpuSceneBuilder {
             light: light.to_array(),
             ids: [offset, 0, 0, 0],
             info: [flags, mesh.vertices, f, e],
-            pose: [hash as u32, (hash >> 32) as u32, NO_LEADER, 0],
+            pose: [hash as u32, (hash >> 32) as u32, 0, 0],
         }
     }
 }
 
 impl GpuScene {
-    /// Records that read another's facing and patches ([`SharedFacing`]).
-    pub fn sharing_facing(&self) -> usize {
-        self.instances.iter().filter(|r| r.pose[2] != NO_LEADER).count()
-    }
-
     /// (jobs, most vertices, faces, edges of one): the posing passes' sizes,
     /// the pose buffer's first words.
     pub fn pose_sizes(&self) -> [u32; 4] {
@@ -795,59 +687,6 @@ mod tests {
         // At the limit a frame that still wants more grows no further: no endless redo.
         assert_eq!(grown.grown_for(wanted, max), None);
         assert_eq!(grown.shortfalls(wanted).collect::<Vec<_>>(), vec![("silhouettes", 585, 5000)]);
-    }
-
-    #[test]
-    fn instances_of_one_mesh_that_see_a_sun_alike_share_the_lowest_ones_facing() {
-        // Four cubes of one mesh under a sun: 0, 1 and 3 only translated
-        // (the same light in object space), 2 turned. 1 and 3 read 0's facing;
-        // 0 and 2 classify their own. A disk light sees each translated cube
-        // from its own side: no sharing.
-        use bevy::math::{Affine3A, Quat};
-        let sun = shadow_fins::light::SunLight::new(Vec3::new(0.3, -1.0, 0.2), 0.05).unwrap();
-        let frame = LightFrame::sun(&sun, Vec3::splat(-10.0), Vec3::splat(10.0));
-        let mesh = shapes::cuboid(Vec3::ONE);
-        let at = |x: f32, turn: f32| {
-            let t = Affine3A::from_rotation_translation(Quat::from_rotation_y(turn), Vec3::new(x, 1.0, 0.0));
-            SceneObject::new("cube", mesh.clone(), t).unwrap()
-        };
-        let mut objects = vec![at(-3.0, 0.0), at(-1.0, 0.0), at(1.0, 0.7), at(3.0, 0.0)];
-        let packing = Arc::new(GpuMeshGeometry::pack(&Topology::build(&mesh)));
-        let meshes = vec![packing.clone(); 4];
-        let max = GpuCapacity::max_for(1 << 30);
-        let world = (Vec3::splat(-5.0), Vec3::splat(5.0));
-        let mut builder = GpuSceneBuilder::default();
-        let leaders = |scene: &GpuScene| scene.instances.iter().map(|r| r.pose[2]).collect::<Vec<_>>();
-        let no_poses: Vec<Option<Arc<GpuPose>>> = vec![None; 4];
-        let scene = builder.build(&objects, &meshes, &no_poses, &frame, world, None, &mut None, max);
-        assert_eq!(leaders(&scene), vec![NO_LEADER, 0, NO_LEADER, 0]);
-        assert_eq!(scene.sharing_facing(), 2);
-
-        // Moving a follower sideways keeps its group; turning the leader
-        // hands the group to the next lowest member (1), whose record now
-        // classifies, and 3 follows it.
-        objects[3] = at(4.0, 0.0);
-        let scene = builder.build(&objects, &meshes, &no_poses, &frame, world, Some(&[3]), &mut None, max);
-        assert_eq!(leaders(&scene), vec![NO_LEADER, 0, NO_LEADER, 0]);
-        objects[0] = at(-3.0, 0.7);
-        let scene = builder.build(&objects, &meshes, &no_poses, &frame, world, Some(&[0]), &mut None, max);
-        assert_eq!(leaders(&scene), vec![NO_LEADER, NO_LEADER, 0, 1], "0 now turned as 2 is: 2 follows it");
-        // Built anew, the same groups.
-        let scene = GpuSceneBuilder::default().build(&objects, &meshes, &no_poses, &frame, world, None, &mut None, max);
-        assert_eq!(leaders(&scene), vec![NO_LEADER, NO_LEADER, 0, 1]);
-
-        let disk = shadow_fins::light::DiskLight::new(Vec3::new(0.0, 5.0, 0.0), Vec3::NEG_Y, 0.5).unwrap();
-        let scene = GpuSceneBuilder::default().build(
-            &objects,
-            &meshes,
-            &no_poses,
-            &LightFrame::disk(&disk),
-            world,
-            None,
-            &mut None,
-            max,
-        );
-        assert_eq!(scene.sharing_facing(), 0, "a disk light sees each cube from its own side");
     }
 
     #[test]
