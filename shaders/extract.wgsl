@@ -154,7 +154,6 @@ const C_LAYERS: u32 = 12u;
 const C_PARTIAL: u32 = 13u; // bit 0: this update redraws the maps in part; bit 1: it extracted the moved instances only
 const C_REDRAWN: u32 = 14u; // texels (all layers) this update cleared and redrew
 const C_UNBOUNDED: u32 = 15u; // 1: a primitive with bounds not finite (it may reach any texel)
-const C_HEADER: u32 = 16u;
 const C_PARAMS: u32 = 16u; // 36 words: the maps' `FinParams`
 const C_ARGS_CLEAR: u32 = 56u;
 const C_ARGS_CASTERS: u32 = 59u;
@@ -441,10 +440,7 @@ fn grow_keys(at: u32, lo_x: u32, lo_y: u32, hi_x: u32, hi_y: u32) {
 // No footprint, no vertex, no silhouette: what an instance starts from.
 fn clear_instance(k: u32) {
     let at = instance_word(k, 0u);
-    atomicStore(&control[h(at)], 0xffffffffu);
-    atomicStore(&control[h(at + 1u)], 0xffffffffu);
-    atomicStore(&control[h(at + 2u)], 0u);
-    atomicStore(&control[h(at + 3u)], 0u);
+    clear_keys(at);
     atomicStore(&control[h(at + I_DEEPEST)], 0u);
     atomicStore(&control[h(at + I_DEPTH_MIN)], 0xffffffffu);
     atomicStore(&control[h(at + I_DEPTH_MAX)], 0u);

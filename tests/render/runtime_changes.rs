@@ -26,13 +26,18 @@ fn run(app: &mut App, slot: &harness::Slot, frames: u32) -> Vec<f32> {
     harness::unpad(WIDTH, HEIGHT, &data).map(f32::from_le_bytes).collect()
 }
 
-/// `setup` with the box of `SceneId::BoxOverPlane` moved by `offset`.
-fn with_box_moved(setup: &harness::Setup, offset: Vec3) -> harness::Setup {
+/// `setup` with its object `name` moved by `offset`.
+fn with_moved(setup: &harness::Setup, name: &str, offset: Vec3) -> harness::Setup {
     let mut moved = setup.clone();
-    for o in moved.scene.objects.iter_mut().filter(|o| o.name == "box") {
+    for o in moved.scene.objects.iter_mut().filter(|o| o.name == name) {
         o.transform.translation += bevy::math::Vec3A::from(offset);
     }
     moved
+}
+
+/// `setup` with the box of `SceneId::BoxOverPlane` moved by `offset`.
+fn with_box_moved(setup: &harness::Setup, offset: Vec3) -> harness::Setup {
+    with_moved(setup, "box", offset)
 }
 
 /// The box of `SceneId::BoxOverPlane`: the mesh above the ground.
@@ -506,11 +511,14 @@ fn a_skinned_bar_bending_among_many_cubes_is_posed_on_the_gpu_and_redraws_only_i
     assert!(partial.incremental_extraction, "a new pose of one caster of 101 was not extracted alone");
     assert!(partial.redrawn_texels * 10 < whole, "the bend redrew {} of {whole} texels", partial.redrawn_texels);
 
-    let mut fresh = harness::Session::new(&setup);
-    spawn_cubes(fresh.app.world_mut(), 100);
-    let fresh_joint = spawn_skinned_bar(fresh.app.world_mut(), at);
-    bend(fresh.app.world_mut(), fresh_joint);
-    let expected = fresh.settle(6).expect("render").visibility;
+    let (expected, _) = fresh_cubes(
+        &setup,
+        |world| {
+            let joint = spawn_skinned_bar(world, at);
+            bend(world, joint);
+        },
+        &[],
+    );
     let worst = max_difference(&bent, &expected);
     let (changed, _) = compare(&bent, &straight);
     println!("bent bar: |V − V fresh| max {worst:.2e}; |V − V straight| {changed:.4}");
@@ -572,26 +580,19 @@ fn a_part_of_the_kitbash_moved_is_extracted_again_and_shadows_as_a_fresh_app() {
     // with the ball already there.
     let setup = setup(SceneId::Kitbash, settings());
     let offset = Vec3::new(0.06, -0.02, 0.04);
-    let ball_at = |s: &harness::Setup| {
-        let ball = s.scene.objects.iter().find(|o| o.name == "ball").expect("the kitbash's ball");
-        Vec3::from(ball.transform.translation)
-    };
-    let mut moved = setup.clone();
-    for o in moved.scene.objects.iter_mut().filter(|o| o.name == "ball") {
-        o.transform.translation += bevy::math::Vec3A::from(offset);
-    }
+    let ball = setup.scene.objects.iter().find(|o| o.name == "ball").expect("the kitbash's ball");
+    let at = Vec3::from(ball.transform.translation);
     let mut session = harness::Session::new(&setup);
     let before = session.settle(6).expect("render").visibility;
     assert_visibility_not_trivial(&before);
     let world = session.app.world_mut();
     let mut meshes = world.query::<(Entity, &Mesh3d, &Transform)>();
-    let at = ball_at(&setup);
     let ball = meshes.iter(world).find(|(_, _, t)| t.translation.distance(at) < 1e-4).expect("the ball's entity").0;
     world.get_mut::<Transform>(ball).expect("a transform").translation += offset;
     let shot = session.settle(6).expect("render");
     save(&shot, "kitbash_ball_moved");
     let stats = fin_stats(&session);
-    let expected = harness::Session::new(&moved).settle(6).expect("render").visibility;
+    let expected = harness::Session::new(&with_moved(&setup, "ball", offset)).settle(6).expect("render").visibility;
     let worst = max_difference(&shot.visibility, &expected);
     let (changed, _) = compare(&shot.visibility, &before);
     println!(
