@@ -185,9 +185,11 @@ const H_VALID: u32 = 65u; // 1 once a plan is kept
 const H_INCREMENTAL: u32 = 66u; // written by the CPU: 1 when the listed instances may be extracted alone
 const H_DIRTY_RECT: u32 = 68u; // union of the dirty footprints (ordered keys: min x, min y, max x, max y)
 const H_REDRAW_AREA: u32 = 72u; // the redrawn texel centres' map-space bounds (f32 bits)
-// Last frame's C_CURSORS (3), live counts (3), depth range keys (2), deepest key.
+// Last frame's C_CURSORS (3), then its `control` words 0..6: live counts
+// (3), depth range keys (2), deepest key.
 const H_KEPT: u32 = 76u;
-// This frame's union of the instances' deepest key and depth range keys.
+// This frame's union of the instances' depth range keys and deepest key
+// (as `control` words 3..6 and `H_KEPT` + 6..9).
 const H_UNION: u32 = 85u;
 const H_DIRTY_ITEMS: u32 = 88u; // the listed instances' vertices, faces, edges
 const H_EPOCH: u32 = 91u; // counts updates; an instance listed this update is marked with it
@@ -560,8 +562,8 @@ fn begin() {
     if (atomicAdd(&control[h(H_EPOCH)], 1u) == 0xffffffffu) {
         atomicStore(&control[h(H_EPOCH)], 1u);
     }
-    atomicStore(&control[h(H_UNION)], 0u);
-    atomicStore(&control[h(H_UNION + 1u)], 0xffffffffu);
+    atomicStore(&control[h(H_UNION)], 0xffffffffu);
+    atomicStore(&control[h(H_UNION + 1u)], 0u);
     atomicStore(&control[h(H_UNION + 2u)], 0u);
     if (!may_extract_listed()) {
         atomicStore(&control[C_STAGE], STAGE_FULL);
@@ -570,11 +572,10 @@ fn begin() {
     atomicStore(&control[C_STAGE], STAGE_ATTEMPT);
     for (var i = 0u; i < 3u; i++) {
         atomicStore(&control[C_CURSORS + i], atomicLoad(&control[h(H_KEPT + i)]));
+    }
+    for (var i = 0u; i <= C_DEEPEST; i++) {
         atomicStore(&control[i], atomicLoad(&control[h(H_KEPT + 3u + i)]));
     }
-    atomicStore(&control[C_DEPTH_MIN], atomicLoad(&control[h(H_KEPT + 6u)]));
-    atomicStore(&control[C_DEPTH_MAX], atomicLoad(&control[h(H_KEPT + 7u)]));
-    atomicStore(&control[C_DEEPEST], atomicLoad(&control[h(H_KEPT + 8u)]));
     let n = dirty_count();
     var items = vec3<u32>(0u);
     if (n > 0u) {
@@ -628,9 +629,9 @@ fn reset_footprints(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocat
 fn reduce_instances(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let i = thread_index(wg, lane);
     if (i < params.totals.x && stage() == STAGE_ATTEMPT) {
-        atomicMax(&control[h(H_UNION)], atomicLoad(&control[h(instance_word(i, I_DEEPEST))]));
-        atomicMin(&control[h(H_UNION + 1u)], atomicLoad(&control[h(instance_word(i, I_DEPTH_MIN))]));
-        atomicMax(&control[h(H_UNION + 2u)], atomicLoad(&control[h(instance_word(i, I_DEPTH_MAX))]));
+        atomicMin(&control[h(H_UNION)], atomicLoad(&control[h(instance_word(i, I_DEPTH_MIN))]));
+        atomicMax(&control[h(H_UNION + 1u)], atomicLoad(&control[h(instance_word(i, I_DEPTH_MAX))]));
+        atomicMax(&control[h(H_UNION + 2u)], atomicLoad(&control[h(instance_word(i, I_DEEPEST))]));
     }
 }
 
@@ -640,13 +641,13 @@ fn reduce_instances(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocat
 @compute @workgroup_size(1, 1, 1)
 fn decide() {
     if (stage() == STAGE_ATTEMPT) {
-        var keep = atomicLoad(&control[h(H_UNION)]) == atomicLoad(&control[h(H_KEPT + 8u)])
-            && atomicLoad(&control[h(H_UNION + 1u)]) == atomicLoad(&control[h(H_KEPT + 6u)])
-            && atomicLoad(&control[h(H_UNION + 2u)]) == atomicLoad(&control[h(H_KEPT + 7u)])
-            && atomicLoad(&control[C_UNBOUNDED]) == 0u;
+        // Every primitive bounded, each list within its capacity, and the
+        // instances' silhouette depth range and deepest vertex last frame's.
+        var keep = atomicLoad(&control[C_UNBOUNDED]) == 0u;
         var most = 0u;
         for (var i = 0u; i < 3u; i++) {
-            keep = keep && atomicLoad(&control[C_CURSORS + i]) <= params.capacity[i];
+            keep = keep && atomicLoad(&control[C_CURSORS + i]) <= params.capacity[i]
+                && atomicLoad(&control[h(H_UNION + i)]) == atomicLoad(&control[h(H_KEPT + 6u + i)]);
             most = max(most, atomicLoad(&control[h(H_KEPT + i)]));
         }
         if (keep) {
@@ -1507,11 +1508,10 @@ fn plan_redraw(p: array<u32, 32>, region_min: vec2<f32>, texel: f32, resolution:
     // What the next update starts from if it extracts its listed instances only.
     for (var i = 0u; i < 3u; i++) {
         atomicStore(&control[h(H_KEPT + i)], atomicLoad(&control[C_CURSORS + i]));
+    }
+    for (var i = 0u; i <= C_DEEPEST; i++) {
         atomicStore(&control[h(H_KEPT + 3u + i)], atomicLoad(&control[i]));
     }
-    atomicStore(&control[h(H_KEPT + 6u)], atomicLoad(&control[C_DEPTH_MIN]));
-    atomicStore(&control[h(H_KEPT + 7u)], atomicLoad(&control[C_DEPTH_MAX]));
-    atomicStore(&control[h(H_KEPT + 8u)], atomicLoad(&control[C_DEEPEST]));
     // The redrawn texel centres' map-space bounds, for `gather_redraw_*`,
     // widened by half a texel: `texel_range` divides where this multiplies,
     // and a primitive gathered in excess is clipped by the raster anyway.

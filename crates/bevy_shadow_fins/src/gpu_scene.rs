@@ -443,9 +443,14 @@ impl GpuSceneBuilder {
             None => self.build_records(objects, meshes, poses, frame),
         }
         // The pose buffer anew only when a posed object's record or any
-        // offset may have changed: a rigid caster moving keeps it.
+        // offset may have changed (a rigid caster moving keeps it), and a
+        // new `Arc` only when its words did (a light that moved rebuilds
+        // every record, and must not pose every posed copy again).
         if in_place.is_none_or(|dirty| dirty.iter().any(|&i| poses[i].is_some())) {
-            self.poses = Arc::new(self.pose_buffer(meshes, poses));
+            let words = self.pose_buffer(meshes, poses);
+            if words != *self.poses {
+                self.poses = Arc::new(words);
+            }
         }
         let (lo, hi) = extent_box;
         let extent = if lo.x <= hi.x { (hi - lo).length().max(1e-30) } else { 1.0 };
@@ -634,11 +639,17 @@ impl GpuSceneBuilder {
     }
 }
 
+/// (jobs, most vertices, faces, edges of one) of a pose buffer: its first
+/// words (none when it is empty).
+pub(crate) fn pose_sizes(poses: &[u32]) -> [u32; 4] {
+    poses.get(..4).map_or([0; 4], |w| [w[0], w[1], w[2], w[3]])
+}
+
 impl GpuScene {
     /// (jobs, most vertices, faces, edges of one): the posing passes' sizes,
     /// the pose buffer's first words.
     pub fn pose_sizes(&self) -> [u32; 4] {
-        self.poses.get(..4).map_or([0; 4], |w| [w[0], w[1], w[2], w[3]])
+        pose_sizes(&self.poses)
     }
 
     /// Bytes of the extraction's buffers that the scene sizes by itself.

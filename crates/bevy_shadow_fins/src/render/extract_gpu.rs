@@ -322,12 +322,10 @@ pub(super) struct ExtractBuffers {
     silhouettes: Option<Buffer>,
     bind_group: Option<BindGroup>,
     /// What poses the posed instances' geometry copies (`pose.wgsl`), as
-    /// uploaded, and the posing passes' sizes (jobs; most vertices, faces,
-    /// edges of one).
+    /// uploaded (its first words: the posing passes' sizes).
     poses: Option<Buffer>,
     uploaded_poses: Option<Arc<Vec<u32>>>,
     pose_bind_group: Option<BindGroup>,
-    pose_sizes: [u32; 4],
     /// The posing passes must run before the next extraction (new poses,
     /// or the geometry went up at rest).
     pose_pending: bool,
@@ -344,7 +342,7 @@ pub(super) struct ExtractBuffers {
     /// The buffers last frame's extraction left its records in (control,
     /// state, positions, silhouettes, fins, casters): an update may extract
     /// the moved instances only while they are all still there.
-    work_buffers: Vec<BufferId>,
+    work_buffers: [Option<BufferId>; 6],
 }
 
 /// Allocates `buf` (half again as large, so a growing scene does not reallocate
@@ -489,8 +487,7 @@ pub(super) fn prepare(
     // geometry went up at rest; then, and only then, the posing passes pose
     // every posed copy again before the extraction (`record`). A new pose
     // changed its instance's record, so the maps are redrawn under it only.
-    buffers.pose_sizes = scene.pose_sizes();
-    let jobs = buffers.pose_sizes[0];
+    let jobs = scene.pose_sizes()[0];
     let new_poses = !buffers.uploaded_poses.as_ref().is_some_and(|p| Arc::ptr_eq(p, &scene.poses));
     if jobs == 0 {
         (buffers.pose_bind_group, buffers.pose_pending) = (None, false);
@@ -551,12 +548,15 @@ pub(super) fn prepare(
     // (`extract.wgsl`'s `decide`), from the dirty table: per moved instance
     // its index and where its vertices, faces and edges start among the
     // moved instances'.
-    let work_buffers: Vec<BufferId> = [&buffers.control, &buffers.state, &buffers.positions, &buffers.silhouettes]
-        .into_iter()
-        .flatten()
-        .chain([fins, casters])
-        .map(|b| b.id())
-        .collect();
+    let id = |b: &Option<Buffer>| b.as_ref().map(|b| b.id());
+    let work_buffers = [
+        id(&buffers.control),
+        id(&buffers.state),
+        id(&buffers.positions),
+        id(&buffers.silhouettes),
+        Some(fins.id()),
+        Some(casters.id()),
+    ];
     let partial = buffers.recorded
         && maps_kept
         && kept
@@ -654,7 +654,8 @@ pub(super) fn record(
     let entry = |name: &str| ready[ENTRY_POINTS.iter().position(|e| *e == name).expect("an entry point")];
     if let Some(pose_bind_group) = buffers.pose_bind_group.as_ref().filter(|_| buffers.pose_pending) {
         let Some(pose) = all_ready(&pipelines.pose_ids, pipeline_cache) else { return false };
-        let [jobs, vertices, faces, edges] = buffers.pose_sizes;
+        let [jobs, vertices, faces, edges] =
+            crate::gpu_scene::pose_sizes(buffers.uploaded_poses.as_deref().map_or(&[], |p| p.as_slice()));
         let mut pass =
             encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("fin_posing"), timestamp_writes: None });
         pass.set_bind_group(0, pose_bind_group, &[]);
@@ -690,9 +691,16 @@ pub(super) fn record(
         direct(pass, entry("begin"), (1, 1));
         direct(pass, entry("forget_footprints"), threads(dirty));
     });
-    stages_1_to_9(encoder);
+    // The moved instances alone first — unless the CPU asked for a full
+    // update (`begin` then chooses `STAGE_FULL`: that run would do nothing).
+    let attempt = buffers.dirty != FULL;
+    if attempt {
+        stages_1_to_9(encoder);
+    }
     begin(encoder, &mut |pass| {
-        direct(pass, entry("reduce_instances"), threads(instances as u32));
+        if attempt {
+            direct(pass, entry("reduce_instances"), threads(instances as u32));
+        }
         direct(pass, entry("decide"), (1, 1));
     });
     stages_1_to_9(encoder);
