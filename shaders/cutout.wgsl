@@ -4,16 +4,7 @@
 // the cutoff. Bindings 4 and 5 of the maps' and the coverage lists' layouts.
 #define_import_path bevy_shadow_fins::cutout
 
-#import bevy_shadow_fins::fin_types::Caster
-
-// Per masked map triangle (`GpuCutout`): the UVs at its corners, the corners'
-// light-frame depths (perspective-correct interpolation) and where its mask
-// starts in `mask_words`.
-struct CasterCutout {
-    uvs: array<f32, 6>,
-    depths: array<f32, 3>,
-    mask: u32,
-}
+#import bevy_shadow_fins::fin_types::{Caster, CasterCutout}
 
 @group(0) @binding(4) var<storage, read> cutouts: array<CasterCutout>;
 // Per mask: width, height, threshold (f32 bits: `AlphaMask::threshold`, the

@@ -31,6 +31,16 @@
 // `pose.wgsl` poses before these passes run: a new pose is a changed
 // instance record, not new geometry.
 //
+// Alpha-masked casters (issue 16, item 2) are extracted here too, with the
+// CPU's semantics (`silhouette.rs`, `cutout.rs`): an instance's mesh is then
+// packed with the outline of its opaque region (`pack_outlined`: the
+// outline's vertices after the mesh's, its edges after the mesh's). Patches
+// join across the mesh's edges only (`EDGE_PATCH_ONLY`), silhouettes come
+// from the outline's edges only (`EDGE_OUTLINE`), the mesh counts as open
+// (light through a hole meets its back faces), and each of its map casters
+// gets a cut-out record at its own index in `cutouts` — the UVs at its
+// (clipped) corners, their depths, its mask — which the maps alpha-test.
+//
 // Partial redraw (issue 16, item 3: only what depends on a moved caster is
 // redone). Every instance's footprint — the map-space bounds of the casters
 // and fins it emitted — is kept in `history` from frame to frame. When the
@@ -58,7 +68,7 @@
 // another order, with retired records among them (the maps skip those).
 // Otherwise (`STAGE_FULL`) stages 1–9 run again over every instance, from
 // nothing. Retired records take room until a full extraction drops them.
-#import bevy_shadow_fins::fin_types::{Caster, Fin, cross2, fin_bounds, CONTROL_LIST_CASTERS, CONTROL_LIST_FINS, RETIRED_LAYER}
+#import bevy_shadow_fins::fin_types::{Caster, CasterCutout, Fin, cross2, fin_bounds, CONTROL_LIST_CASTERS, CONTROL_LIST_FINS, RETIRED_LAYER}
 
 struct ExtractParams {
     // (instances, instance vertices, caster faces, caster edges)
@@ -106,8 +116,10 @@ struct Instance {
     ids: vec4<u32>,
     // (flags: 1 casts, 2 closed mesh, 4 mirrors; vertices; caster faces; caster edges)
     info: vec4<u32>,
-    // (its pose's hash: low, high; 0; 0): changes with a pose posed on the
-    // GPU (`pose.wgsl` has posed its copy of the geometry before this runs).
+    // (its pose's hash: low, high; its cut-out: 0 solid, else 1 + where its
+    // mask starts in the maps' `mask_words`; 0): the hash changes with a pose
+    // posed on the GPU (`pose.wgsl` has posed its copy of the geometry
+    // before this runs).
     pose: vec4<u32>,
 }
 
@@ -133,7 +145,9 @@ struct Silhouette {
 @group(0) @binding(2) var<storage, read> geometry: array<u32>;
 @group(0) @binding(3) var<storage, read_write> control: array<atomic<u32>>;
 @group(0) @binding(4) var<storage, read_write> state: array<atomic<u32>>;
-@group(0) @binding(5) var<storage, read_write> positions: array<vec4<f32>>;
+// Per caster record with a cut-out (an alpha-masked instance's), at the
+// record's own index: the maps read it there (`cutout.wgsl`).
+@group(0) @binding(5) var<storage, read_write> cutouts: array<CasterCutout>;
 @group(0) @binding(6) var<storage, read_write> silhouettes: array<Silhouette>;
 @group(0) @binding(7) var<storage, read_write> fins: array<Fin>;
 @group(0) @binding(8) var<storage, read_write> casters: array<Caster>;
@@ -210,8 +224,10 @@ const MAX_DIRTY: u32 = 256u;
 
 // `state` per caster face: parent (union-find), flags (1 facing, 2 in the
 // maps), and the patch_id's silhouette-depth sum (64-bit fixed point) and count
-// at its root; then per caster edge its silhouette index.
+// at its root; then per caster edge its silhouette index; then per instance
+// vertex its light-frame position (f32 bits).
 const FACE_WORDS: u32 = 5u;
+const VERTEX_WORDS: u32 = 3u;
 const FACING: u32 = 1u;
 const IN_MAPS: u32 = 2u;
 const NONE: u32 = 0xffffffffu;
@@ -227,11 +243,17 @@ const G_VERTICES_AT: u32 = 4u;
 const G_EDGES_AT: u32 = 5u;
 const G_CSR_AT: u32 = 6u;
 const G_NON_MANIFOLD_AT: u32 = 7u;
+const G_FACE_UVS_AT: u32 = 10u;
 const EDGE_BACK_FACE_MISSING: u32 = 0xffffffffu;
 const EDGE_FORWARD0: u32 = 1u;
 const EDGE_FORWARD1: u32 = 2u;
 const EDGE_CREASE: u32 = 4u;
 const EDGE_NON_MANIFOLD: u32 = 8u;
+// An alpha-masked mesh's packing (`GpuMeshGeometry::pack_outlined`): its
+// mesh edges join patches only, its outline's edges are the silhouette
+// candidates and join none.
+const EDGE_PATCH_ONLY: u32 = 16u;
+const EDGE_OUTLINE: u32 = 32u;
 
 fn thread_index(wg: vec3<u32>, lane: u32) -> u32 {
     return (wg.y * MAX_GROUPS_X + wg.x) * WORKGROUP + lane;
@@ -286,8 +308,17 @@ fn vertex_normal_in_frame(inst: Instance, v: u32) -> vec3<f32> {
     return inst.normal0.xyz * n.x + inst.normal1.xyz * n.y + inst.normal2.xyz * n.z;
 }
 
+fn position_slot(vertex: u32) -> u32 {
+    return FACE_WORDS * params.totals.z + params.totals.w + VERTEX_WORDS * vertex;
+}
+
 fn frame_position(inst: Instance, v: u32) -> vec3<f32> {
-    return positions[inst.ids.y + v].xyz;
+    let at = position_slot(inst.ids.y + v);
+    return vec3<f32>(
+        bitcast<f32>(atomicLoad(&state[at])),
+        bitcast<f32>(atomicLoad(&state[at + 1u])),
+        bitcast<f32>(atomicLoad(&state[at + 2u])),
+    );
 }
 
 // L0: the deepest receiver, so that no receiver lies beyond the plane the fins
@@ -740,7 +771,10 @@ fn transform_vertices(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invoc
     let inst = instances[item.y];
     let p = vertex_position(inst, i - inst.ids.y);
     let q = inst.linear0.xyz * p.x + inst.linear1.xyz * p.y + inst.linear2.xyz * p.z + inst.translation.xyz;
-    positions[i] = vec4<f32>(q, 1.0);
+    let at = position_slot(i);
+    atomicStore(&state[at], bitcast<u32>(q.x));
+    atomicStore(&state[at + 1u], bitcast<u32>(q.y));
+    atomicStore(&state[at + 2u], bitcast<u32>(q.z));
     // L0 is the deepest receiver; every mesh receives.
     atomicMax(&control[C_DEEPEST], order_key(q.z));
     atomicMax(&control[h(instance_word(item.y, I_DEEPEST))], order_key(q.z));
@@ -818,7 +852,7 @@ fn join_patches(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
     let inst = instances[item.y];
     let at = edge_at(inst, i - inst.ids.w);
     let f1 = g(inst, at + 3u);
-    if ((g(inst, at + 4u) & EDGE_NON_MANIFOLD) != 0u || f1 == EDGE_BACK_FACE_MISSING) {
+    if ((g(inst, at + 4u) & (EDGE_NON_MANIFOLD | EDGE_OUTLINE)) != 0u || f1 == EDGE_BACK_FACE_MISSING) {
         return;
     }
     let a = inst.ids.z + g(inst, at + 2u);
@@ -907,6 +941,9 @@ fn find_silhouettes(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocat
     let v1 = g(inst, at + 1u);
     let flags = g(inst, at + 4u);
     atomicStore(&state[edge_silhouette_slot(i)], NONE);
+    if ((flags & EDGE_PATCH_ONLY) != 0u) {
+        return;
+    }
     if ((flags & EDGE_NON_MANIFOLD) != 0u) {
         // Three or more faces: a silhouette when they disagree; the first
         // light-facing face orients it.
@@ -1248,7 +1285,44 @@ fn silhouette_quads(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocat
 
 // ---------------------------------------------------------------- 9. casters
 
-fn emit_caster(p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, normal: vec3<f32>, offset: f32, patch_id: u32, instance: u32) {
+// What a caster of an alpha-masked instance's face cuts out with: the face's
+// light-frame corners and their UVs, and where its mask starts (1 + it;
+// 0: solid).
+struct FaceCutout {
+    corners: array<vec3<f32>, 3>,
+    uvs: array<vec2<f32>, 3>,
+    mask: u32,
+}
+
+// The UV at `q` on the face (`MapTriangle::clipped_with_cutout`: by `q`'s
+// barycentrics in the face, which it lies on; the first corner's on a
+// degenerate face).
+fn face_uv(f: FaceCutout, q: vec3<f32>) -> vec2<f32> {
+    let e1 = f.corners[1] - f.corners[0];
+    let e2 = f.corners[2] - f.corners[0];
+    let ep = q - f.corners[0];
+    let d11 = dot(e1, e1);
+    let d12 = dot(e1, e2);
+    let d22 = dot(e2, e2);
+    let det = d11 * d22 - d12 * d12;
+    if (!(abs(det) > 0.0)) {
+        return f.uvs[0];
+    }
+    let v = (d22 * dot(ep, e1) - d12 * dot(ep, e2)) / det;
+    let w = (d11 * dot(ep, e2) - d12 * dot(ep, e1)) / det;
+    return f.uvs[0] * (1.0 - v - w) + f.uvs[1] * v + f.uvs[2] * w;
+}
+
+fn emit_caster(
+    p0: vec3<f32>,
+    p1: vec3<f32>,
+    p2: vec3<f32>,
+    normal: vec3<f32>,
+    offset: f32,
+    patch_id: u32,
+    instance: u32,
+    face: FaceCutout,
+) {
     let c0 = map_point(p0);
     let c1 = map_point(p1);
     let c2 = map_point(p2);
@@ -1260,6 +1334,18 @@ fn emit_caster(p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, normal: vec3<f32>, o
     if (index >= params.capacity.z) {
         return;
     }
+    var cutout = 0u;
+    if (face.mask != 0u) {
+        let uv0 = face_uv(face, p0);
+        let uv1 = face_uv(face, p1);
+        let uv2 = face_uv(face, p2);
+        cutouts[index] = CasterCutout(
+            array<f32, 6>(uv0.x, uv0.y, uv1.x, uv1.y, uv2.x, uv2.y),
+            array<f32, 3>(p0.z, p1.z, p2.z),
+            face.mask - 1u,
+        );
+        cutout = index + 1u;
+    }
     casters[index] = Caster(
         array<f32, 6>(c0.x, c0.y, c1.x, c1.y, c2.x, c2.y),
         array<f32, 3>(normal.x, normal.y, normal.z),
@@ -1267,7 +1353,7 @@ fn emit_caster(p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, normal: vec3<f32>, o
         min(p0.z, min(p1.z, p2.z)),
         max(p0.z, max(p1.z, p2.z)),
         0u, // its layer, once the plan is known
-        0u, // solid: frames with alpha-masked casters extract on the CPU
+        cutout,
         patch_id,
     );
     grow_region(min(c0, min(c1, c2)), max(c0, max(c1, c2)), instance);
@@ -1294,6 +1380,13 @@ fn map_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
     );
     let normal = cross(p[1] - p[0], p[2] - p[0]);
     let offset = dot(normal, p[0]);
+    var face = FaceCutout(p, array<vec2<f32>, 3>(vec2<f32>(0.0), vec2<f32>(0.0), vec2<f32>(0.0)), inst.pose.z);
+    if (face.mask != 0u) {
+        let uvs = g(inst, G_FACE_UVS_AT) + 6u * (i - inst.ids.z);
+        for (var k = 0u; k < 3u; k++) {
+            face.uvs[k] = vec2<f32>(gf(inst, uvs + 2u * k), gf(inst, uvs + 2u * k + 1u));
+        }
+    }
     let near = near_depth();
     // Clipped to z ≥ near and, on a sphere light's cube face, to its window
     // frustum (`MapTriangle::clipped`): planes (a, b) with a·p + b ≥ 0 inside.
@@ -1313,7 +1406,7 @@ fn map_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
         }
     }
     if (inside) {
-        emit_caster(p[0], p[1], p[2], normal, offset, patch_id, instance);
+        emit_caster(p[0], p[1], p[2], normal, offset, patch_id, instance, face);
         return;
     }
     // Sutherland–Hodgman, one plane after another: at most 3 + 5 corners.
@@ -1340,7 +1433,7 @@ fn map_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
         n = m;
     }
     for (var k = 1u; k + 1u < n; k++) {
-        emit_caster(poly[0], poly[k], poly[k + 1u], normal, offset, patch_id, instance);
+        emit_caster(poly[0], poly[k], poly[k + 1u], normal, offset, patch_id, instance, face);
     }
 }
 

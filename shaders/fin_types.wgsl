@@ -48,6 +48,17 @@ struct Caster {
     patch_id: u32,
 }
 
+// An alpha-masked caster's cut-out (`GpuCutout`, the core's `MapCutout`):
+// the UVs at its corners, the corners' light-frame depths (perspective-correct
+// interpolation) and where its mask starts in `mask_words` (`cutout.wgsl`).
+// The CPU extraction lists them apart; the GPU one writes each at its
+// caster's index.
+struct CasterCutout {
+    uvs: array<f32, 6>,
+    depths: array<f32, 3>,
+    mask: u32,
+}
+
 // The layer of a caster or fin the GPU extraction retired (its instance
 // moved and emitted anew, `extract.wgsl`'s `retire_moved`): the maps skip it.
 const RETIRED_LAYER: u32 = 0xffffffffu;

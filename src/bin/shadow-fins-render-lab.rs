@@ -9,7 +9,10 @@
 //! - `lights`: the frame cost of N fin-shadowed spot lights beside Bevy's own
 //!   shadow maps for the same N lights;
 //! - `sun`: a fin-shadowed `DirectionalLight` against the truth and beside
-//!   Bevy's cascades.
+//!   Bevy's cascades;
+//! - `scaling`: the frame cost against the object count, static and moving;
+//! - `foliage`: alpha-masked leaf cards at scale, one moving, extracted on
+//!   the GPU against on the CPU.
 
 use std::{io::Write, path::PathBuf, process::ExitCode};
 
@@ -23,7 +26,7 @@ use shadow_fins::{
     scenes::SceneId,
     shapes,
 };
-use shadow_fins_app::render_lab::{lights, measure, scaling, stability, sun};
+use shadow_fins_app::render_lab::{foliage, lights, measure, scaling, stability, sun};
 use shadow_fins_lab::{
     LabError,
     grid::{Axes, Technique, parse_list},
@@ -96,6 +99,14 @@ enum Command {
     Scaling {
         /// Object counts, comma-separated (1 to 100 000).
         #[arg(long, default_value = "10,100,1000,10000")]
+        counts: String,
+        #[command(flatten)]
+        timed: TimedArgs,
+    },
+    /// Frame cost against the count of alpha-masked leaf cards, one moving: GPU extraction against CPU extraction.
+    Foliage {
+        /// Card counts, comma-separated (1 to 100 000).
+        #[arg(long, default_value = "10,100,1000")]
         counts: String,
         #[command(flatten)]
         timed: TimedArgs,
@@ -208,7 +219,8 @@ fn main() -> ExitCode {
         Command::Measure(args) => run_measure(args).map(|()| ExitCode::SUCCESS),
         Command::Stability { cases, samples, method, out } => run_stability(&cases, samples, &method, out),
         Command::Lights { scene, counts, timed } => run_lights(&scene, &counts, &timed).map(|()| ExitCode::SUCCESS),
-        Command::Scaling { counts, timed } => run_scaling(&counts, &timed).map(|()| ExitCode::SUCCESS),
+        Command::Scaling { counts, timed } => run_scaling(&counts, &timed, false).map(|()| ExitCode::SUCCESS),
+        Command::Foliage { counts, timed } => run_scaling(&counts, &timed, true).map(|()| ExitCode::SUCCESS),
         Command::Sun { scenes, angles, frames, width, height, map_resolution, samples, layers, out } => {
             let parsed = parse_sun(&scenes, &angles);
             parsed
@@ -259,7 +271,8 @@ fn print_table(table: &str, out: &Option<PathBuf>) -> Result<(), LabError> {
     }
 }
 
-fn run_scaling(counts: &str, timed: &TimedArgs) -> Result<(), LabError> {
+/// The scaling run (cubes), or with `cards` the foliage run (masked leaf cards).
+fn run_scaling(counts: &str, timed: &TimedArgs, cards: bool) -> Result<(), LabError> {
     let TimedArgs { frames, width, height, map_resolution, ref out } = *timed;
     let counts = parse_list("counts", counts, |s| s.parse::<usize>().ok().filter(|n| (1..=100_000).contains(n)))
         .map_err(usage)?;
@@ -270,7 +283,11 @@ fn run_scaling(counts: &str, timed: &TimedArgs) -> Result<(), LabError> {
         height: height.clamp(1, 4096),
         map_resolution,
     };
-    print_table(&scaling::markdown(&scaling::run(&run).map_err(usage)?), out)
+    let table = match cards {
+        true => foliage::markdown(&foliage::run(&run).map_err(usage)?),
+        false => scaling::markdown(&scaling::run(&run).map_err(usage)?),
+    };
+    print_table(&table, out)
 }
 
 /// The sun run's scenes and angles (`scene` or a finite angle in [0, 1.4] rad).

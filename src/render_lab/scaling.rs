@@ -115,7 +115,7 @@ pub fn spawn_cubes(world: &mut World, n: usize) -> Vec<Entity> {
 
 /// One frame, main world and render world timed apart (ms of wall time on
 /// this thread: the render world's is its CPU side, with GPU work it waits on).
-fn split_frame(app: &mut App) -> (f64, f64) {
+pub(crate) fn split_frame(app: &mut App) -> (f64, f64) {
     let apps = app.sub_apps_mut();
     let start = Instant::now();
     apps.main.run_default_schedule();

@@ -264,8 +264,14 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
             Ok(mut object) => {
                 // Meshes that do not cast still receive: they count for the reference plane.
                 object.casts_shadows = caster.casts();
+                let mut gpu_mesh = geometry.clone();
                 if object.casts_shadows {
                     object.cutout = self.materials.cutout(entity, mesh3d.id(), mesh, core, topology, world);
+                    // The GPU extracts an alpha-masked caster from its outline
+                    // (not one it poses itself: the outline is the rest pose's).
+                    if let (Some(cutout), None) = (object.fitting_cutout(), &gpu_pose) {
+                        gpu_mesh = self.materials.outlined_packing(entity, mesh3d.id(), topology, cutout, world);
+                    }
                 }
                 // The posed vertices' box (a posable packing's is the rest pose's).
                 let world_box = sun_fit::corners(topology.bounds)
@@ -274,7 +280,7 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
                     .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));
                 Slot::Object(Box::new(ObjectSlot {
                     object,
-                    gpu_mesh: geometry.clone(),
+                    gpu_mesh,
                     gpu_pose,
                     bounds: corners,
                     world_box,

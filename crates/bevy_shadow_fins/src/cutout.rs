@@ -29,6 +29,8 @@
 
 use std::{collections::HashMap, sync::Arc};
 
+use crate::gpu_scene::GpuMeshGeometry;
+
 use bevy::{
     asset::AssetId,
     image::{ImageAddressMode, ImageSampler},
@@ -37,7 +39,7 @@ use bevy::{
     prelude::*,
 };
 use shadow_fins::{
-    cutout::{Address, AlphaMask, Cutout, Filter},
+    cutout::{Address, AlphaMask, Cutout, Filter, Outline},
     glam::Vec2,
     mesh::{Mesh as CoreMesh, Topology},
 };
@@ -101,6 +103,9 @@ fn key_of(material: &StandardMaterial) -> MaskKey {
 pub(crate) struct CutoutCache {
     masks: HashMap<AssetId<StandardMaterial>, MaterialMask>,
     cutouts: HashMap<(AssetId<Mesh>, AssetId<StandardMaterial>), Option<Cutout>>,
+    /// The GPU extraction's packing of each cached cut-out's mesh with its
+    /// outline, and the outline it was packed with.
+    outlined: HashMap<(AssetId<Mesh>, AssetId<StandardMaterial>), (Arc<Outline>, Arc<GpuMeshGeometry>)>,
     /// Bumped whenever what some material cuts out may have changed: the
     /// frame builder rebuilds when it moved (whoever read the events first,
     /// the builder or a `scene_snapshot`).
@@ -111,6 +116,7 @@ impl CutoutCache {
     /// Forgets the cut-outs of a mesh asset that changed.
     pub(crate) fn forget_mesh(&mut self, id: AssetId<Mesh>) {
         self.cutouts.retain(|(mesh, _), _| *mesh != id);
+        self.outlined.retain(|(mesh, _), _| *mesh != id);
     }
 
     pub(crate) fn generation(&self) -> u64 {
@@ -179,7 +185,7 @@ impl CasterMaterials<'_, '_> {
     /// caster whose material was swapped is signed again by itself: its
     /// material id is in its signature, `casters.rs`.)
     pub(crate) fn refresh(&mut self) {
-        let CutoutCache { masks, cutouts, generation } = &mut *self.cache;
+        let CutoutCache { masks, cutouts, outlined, generation } = &mut *self.cache;
         let mut stale = false;
         if let Some(events) = self.material_events.as_mut() {
             for id in events.read().filter_map(changed_asset) {
@@ -195,6 +201,7 @@ impl CasterMaterials<'_, '_> {
                 if matters {
                     masks.remove(id);
                     cutouts.retain(|(_, material), _| material != id);
+                    outlined.retain(|(_, material), _| material != id);
                     stale = true;
                 }
             }
@@ -209,6 +216,7 @@ impl CasterMaterials<'_, '_> {
                 for material in reading {
                     masks.remove(&material);
                     cutouts.retain(|(_, m), _| *m != material);
+                    outlined.retain(|(_, m), _| *m != material);
                     stale = true;
                 }
             }
@@ -245,6 +253,32 @@ impl CasterMaterials<'_, '_> {
             self.cache.cutouts.insert((mesh_id, material_id), cutout.clone());
         }
         cutout
+    }
+
+    /// `topology` packed for the GPU extraction with `cutout`'s outline
+    /// (`GpuMeshGeometry::pack_outlined`), once per mesh and material;
+    /// `posed` meshes are packed each time (their cut-out is new each time).
+    pub(crate) fn outlined_packing(
+        &mut self,
+        entity: Entity,
+        mesh_id: AssetId<Mesh>,
+        topology: &Topology,
+        cutout: &Cutout,
+        posed: bool,
+    ) -> Arc<GpuMeshGeometry> {
+        let pack = || Arc::new(GpuMeshGeometry::pack_outlined(topology, cutout));
+        let Some(material_id) = self.material_of(entity).filter(|_| !posed) else {
+            return pack();
+        };
+        match self.cache.outlined.get(&(mesh_id, material_id)) {
+            // The cached cut-out's own outline (not one rebuilt since).
+            Some((outline, packing)) if Arc::ptr_eq(outline, &cutout.outline) => packing.clone(),
+            _ => {
+                let packing = pack();
+                self.cache.outlined.insert((mesh_id, material_id), (cutout.outline.clone(), packing.clone()));
+                packing
+            }
+        }
     }
 
     /// A material's mask, read once (and again when it or its texture changes).

@@ -160,6 +160,23 @@ pub(crate) fn fit_cutouts(
     })
 }
 
+/// Appends `m` to `words` as `cutout.wgsl` reads a mask: a header (width,
+/// height, threshold bits, wrap modes and filter), then four 8-bit alphas a
+/// word. Returns the word it starts at.
+pub(crate) fn pack_mask(m: &shadow_fins::cutout::AlphaMask, words: &mut Vec<u32>) -> u32 {
+    let at = words.len() as u32;
+    let code = |a: shadow_fins::cutout::Address| match a {
+        shadow_fins::cutout::Address::Repeat => 0u32,
+        shadow_fins::cutout::Address::MirroredRepeat => 1,
+        shadow_fins::cutout::Address::ClampToEdge => 2,
+    };
+    let [u, v] = m.address();
+    let nearest = (m.filter() == shadow_fins::cutout::Filter::Nearest) as u32;
+    words.extend([m.width(), m.height(), m.threshold().to_bits(), code(u) | code(v) << 8 | nearest << 16]);
+    words.extend(m.alpha().chunks(4).map(|q| q.iter().enumerate().fold(0u32, |w, (k, &a)| w | (a as u32) << (8 * k))));
+    at
+}
+
 /// Map triangles as the GPU reads them, with their cut-outs and the masks
 /// those index, packed as `cutout.wgsl` reads them (`layers`: each
 /// triangle's layer, or layer 0).
@@ -168,8 +185,7 @@ pub(crate) fn gpu_casters(
     layers: Option<&[u32]>,
     masks: &[std::sync::Arc<shadow_fins::cutout::AlphaMask>],
 ) -> (Vec<GpuCaster>, Vec<GpuCutout>, Vec<u32>) {
-    // Each mask once: header (width, height, threshold bits, wrap modes), then
-    // four 8-bit alphas a word.
+    // Each mask once (`pack_mask`).
     let mut mask_words: Vec<u32> = Vec::new();
     let mut mask_at: Vec<Option<u32>> = vec![None; masks.len()];
     let mut cutouts = Vec::new();
@@ -180,29 +196,8 @@ pub(crate) fn gpu_casters(
             let cutout = match t.cutout {
                 None => 0,
                 Some(c) => {
-                    let at = *mask_at[c.mask as usize].get_or_insert_with(|| {
-                        let m = &masks[c.mask as usize];
-                        let at = mask_words.len() as u32;
-                        let code = |a: shadow_fins::cutout::Address| match a {
-                            shadow_fins::cutout::Address::Repeat => 0u32,
-                            shadow_fins::cutout::Address::MirroredRepeat => 1,
-                            shadow_fins::cutout::Address::ClampToEdge => 2,
-                        };
-                        let [u, v] = m.address();
-                        let nearest = (m.filter() == shadow_fins::cutout::Filter::Nearest) as u32;
-                        mask_words.extend([
-                            m.width(),
-                            m.height(),
-                            m.threshold().to_bits(),
-                            code(u) | code(v) << 8 | nearest << 16,
-                        ]);
-                        mask_words.extend(
-                            m.alpha()
-                                .chunks(4)
-                                .map(|q| q.iter().enumerate().fold(0u32, |w, (k, &a)| w | (a as u32) << (8 * k))),
-                        );
-                        at
-                    });
+                    let at = *mask_at[c.mask as usize]
+                        .get_or_insert_with(|| pack_mask(&masks[c.mask as usize], &mut mask_words));
                     cutouts.push(GpuCutout {
                         uvs: [c.uvs[0].x, c.uvs[0].y, c.uvs[1].x, c.uvs[1].y, c.uvs[2].x, c.uvs[2].y],
                         depths: c.depths,
@@ -1285,9 +1280,16 @@ fn light_frame(
         return data;
     }
     let mut extraction = settings.extraction;
-    // The GPU extraction has no UVs and no outlines: a frame with an
-    // alpha-masked caster extracts on the CPU (the maps still run on the GPU).
-    if state.built.as_ref().expect("built above").objects.iter().any(|o| o.casts_shadows && o.cutout.is_some()) {
+    // The GPU extracts an alpha-masked caster from its mesh packed with its
+    // outline (`GpuMeshGeometry::pack_outlined`); one it poses itself has
+    // none (the outline is the rest pose's): such a frame extracts on the
+    // CPU (the maps still run on the GPU).
+    let objects = &state.built.as_ref().expect("built above").objects;
+    if objects
+        .iter()
+        .zip(&scene.gpu_meshes)
+        .any(|(o, m)| o.casts_shadows && o.fitting_cutout().is_some() && !m.outlined)
+    {
         extraction = FinExtraction::Cpu;
     }
     let mut gpu_scene = None;

@@ -10,6 +10,7 @@ use std::{
 
 use bevy::prelude::*;
 use shadow_fins::{
+    cutout::AlphaMask,
     light::LightFrame,
     mesh::{NO_FACE, Topology},
     scene::{LightInObject, ObjectToFrame, SceneObject},
@@ -19,10 +20,12 @@ use shadow_fins::{
 /// `pose.wgsl`): vertex count, face count, edge count, then where the faces,
 /// vertices, edges, vertex → edge lists and non-manifold face lists start;
 /// then, for a posable packing, where its pose section starts (0: none) and
-/// its morph targets.
+/// its morph targets; then, for an outlined packing, where its faces' UVs
+/// start (0: none).
 const HEADER_WORDS: usize = 12;
 const G_POSE_AT: usize = 8;
 const G_MORPH_TARGETS: usize = 9;
+const G_FACE_UVS_AT: usize = 10;
 /// Words per welded vertex in a pose section: bind position, four joint
 /// indices as two `u16` pairs, four weights (then, target-major, each morph
 /// target's displacement of every welded vertex, three words each).
@@ -36,6 +39,12 @@ const EDGE_FORWARD0: u32 = 1;
 const EDGE_FORWARD1: u32 = 2;
 const EDGE_CREASE: u32 = 4;
 const EDGE_NON_MANIFOLD: u32 = 8;
+/// An outlined packing's mesh edge: it joins patches, and is never a
+/// silhouette (the outline's edges are).
+const EDGE_PATCH_ONLY: u32 = 16;
+/// An outlined packing's outline edge: a silhouette candidate that joins no
+/// patch (its faces are mesh faces, joined across the mesh's edges).
+const EDGE_OUTLINE: u32 = 32;
 
 /// One mesh's light-independent topology as `u32` words (floats as bits):
 /// - a header of [`HEADER_WORDS`]: the counts and where each part starts;
@@ -48,7 +57,9 @@ const EDGE_NON_MANIFOLD: u32 = 8;
 ///   silhouette edges meeting at a silhouette vertex;
 /// - non-manifold face lists: `face | forward << 31`;
 /// - a posable packing ([`Self::pack_posable`]) then has a pose section:
-///   what `pose.wgsl` poses a copy of the words before it from.
+///   what `pose.wgsl` poses a copy of the words before it from;
+/// - an outlined packing ([`Self::pack_outlined`]: an alpha-masked mesh)
+///   then has its faces' corner UVs (6 words a face).
 #[derive(Debug)]
 pub(crate) struct GpuMeshGeometry {
     pub words: Vec<u32>,
@@ -56,6 +67,9 @@ pub(crate) struct GpuMeshGeometry {
     pub faces: u32,
     pub edges: u32,
     pub closed: bool,
+    /// Packed with the outline of a cut-out ([`Self::pack_outlined`]): its
+    /// silhouettes come from the outline, its casters carry UVs.
+    pub outlined: bool,
     /// Unique per packing: what the concatenated geometry is keyed by. Not the
     /// `Arc`'s address — a mesh edited in place is packed again and its new
     /// `Arc` may reuse the freed address, which kept the old triangles on the GPU.
@@ -71,8 +85,25 @@ fn next_packing() -> u64 {
 
 impl GpuMeshGeometry {
     pub fn pack(t: &Topology) -> Self {
-        let (v, f) = (t.positions.len(), t.faces.len());
-        let e = t.edges.len() + t.non_manifold_edges.len();
+        Self::pack_with(t, None)
+    }
+
+    /// An alpha-masked mesh's packing (`cutout` fits `t`: one UV triple per
+    /// face): its vertices then its outline's (numbered after the mesh's, as
+    /// the core's `extract_object_silhouettes` numbers them); its edges
+    /// (`EDGE_PATCH_ONLY`) then the outline's (`EDGE_OUTLINE`); its faces'
+    /// UVs after the rest. Never closed: light through a hole meets the back.
+    pub fn pack_outlined(t: &Topology, cutout: &shadow_fins::cutout::Cutout) -> Self {
+        Self::pack_with(t, Some(cutout))
+    }
+
+    fn pack_with(t: &Topology, cutout: Option<&shadow_fins::cutout::Cutout>) -> Self {
+        let outline = cutout.map(|c| &*c.outline);
+        let extra_vertices = outline.map_or(0, |o| o.positions.len());
+        let extra_edges = outline.map_or(0, |o| o.edges.len());
+        let mesh_edge_flags = if outline.is_some() { EDGE_PATCH_ONLY } else { 0 };
+        let (v, f) = (t.positions.len() + extra_vertices, t.faces.len());
+        let e = t.edges.len() + t.non_manifold_edges.len() + extra_edges;
         let mut w = vec![0u32; HEADER_WORDS];
         let bits = |x: f32| x.to_bits();
 
@@ -82,33 +113,52 @@ impl GpuMeshGeometry {
             w.extend([bits(n.x), bits(n.y), bits(n.z), bits(*d)]);
         }
         let vertices_at = w.len();
-        for (p, n) in t.positions.iter().zip(&t.vertex_normals) {
+        let outline_vertices = outline.into_iter().flat_map(|o| o.positions.iter().zip(&o.normals));
+        for (p, n) in t.positions.iter().zip(&t.vertex_normals).chain(outline_vertices) {
             w.extend([p.x, p.y, p.z, n.x, n.y, n.z].map(bits));
         }
         let edges_at = w.len();
         let mut non_manifold = Vec::new();
-        for (edge, &crease) in t.edges.iter().zip(&t.crease) {
+        let first_outline_vertex = t.positions.len() as u32;
+        let outline_edges = outline.into_iter().flat_map(|o| {
+            o.edges.iter().zip(&o.crease).map(move |(edge, &crease)| {
+                let vertices = edge.vertices.map(|x| x + first_outline_vertex);
+                (shadow_fins::mesh::Edge { vertices, ..*edge }, crease, EDGE_OUTLINE)
+            })
+        });
+        let mesh_edges = t.edges.iter().zip(&t.crease).map(|(edge, &crease)| (*edge, crease, mesh_edge_flags));
+        for (edge, crease, kind) in mesh_edges.chain(outline_edges) {
             let flags = if edge.forward[0] { EDGE_FORWARD0 } else { 0 }
                 | if edge.forward[1] { EDGE_FORWARD1 } else { 0 }
-                | if crease { EDGE_CREASE } else { 0 };
+                | if crease { EDGE_CREASE } else { 0 }
+                | kind;
             let f1 = if edge.faces[1] == NO_FACE { u32::MAX } else { edge.faces[1] };
             w.extend([edge.vertices[0], edge.vertices[1], edge.faces[0], f1, flags]);
         }
+        // (An outlined packing's non-manifold mesh edges go after its outline
+        // edges: they are patch-only like its other mesh edges.)
         for edge in &t.non_manifold_edges {
             w.extend([
                 edge.vertices[0],
                 edge.vertices[1],
                 non_manifold.len() as u32,
                 edge.faces.len() as u32,
-                EDGE_NON_MANIFOLD | EDGE_CREASE,
+                EDGE_NON_MANIFOLD | EDGE_CREASE | mesh_edge_flags,
             ]);
             non_manifold.extend(edge.faces.iter().map(|&(face, forward)| face | (forward as u32) << 31));
         }
         // Vertex → edge lists (CSR): starts (v + 1 words), then the edge ids.
         let csr_at = w.len();
         let mut degree = vec![0u32; v + 1];
-        let endpoints: Vec<[u32; 2]> =
-            t.edges.iter().map(|e| e.vertices).chain(t.non_manifold_edges.iter().map(|e| e.vertices)).collect();
+        let endpoints: Vec<[u32; 2]> = t
+            .edges
+            .iter()
+            .map(|e| e.vertices)
+            .chain(
+                outline.into_iter().flat_map(|o| o.edges.iter().map(|e| e.vertices.map(|x| x + first_outline_vertex))),
+            )
+            .chain(t.non_manifold_edges.iter().map(|e| e.vertices))
+            .collect();
         for ends in &endpoints {
             for &x in ends {
                 degree[x as usize + 1] += 1;
@@ -139,8 +189,13 @@ impl GpuMeshGeometry {
             csr_at as u32,
             non_manifold_at as u32,
         ]);
+        if let Some(c) = cutout {
+            w[G_FACE_UVS_AT] = w.len() as u32;
+            w.extend(c.face_uvs.iter().flat_map(|uvs| uvs.iter().flat_map(|uv| [bits(uv.x), bits(uv.y)])));
+        }
         let (vertices, faces, edges) = (v as u32, f as u32, e as u32);
-        Self { words: w, vertices, faces, edges, closed: t.is_closed_manifold(), packing: next_packing() }
+        let closed = t.is_closed_manifold() && outline.is_none();
+        Self { words: w, vertices, faces, edges, closed, outlined: outline.is_some(), packing: next_packing() }
     }
 }
 
@@ -270,7 +325,9 @@ pub(crate) struct GpuInstance {
     ids: [u32; 4],
     /// (flags 1 casts / 2 closed / 4 mirrors, vertices, caster faces, caster edges)
     info: [u32; 4],
-    /// (its pose's hash, low and high words; 0, 0): a new pose changes the record.
+    /// (its pose's hash, low and high words; its cut-out: 0 solid, else 1 +
+    /// where its mask starts in the scene's mask words; 0): a new pose
+    /// changes the record.
     pose: [u32; 4],
 }
 
@@ -309,11 +366,16 @@ impl GpuCapacity {
         }
     }
 
-    /// Grown to hold what a read-back says a frame wanted, but never past
-    /// `max`; `None` if it already holds all it may.
+    /// Grown to hold what a read-back says a frame wanted, with a quarter
+    /// more room, but never past `max`; `None` if it already holds all it
+    /// may. (The room is for the records an incremental update retires and
+    /// appends again, `extract.wgsl`: a buffer the live records fill has
+    /// none, and every update would extract everything. An alpha-masked
+    /// card's outline is nearly all silhouettes.)
     pub fn grown_for(self, wanted: Self, max: Self) -> Option<Self> {
-        let grow =
-            |have: u32, want: u32, max: u32| if want > have { (want + want / 2).min(max).max(have) } else { have };
+        let grow = |have: u32, want: u32, max: u32| {
+            if want.saturating_add(want / 4) > have { want.saturating_add(want / 2).min(max).max(have) } else { have }
+        };
         let next = Self {
             silhouettes: grow(self.silhouettes, wanted.silhouettes, max.silhouettes),
             fins: grow(self.fins, wanted.fins, max.fins),
@@ -369,6 +431,9 @@ pub(crate) struct GpuScene {
     /// What poses the posed instances' copies (`pose.wgsl`): empty when no
     /// instance is posed on the GPU; a new `Arc` only when it changed.
     pub poses: Arc<Vec<u32>>,
+    /// The alpha masks the outlined instances cut their casters with
+    /// (`extract::pack_mask`, each once): empty when none is.
+    pub mask_words: Arc<Vec<u32>>,
     /// (instance vertices, caster faces, caster edges)
     pub totals: [u32; 3],
     pub capacity: GpuCapacity,
@@ -403,6 +468,9 @@ pub(crate) struct GpuSceneBuilder {
     totals: [u32; 3],
     /// The pose buffer of the last build.
     poses: Arc<Vec<u32>>,
+    /// The masks packed in `mask_words`, each with where it starts there.
+    masks: Vec<(Arc<AlphaMask>, u32)>,
+    mask_words: Arc<Vec<u32>>,
 }
 
 impl GpuSceneBuilder {
@@ -436,6 +504,7 @@ impl GpuSceneBuilder {
                     Some(_) => self.posed_copies.get(&i).is_some_and(|(packing, _)| *packing == meshes[i].packing),
                     None => self.offsets.contains_key(&meshes[i].packing) && !self.posed_copies.contains_key(&i),
                 })
+                && dirty.iter().all(|&i| cut_mask(&objects[i], &meshes[i]).is_none_or(|m| self.mask_at(m).is_some()))
         };
         let in_place = dirty.filter(in_place);
         match in_place {
@@ -463,6 +532,7 @@ impl GpuSceneBuilder {
             geometry_key: self.geometry_key,
             instances: self.instances.clone(),
             poses: self.poses.clone(),
+            mask_words: self.mask_words.clone(),
             totals: self.totals,
             capacity,
             max_capacity,
@@ -520,6 +590,7 @@ impl GpuSceneBuilder {
             self.geometry = Arc::new(words);
             self.geometry_key = key;
         }
+        self.pack_masks(objects, meshes);
         self.instances =
             (0..objects.len()).map(|i| self.record(i, &objects[i], &meshes[i], &poses[i], frame)).collect();
         self.number_records();
@@ -546,6 +617,32 @@ impl GpuSceneBuilder {
         if counts_moved {
             self.number_records();
         }
+    }
+
+    /// The masks the objects cut their casters with, each once, in
+    /// first-use order; packed anew only when that list changed.
+    fn pack_masks(&mut self, objects: &[SceneObject], meshes: &[Arc<GpuMeshGeometry>]) {
+        let mut masks: Vec<&Arc<AlphaMask>> = Vec::new();
+        for (o, m) in objects.iter().zip(meshes) {
+            if let Some(mask) = cut_mask(o, m)
+                && !masks.iter().any(|k| Arc::ptr_eq(k, mask))
+            {
+                masks.push(mask);
+            }
+        }
+        let same =
+            masks.len() == self.masks.len() && masks.iter().zip(&self.masks).all(|(a, (b, _))| Arc::ptr_eq(a, b));
+        if same {
+            return;
+        }
+        let mut words = Vec::new();
+        self.masks = masks.into_iter().map(|m| (m.clone(), crate::extract::pack_mask(m, &mut words))).collect();
+        self.mask_words = Arc::new(words);
+    }
+
+    /// Where `mask` starts in the mask words, if packed.
+    fn mask_at(&self, mask: &Arc<AlphaMask>) -> Option<u32> {
+        self.masks.iter().find(|(m, _)| Arc::ptr_eq(m, mask)).map(|(_, at)| *at)
     }
 
     /// Each record's first vertex, face and edge: the counts before it.
@@ -627,6 +724,8 @@ impl GpuSceneBuilder {
             Some(pose) => (self.posed_copies[&i].1, pose.hash),
             None => (self.offsets[&mesh.packing], 0),
         };
+        // Packed by `pack_masks` (a full build) or checked by `build` (in place).
+        let cutout = cut_mask(object, mesh).and_then(|m| self.mask_at(m)).map_or(0, |at| at + 1);
         GpuInstance {
             linear: [v4(c.x_axis), v4(c.y_axis), v4(c.z_axis)],
             translation: v4(to_frame.translation),
@@ -634,9 +733,15 @@ impl GpuSceneBuilder {
             light: light.to_array(),
             ids: [offset, 0, 0, 0],
             info: [flags, mesh.vertices, f, e],
-            pose: [hash as u32, (hash >> 32) as u32, 0, 0],
+            pose: [hash as u32, (hash >> 32) as u32, cutout, 0],
         }
     }
+}
+
+/// The mask an object cuts its casters with on the GPU: a casting object
+/// whose cut-out fits its mesh, packed with that cut-out's outline.
+fn cut_mask<'a>(object: &'a SceneObject, mesh: &GpuMeshGeometry) -> Option<&'a Arc<AlphaMask>> {
+    object.fitting_cutout().filter(|_| object.casts_shadows && mesh.outlined).map(|c| &c.mask)
 }
 
 /// (jobs, most vertices, faces, edges of one) of a pose buffer: its first
@@ -659,8 +764,8 @@ impl GpuScene {
             ("packed geometry", self.geometry.len() as u64 * 4),
             ("poses", self.poses.len() as u64 * 4),
             ("instances", self.instances.len() as u64 * size_of::<GpuInstance>() as u64),
-            ("face and edge state", (faces * FACE_STATE_WORDS + edges) * 4),
-            ("light-frame vertices", vertices * 16),
+            ("face, edge and vertex state", (faces * FACE_STATE_WORDS + edges + vertices * VERTEX_STATE_WORDS) * 4),
+            ("alpha masks", self.mask_words.len() as u64 * 4),
         ]
     }
 }
@@ -671,6 +776,10 @@ pub(crate) const FIN_BYTES: u64 = 64;
 pub(crate) const CASTER_BYTES: u64 = size_of::<crate::extract::GpuCaster>() as u64;
 /// `state` words per caster face (`FACE_WORDS` in `extract.wgsl`).
 pub(crate) const FACE_STATE_WORDS: u64 = 5;
+/// `state` words per instance vertex: its light-frame position (`VERTEX_WORDS`).
+pub(crate) const VERTEX_STATE_WORDS: u64 = 3;
+/// Bytes per caster cut-out the extraction writes (`CasterCutout`, `cutout.wgsl`).
+pub(crate) const CUTOUT_BYTES: u64 = size_of::<crate::extract::GpuCutout>() as u64;
 
 #[cfg(test)]
 mod tests {
@@ -681,7 +790,10 @@ mod tests {
     fn capacity_grows_past_what_a_frame_wanted_and_never_shrinks() {
         let have = GpuCapacity { silhouettes: 100, fins: 400, casters: 1000, layers: 2 };
         let max = GpuCapacity::max_for(1 << 30);
-        assert_eq!(have.grown_for(GpuCapacity { silhouettes: 100, fins: 10, casters: 0, layers: 2 }, max), None);
+        assert_eq!(have.grown_for(GpuCapacity { silhouettes: 80, fins: 10, casters: 0, layers: 2 }, max), None);
+        // Full to the last record: no room to retire and append in.
+        let full = have.grown_for(GpuCapacity { silhouettes: 100, fins: 10, casters: 0, layers: 2 }, max).unwrap();
+        assert_eq!(full.silhouettes, 150);
         let grown = have.grown_for(GpuCapacity { silhouettes: 300, fins: 10, casters: 0, layers: 5 }, max).unwrap();
         assert_eq!(grown, GpuCapacity { silhouettes: 450, fins: 400, casters: 1000, layers: 5 });
     }
@@ -902,5 +1014,95 @@ mod tests {
         }
         // A closed box: every vertex has three or more edges, 2·18 entries in all.
         assert_eq!(g.words[csr_at + v] as usize, 2 * e);
+    }
+
+    /// The core's leaf-cards scene: the ground, then five masked cards
+    /// sharing one mesh and one cut-out.
+    fn leaf_cards() -> Vec<SceneObject> {
+        shadow_fins::scenes::SceneId::LeafCards.build().scene.objects
+    }
+
+    #[test]
+    fn an_outlined_packing_has_the_outline_after_the_mesh_and_the_faces_uvs() {
+        let card = &leaf_cards()[1];
+        let cutout = card.fitting_cutout().expect("a masked card");
+        let (t, o) = (&card.topology, &cutout.outline);
+        assert!(!o.edges.is_empty());
+        let g = GpuMeshGeometry::pack_outlined(t, cutout);
+        let [v, f, e, _, vertices_at, edges_at, csr_at, _] = std::array::from_fn(|i| g.words[i] as usize);
+        let mesh_edges = t.edges.len() + t.non_manifold_edges.len();
+        assert_eq!((v, f, e), (t.positions.len() + o.positions.len(), t.faces.len(), mesh_edges + o.edges.len()));
+        assert!(g.outlined && !g.closed && !GpuMeshGeometry::pack(t).outlined);
+        // The outline's vertices follow the mesh's, numbered as the core numbers them.
+        let first = t.positions.len();
+        let at = vertices_at + 6 * first;
+        assert_eq!(g.words[at..at + 3], o.positions[0].to_array().map(f32::to_bits));
+        let edge = |k: usize| &g.words[edges_at + 5 * k..edges_at + 5 * k + 5];
+        for k in 0..t.edges.len() {
+            assert_eq!(edge(k)[4] & (EDGE_PATCH_ONLY | EDGE_OUTLINE), EDGE_PATCH_ONLY, "mesh edge {k}");
+        }
+        for (k, outline_edge) in o.edges.iter().enumerate() {
+            let w = edge(t.edges.len() + k);
+            assert_eq!(w[4] & (EDGE_PATCH_ONLY | EDGE_OUTLINE), EDGE_OUTLINE, "outline edge {k}");
+            assert_eq!(w[..2], outline_edge.vertices.map(|x| x + first as u32));
+            assert_eq!(w[2], outline_edge.faces[0]);
+            assert_eq!(w[4] & EDGE_CREASE != 0, o.crease[k]);
+            // Listed at both its (outline) vertices.
+            for &x in &w[..2] {
+                let (start, end) = (g.words[csr_at + x as usize], g.words[csr_at + x as usize + 1]);
+                let list = &g.words[csr_at + v + 1 + start as usize..csr_at + v + 1 + end as usize];
+                assert!(list.contains(&((t.edges.len() + k) as u32)), "outline edge {k} missing at {x}");
+            }
+        }
+        let uvs_at = g.words[G_FACE_UVS_AT] as usize;
+        assert_eq!(g.words.len(), uvs_at + 6 * f);
+        for (face, uvs) in cutout.face_uvs.iter().enumerate() {
+            let words: Vec<u32> = uvs.iter().flat_map(|uv| [uv.x, uv.y]).map(f32::to_bits).collect();
+            assert_eq!(g.words[uvs_at + 6 * face..uvs_at + 6 * face + 6], words[..], "face {face}");
+        }
+    }
+
+    #[test]
+    fn outlined_instances_point_at_their_mask_packed_once() {
+        let objects = leaf_cards();
+        let cutout = objects[1].fitting_cutout().unwrap();
+        let solid = Arc::new(GpuMeshGeometry::pack(&objects[0].topology));
+        let outlined = Arc::new(GpuMeshGeometry::pack_outlined(&objects[1].topology, cutout));
+        let plain_card = Arc::new(GpuMeshGeometry::pack(&objects[1].topology));
+        // The ground solid, four cards outlined, one card packed without its
+        // outline (as one the GPU poses): solid on the GPU.
+        let mut meshes = vec![solid, outlined.clone(), outlined.clone(), outlined.clone(), outlined.clone()];
+        meshes.push(plain_card);
+        let poses = vec![None; objects.len()];
+        let disk = shadow_fins::light::DiskLight::new(Vec3::new(0.0, 5.0, 0.0), Vec3::NEG_Y, 0.5).unwrap();
+        let frame = LightFrame::disk(&disk);
+        let (max, world) = (GpuCapacity::max_for(1 << 30), (Vec3::splat(-4.0), Vec3::splat(4.0)));
+        let mut builder = GpuSceneBuilder::default();
+        let scene = builder.build(&objects, &meshes, &poses, &frame, world, None, &mut None, max);
+        let mut words = Vec::new();
+        crate::extract::pack_mask(&cutout.mask, &mut words);
+        assert_eq!(*scene.mask_words, words, "the shared mask, once");
+        let cut: Vec<u32> = scene.instances.iter().map(|i| i.pose[2]).collect();
+        assert_eq!(cut, [0, 1, 1, 1, 1, 0]);
+        // Outlined instances are never closed (flag 2), whatever the mesh.
+        assert!(scene.instances[1..5].iter().all(|i| i.info[0] & 2 == 0));
+        // A card that moved keeps its mask in place; the words are not packed again.
+        let mut moved = objects.clone();
+        moved[2].transform.translation += bevy::math::Vec3A::X;
+        let again = builder.build(&moved, &meshes, &poses, &frame, world, Some(&[2]), &mut None, max);
+        assert!(Arc::ptr_eq(&again.mask_words, &scene.mask_words));
+        assert_eq!(again.instances[2].pose[2], 1);
+        // Without a masked caster there are no mask words.
+        let none = GpuSceneBuilder::default().build(
+            &objects[..1],
+            &meshes[..1],
+            &poses[..1],
+            &frame,
+            world,
+            None,
+            &mut None,
+            max,
+        );
+        assert!(none.mask_words.is_empty());
     }
 }

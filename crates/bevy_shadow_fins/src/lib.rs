@@ -128,6 +128,8 @@
 //!    vertex, the sub-layer histogram of edge depths (atomics), its prefix sum
 //!    cut at the k/N quantiles, every fin and caster given its patch's layer,
 //!    and the indirect dispatch arguments of the map passes — all on the GPU.
+//!    An alpha-masked caster is packed with the outline of its opaque region
+//!    (its silhouettes) and its faces' UVs (its map casters' cut-outs).
 //!    Caster geometry is uploaded once per mesh; when something moves only the
 //!    instance transforms go up. The counts come back a few frames later in
 //!    [`FinShadowStats`]; output buffers start at a size guessed from the

@@ -67,8 +67,10 @@ const MAX_REDRAWN_INSTANCES: usize = 256;
 /// Words 0..16 of `control` go back to the main world: counts, generation, layers.
 const STATS_WORDS: u64 = 16;
 const FACE_WORDS: u64 = crate::gpu_scene::FACE_STATE_WORDS;
+const VERTEX_WORDS: u64 = crate::gpu_scene::VERTEX_STATE_WORDS;
 const WORKGROUP: u32 = 64;
 
+use crate::gpu_scene::CUTOUT_BYTES;
 use crate::gpu_scene::SILHOUETTE_BYTES;
 pub(super) use crate::gpu_scene::{CASTER_BYTES, FIN_BYTES};
 
@@ -318,7 +320,11 @@ pub(super) struct ExtractBuffers {
     /// Indirect dispatch arguments, copied out of `control` between passes.
     pub(super) indirect: Option<Buffer>,
     state: Option<Buffer>,
-    positions: Option<Buffer>,
+    /// The cut-outs of the casters the extraction writes (`CasterCutout`,
+    /// one per caster record, at its index), which the maps read: as large
+    /// as the casters' buffer allows when an instance is alpha-masked, a
+    /// stand-in otherwise.
+    cutouts: Option<Buffer>,
     silhouettes: Option<Buffer>,
     bind_group: Option<BindGroup>,
     /// What poses the posed instances' geometry copies (`pose.wgsl`), as
@@ -340,7 +346,7 @@ pub(super) struct ExtractBuffers {
     /// the next update must redraw whole).
     recorded: bool,
     /// The buffers last frame's extraction left its records in (control,
-    /// state, positions, silhouettes, fins, casters): an update may extract
+    /// state, cut-outs, silhouettes, fins, casters): an update may extract
     /// the moved instances only while they are all still there.
     work_buffers: [Option<BufferId>; 6],
 }
@@ -531,9 +537,13 @@ pub(super) fn prepare(
         BufferUsages::INDIRECT | BufferUsages::COPY_DST,
         cap,
     );
-    let state_bytes = (faces as u64 * FACE_WORDS + edges as u64) * 4;
-    ensure(&mut buffers.state, device, "fin_extract_state", state_bytes, storage, cap);
-    ensure(&mut buffers.positions, device, "fin_extract_positions", vertices as u64 * 16, storage, cap);
+    let state_words = faces as u64 * FACE_WORDS + edges as u64 + vertices as u64 * VERTEX_WORDS;
+    ensure(&mut buffers.state, device, "fin_extract_state", state_words * 4, storage, cap);
+    let cutout_bytes = match scene.mask_words.is_empty() {
+        true => 0,
+        false => scene.capacity.casters as u64 * CUTOUT_BYTES,
+    };
+    ensure(&mut buffers.cutouts, device, "fin_extract_cutouts", cutout_bytes.max(64), storage, cap);
     ensure(
         &mut buffers.silhouettes,
         device,
@@ -552,7 +562,7 @@ pub(super) fn prepare(
     let work_buffers = [
         id(&buffers.control),
         id(&buffers.state),
-        id(&buffers.positions),
+        id(&buffers.cutouts),
         id(&buffers.silhouettes),
         Some(fins.id()),
         Some(casters.id()),
@@ -583,7 +593,7 @@ pub(super) fn prepare(
             buffers.geometry.as_ref().unwrap().as_entire_binding(),
             buffers.control.as_ref().unwrap().as_entire_binding(),
             buffers.state.as_ref().unwrap().as_entire_binding(),
-            buffers.positions.as_ref().unwrap().as_entire_binding(),
+            buffers.cutouts.as_ref().unwrap().as_entire_binding(),
             buffers.silhouettes.as_ref().unwrap().as_entire_binding(),
             fins.as_entire_binding(),
             casters.as_entire_binding(),
@@ -740,6 +750,11 @@ impl ExtractBuffers {
     /// redraw's lists from it).
     pub(super) fn control(&self) -> Option<&Buffer> {
         self.control.as_ref()
+    }
+
+    /// The cut-outs the extraction writes beside its casters (the maps' `cutouts`).
+    pub(super) fn cutouts(&self) -> Option<&Buffer> {
+        self.cutouts.as_ref()
     }
 
     /// The maps were drawn by another path (the CPU extraction, or none):

@@ -1,7 +1,7 @@
 //! Render world: the penumbra-map passes (once per frame, only when the fin
 //! frame changed) and the per-camera visibility pass.
 
-use std::borrow::Cow;
+use std::{borrow::Cow, sync::Arc};
 
 use bevy::{
     asset::{embedded_asset, load_embedded_asset},
@@ -293,6 +293,9 @@ struct FinMapsGpu {
     fins: Option<Buffer>,
     cutouts: Option<Buffer>,
     mask_words: Option<Buffer>,
+    /// The GPU extraction's mask words in `mask_words` (none after the CPU
+    /// path wrote there): a moved caster does not upload them again.
+    uploaded_masks: Option<Arc<Vec<u32>>>,
     /// The read-back slot its counts were last copied into.
     stats_slot: Option<usize>,
     bind_group: Option<BindGroup>,
@@ -435,15 +438,23 @@ fn prepare_light_maps(
     };
     ensure(&mut gpu.casters, device, "fin_casters", caster_bytes.max(64), storage, cap);
     ensure(&mut gpu.fins, device, "fin_fins", fin_bytes.max(64), storage, cap);
-    // Alpha-masked casters' cut-outs (CPU extraction only; empty otherwise).
+    // Alpha-masked casters' cut-outs: from the CPU extraction, or (on the
+    // GPU extraction) written by it beside its casters; their masks.
     let cutout_bytes: &[u8] = bytemuck::cast_slice(&f.cutouts);
-    let mask_bytes: &[u8] = bytemuck::cast_slice(&f.mask_words);
+    let masks = f.gpu.as_ref().map(|scene| &scene.mask_words);
+    let mask_bytes: &[u8] = bytemuck::cast_slice(masks.map_or(&f.mask_words, |m| m.as_slice()));
     ensure(&mut gpu.cutouts, device, "fin_cutouts", (cutout_bytes.len() as u64).max(64), storage, cap);
+    let old_masks = gpu.mask_words.as_ref().map(|b| b.id());
     ensure(&mut gpu.mask_words, device, "fin_mask_words", (mask_bytes.len() as u64).max(64), storage, cap);
     if !cutout_bytes.is_empty() {
         queue.write_buffer(gpu.cutouts.as_ref().unwrap(), 0, cutout_bytes);
+    }
+    let uploaded = old_masks == gpu.mask_words.as_ref().map(|b| b.id())
+        && masks.zip(gpu.uploaded_masks.as_ref()).is_some_and(|(now, was)| Arc::ptr_eq(now, was));
+    if !mask_bytes.is_empty() && !uploaded {
         queue.write_buffer(gpu.mask_words.as_ref().unwrap(), 0, mask_bytes);
     }
+    gpu.uploaded_masks = masks.cloned();
     gpu.mode = match &f.gpu {
         None => MapsSource::Cpu,
         Some(scene) if scene.totals[1] == 0 => MapsSource::Nothing,
@@ -492,7 +503,11 @@ fn prepare_light_maps(
                 gpu.maps.as_ref().unwrap().as_entire_binding(),
                 gpu.casters.as_ref().unwrap().as_entire_binding(),
                 gpu.fins.as_ref().unwrap().as_entire_binding(),
-                gpu.cutouts.as_ref().unwrap().as_entire_binding(),
+                match gpu.mode {
+                    MapsSource::Gpu => gpu.extraction.cutouts().unwrap(),
+                    _ => gpu.cutouts.as_ref().unwrap(),
+                }
+                .as_entire_binding(),
                 gpu.mask_words.as_ref().unwrap().as_entire_binding(),
                 // Read only on a partial redraw, which the CPU path never does:
                 // there the cut-outs stand in.
