@@ -25,9 +25,21 @@ use super::{
 
 /// `gpu` and `expected` on the pixels that see the ground (y = 0).
 fn on_ground(setup: &Setup, gpu: &[f32], expected: &[f32]) -> (Vec<f32>, Vec<f32>) {
+    on_ground_within(setup, gpu, expected, 1e-3)
+}
+
+/// [`on_ground`] with the ground's pixels those within `within` of y = 0.
+fn on_ground_within(setup: &Setup, gpu: &[f32], expected: &[f32], within: f32) -> (Vec<f32>, Vec<f32>) {
     let ls = shadow_fins::scene::LightSpaceScene::new(&setup.scene, setup.light);
     let ground =
-        per_pixel(setup, &setup.camera, &ls, |r| if ls.frame.to_world(r.position).y.abs() < 1e-3 { 2.0 } else { 0.0 });
+        per_pixel(
+            setup,
+            &setup.camera,
+            &ls,
+            |r| {
+                if ls.frame.to_world(r.position).y.abs() < within { 2.0 } else { 0.0 }
+            },
+        );
     let keep = |v: &[f32]| -> Vec<f32> { v.iter().zip(&ground).filter(|(_, g)| **g == 2.0).map(|(v, _)| *v).collect() };
     let (g, e) = (keep(gpu), keep(expected));
     assert!(g.len() * 3 > gpu.len(), "{} of {} pixels see the ground", g.len(), gpu.len());
@@ -255,4 +267,50 @@ fn a_masked_card_moved_is_extracted_alone_and_shadows_as_a_fresh_app() {
     assert!(stats.incremental_extraction, "the moved card alone was extracted");
     assert!(changed > 1e-4, "moving the card changed no shadow ({changed})");
     assert!(worst <= 1e-4, "the cards updated in place differ from a fresh app's (max {worst})");
+}
+
+/// `setup` scaled by `s` about the origin: its objects, its disk light (centre
+/// and radius), its camera, and the camera's near plane.
+fn scaled(setup: &Setup, s: f32) -> Setup {
+    let mut out = setup.clone();
+    for o in &mut out.scene.objects {
+        o.transform = bevy::math::Affine3A::from_scale(Vec3::splat(s)) * o.transform;
+    }
+    let Light::Disk(d) = setup.light else { panic!("the leaf cards' light is a disk") };
+    let disk = shadow_fins::light::DiskLight::new(d.center * s, d.normal, d.radius * s).expect("a valid disk");
+    out.light = Light::Disk(disk);
+    out.camera.position *= s;
+    out.camera.target *= s;
+    out.near = Some(0.01 * s);
+    out
+}
+
+#[test]
+fn masked_cards_at_millimetre_and_kilometre_scales_shadow_as_the_cpu_and_the_oracle_say() {
+    // Content at scales the cards were not made at: the same leaf cards a
+    // thousand times smaller and larger. The GPU extraction (outlines,
+    // cut-outs, perspective-correct UVs) against the CPU extraction and the
+    // raster oracle, on the ground.
+    for s in [1e-3f32, 1e3] {
+        let gpu = scaled(&setup(SceneId::LeafCards, settings()), s);
+        let mut cpu = gpu.clone();
+        cpu.settings = FinShadowSettings { extraction: FinExtraction::Cpu, ..gpu.settings };
+        let (g, c) = (render(&gpu), render(&cpu));
+        save(&g, &format!("alpha_cards_scale_{s}"));
+        assert_not_trivial(&g);
+        assert_eq!((g.stats.extraction, c.stats.extraction), (FinExtraction::Gpu, FinExtraction::Cpu), "×{s}");
+        let (apart, _) = compare(&g.visibility, &c.visibility);
+        let (on_gpu, expected) = on_ground_within(&gpu, &g.visibility, &oracle(&gpu, Method::MultiLayer), 1e-3 * s);
+        let (mad, far) = compare(&on_gpu, &expected);
+        println!(
+            "×{s}: silhouettes {} / {} (GPU / CPU); GPU vs CPU extraction {apart:.2e}; \
+             ground vs oracle mean {mad:.5}, share > 0.1 {:.2}%",
+            g.stats.silhouettes,
+            c.stats.silhouettes,
+            far * 100.0
+        );
+        assert!(g.stats.silhouettes > 0 && g.stats.silhouettes == c.stats.silhouettes, "×{s}");
+        assert!(apart <= 1e-4, "×{s}: the GPU extraction shadows otherwise than the CPU's ({apart})");
+        assert!(mad <= 0.01 && far <= 0.03, "×{s}: {mad} / {far}");
+    }
 }

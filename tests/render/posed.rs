@@ -191,8 +191,14 @@ fn a_morph_blob_casts_the_shadow_of_its_current_weights() {
     let mut session = Session::new(&setup);
     session.wait_for_gltf().expect("Bevy loads it");
     let flat = settled_pose(&mut session, &setup, "posed_blob_flat", "blob flat");
-    // `spike` and `lean` both at full weight: the top's middle 1.6 m up, the top leaning.
-    let world = session.app.world_mut();
+    grow_blob(session.app.world_mut());
+    let grown = settled_pose(&mut session, &setup, "posed_blob_grown", "blob grown");
+    assert_shadow_moved(&flat, &grown, "flat vs grown blob", "the base shape is cast");
+}
+
+/// Every morph weight of the blob at full: `spike` and `lean`, the top's
+/// middle 1.6 m up, the top leaning.
+fn grow_blob(world: &mut World) {
     let mut set = 0;
     for mut w in world.query::<&mut MorphWeights>().iter_mut(world) {
         w.weights_mut().iter_mut().for_each(|x| *x = 1.0);
@@ -205,6 +211,71 @@ fn a_morph_blob_casts_the_shadow_of_its_current_weights() {
         }
     }
     assert!(set > 0, "the blob has morph weights");
-    let grown = settled_pose(&mut session, &setup, "posed_blob_grown", "blob grown");
-    assert_shadow_moved(&flat, &grown, "flat vs grown blob", "the base shape is cast");
+}
+
+#[test]
+fn an_alpha_masked_morph_blob_posed_on_the_cpu_casts_each_pose_cut_out() {
+    // A morphed mesh posed on the CPU (`FinGpuPosing` off) has a topology of
+    // its pose; cut out by a mask, the GPU extracts it from an outline of
+    // that pose. Neither may be kept per mesh asset: at each pose the GPU
+    // extraction must shadow as the CPU extraction (the core crate, on the
+    // pose's own triangles) does, holes and all — not as the first pose.
+    let sessions = [bevy_shadow_fins::FinExtraction::Gpu, bevy_shadow_fins::FinExtraction::Cpu].map(|extraction| {
+        let mut setup = posed_setup("morph-blob.gltf");
+        setup.settings.extraction = extraction;
+        let mut session = Session::new(&setup);
+        session.app.insert_resource(bevy_shadow_fins::FinGpuPosing(false));
+        session.wait_for_gltf().expect("Bevy loads it");
+        mask_the_blob(session.app.world_mut());
+        session
+    });
+    let mut sessions = sessions;
+    let mut gpu_shots = vec![];
+    for (k, label) in ["masked blob flat", "masked blob grown"].into_iter().enumerate() {
+        let mut shots = vec![];
+        for session in &mut sessions {
+            if k == 1 {
+                grow_blob(session.app.world_mut());
+            }
+            let shot = session.settle(16).expect("render");
+            assert_not_trivial(&shot);
+            let stats = fin_stats(session);
+            assert_eq!((stats.extraction, stats.posed_on_gpu), (session_extraction(session), 0), "{label}");
+            shots.push(shot);
+        }
+        save(&shots[0], &format!("posed_{}", label.replace(' ', "_")));
+        let snapshot = sessions[0].scene_snapshot();
+        assert!(snapshot.scene.objects.iter().any(|o| o.fitting_cutout().is_some()), "{label}: the blob is cut out");
+        let (apart, far) = compare(&shots[0].visibility, &shots[1].visibility);
+        println!("{label}: GPU vs CPU extraction mean {apart:.2e}, share > 0.1 {:.3}%", far * 100.0);
+        assert!(apart <= 1e-4 && far == 0.0, "{label}: the GPU extraction shadows another pose ({apart}, {far})");
+        gpu_shots.push(shots.swap_remove(0));
+    }
+    assert_shadow_moved(&gpu_shots[0], &gpu_shots[1], "flat vs grown masked blob", "the first pose is cast");
+}
+
+/// The extraction a session's fin light asks for.
+fn session_extraction(session: &mut Session) -> bevy_shadow_fins::FinExtraction {
+    let world = session.app.world_mut();
+    let mut settings = world.query::<&bevy_shadow_fins::FinShadowSettings>();
+    settings.iter(world).next().expect("a fin light").extraction
+}
+
+/// The blob's material (glTF's "clay", linear base colour 0.8, 0.45, 0.3)
+/// masked by the core's leaf (64², cutoff 0.5).
+fn mask_the_blob(world: &mut World) {
+    let leaf = shadow_fins::cutout::AlphaMask::new(64, 64, shadow_fins::shapes::leaf_alpha(64), 1.0, 0.5).unwrap();
+    let image = world.resource_mut::<Assets<Image>>().add(bevy_shadow_fins::image_of_mask(&leaf));
+    let mut masked = 0;
+    for (_, m) in world.resource_mut::<Assets<StandardMaterial>>().iter_mut() {
+        let c = m.base_color.to_linear();
+        if (c.red - 0.8).abs() < 1e-3 && (c.green - 0.45).abs() < 1e-3 {
+            m.base_color_texture = Some(image.clone());
+            m.alpha_mode = AlphaMode::Mask(0.5);
+            m.double_sided = true;
+            m.cull_mode = None;
+            masked += 1;
+        }
+    }
+    assert_eq!(masked, 1, "the blob's material");
 }

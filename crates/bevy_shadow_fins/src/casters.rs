@@ -239,6 +239,9 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
         // other mesh as stored, converted once per asset.
         let posable = Some(&mut *self.posable).filter(|_| self.gpu_posing);
         let posed = posed_mesh(entity, mesh3d.id(), mesh, self.posed, self.cache, posable, self.poses);
+        // A posed mesh's topology is this pose's (even where `world` is
+        // false: a morph alone): nothing made from it is cached per asset.
+        let is_posed = posed.is_some();
         let (entry, world, gpu_pose) = match posed {
             Some(p) => (&p.mesh, p.world, p.gpu.clone()),
             None => {
@@ -266,11 +269,11 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
                 object.casts_shadows = caster.casts();
                 let mut gpu_mesh = geometry.clone();
                 if object.casts_shadows {
-                    object.cutout = self.materials.cutout(entity, mesh3d.id(), mesh, core, topology, world);
+                    object.cutout = self.materials.cutout(entity, mesh3d.id(), mesh, core, topology, is_posed);
                     // The GPU extracts an alpha-masked caster from its outline
                     // (not one it poses itself: the outline is the rest pose's).
                     if let (Some(cutout), None) = (object.fitting_cutout(), &gpu_pose) {
-                        gpu_mesh = self.materials.outlined_packing(entity, mesh3d.id(), topology, cutout, world);
+                        gpu_mesh = self.materials.outlined_packing(entity, mesh3d.id(), topology, cutout, is_posed);
                     }
                 }
                 // The posed vertices' box (a posable packing's is the rest pose's).

@@ -351,10 +351,15 @@ pub(crate) struct GpuCapacity {
 }
 
 impl GpuCapacity {
-    /// A first guess for a scene: silhouettes are a small share of its edges.
+    /// A first guess for a scene: silhouettes are a small share of a big
+    /// scene's edges. With the quarter of room [`Self::grown_for`] keeps, so
+    /// that a small scene of open or masked meshes (every face a caster,
+    /// nearly every outline edge a silhouette) does not grow, and extract
+    /// again, on its first read-back.
     fn initial(faces: u32, edges: u32) -> Self {
-        let silhouettes = edges.min(4096 + edges / 16).max(64);
-        Self { silhouettes, fins: 4 * silhouettes + 64, casters: faces + faces / 8 + 64, layers: 1 }
+        let room = |n: u32| n.saturating_add(n / 4);
+        let silhouettes = room(edges).min(4096 + edges / 16).max(64);
+        Self { silhouettes, fins: 4 * silhouettes + 64, casters: room(faces).saturating_add(64), layers: 1 }
     }
 
     fn max(self, o: Self) -> Self {

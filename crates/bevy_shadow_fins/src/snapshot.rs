@@ -105,6 +105,7 @@ pub fn scene_snapshot(world: &mut World, root: Option<Entity>) -> FinSceneSnapsh
             crate::extract::posed_mesh(entity, mesh3d.id(), mesh, &mut posed, &mut Default::default(), None, &poses)
                 .map(|p| (p.mesh.clone(), p.world));
         let unposed = poses.is_posed(entity) && posed_entry.is_none();
+        let is_posed = posed_entry.is_some();
         let (core, world) = match posed_entry {
             Some(posed) => posed,
             None => (converted.entry(mesh3d.id()).or_insert_with(|| core_mesh(mesh)).clone(), false),
@@ -124,7 +125,8 @@ pub fn scene_snapshot(world: &mut World, root: Option<Entity>) -> FinSceneSnapsh
                 // Bevy's own opt-out turns fin shadows off too (`NotFinShadowReceiver` adds it).
                 object.receives_shadows = !(not_receiver.0 || not_receiver.1);
                 // Cut out as the plugin's casters are.
-                object.cutout = cutouts.cutout(entity, mesh3d.id(), mesh, core, topology, world);
+                // (Not cached for a posed mesh: its topology is this pose's.)
+                object.cutout = cutouts.cutout(entity, mesh3d.id(), mesh, core, topology, is_posed);
                 let masked = object.cutout.is_none()
                     && material
                         .zip(materials.as_ref())
