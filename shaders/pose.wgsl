@@ -9,7 +9,10 @@
 //  1. pose_vertices   p = bind + Σₜ wₜ Δₜ (morph targets), then, when skinned,
 //                     Σᵢ wᵢ (Jᵢ · IBPᵢ) p over the vertex's four joints
 //  2. pose_faces      each face's plane from the posed positions
-//  3. pose_normals    each vertex's area-weighted normal: the sum of its
+//  3. pose_outline    an alpha-masked mesh's outline vertices (points of its
+//                     faces, fixed there by the UVs): each at its barycentrics
+//                     in its posed face, with that face's normal
+//  4. pose_normals    each mesh vertex's area-weighted normal: the sum of its
 //     pose_creases    faces' normals; each two-face edge's crease flag
 //
 // The topology (welded vertices, faces, edges, vertex → edge lists) is the
@@ -43,7 +46,12 @@ const G_CSR_AT: u32 = 6u;
 const G_NON_MANIFOLD_AT: u32 = 7u;
 const G_POSE_AT: u32 = 8u;
 const G_MORPH_TARGETS: u32 = 9u;
+// An outlined packing's own mesh vertices (its outline's come after them); 0: none.
+const G_MESH_VERTICES: u32 = 11u;
 const POSE_VERTEX_WORDS: u32 = 9u;
+// Per outline vertex, after the morph targets: its face, its barycentrics
+// w1, w2 there (the point a + w1 (b − a) + w2 (c − a)).
+const OUTLINE_VERTEX_WORDS: u32 = 3u;
 const VERTEX_WORDS: u32 = 6u;
 const FACE_WORDS: u32 = 7u;
 const EDGE_WORDS: u32 = 5u;
@@ -144,6 +152,13 @@ fn skinned(job: u32, p: vec3<f32>, joints: vec4<u32>, weights: vec4<f32>) -> vec
     return (sum[0] * p.x + sum[1] * p.y + sum[2] * p.z + sum[3]) * scale;
 }
 
+// The vertices posed from the pose section: the mesh's own (an outlined
+// packing's outline vertices follow them, `pose_outline`).
+fn mesh_vertices(job: u32) -> u32 {
+    let m = g(job, G_MESH_VERTICES);
+    return select(g(job, G_VERTICES), m, m != 0u);
+}
+
 @compute @workgroup_size(64)
 fn pose_vertices(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32,
                  @builtin(num_workgroups) groups: vec3<u32>) {
@@ -151,7 +166,7 @@ fn pose_vertices(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation
     if (job == NO_JOB) {
         return;
     }
-    let n = g(job, G_VERTICES);
+    let n = mesh_vertices(job);
     let source = job_word(job, J_SOURCE);
     let pose_at = geometry[source + G_POSE_AT];
     let targets = min(geometry[source + G_MORPH_TARGETS], job_word(job, J_MORPHS));
@@ -201,6 +216,33 @@ fn face_normal(job: u32, f: u32) -> vec3<f32> {
     return g3(job, g(job, G_FACES_AT) + f * FACE_WORDS + 3u);
 }
 
+// An outlined packing's outline vertices (`Outline::faces`), each where its
+// barycentrics put it in its posed face, its normal that face's (as the
+// core's outline of the posed mesh has them).
+@compute @workgroup_size(64)
+fn pose_outline(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32,
+                @builtin(num_workgroups) groups: vec3<u32>) {
+    let job = job_of(wg);
+    if (job == NO_JOB || g(job, G_MESH_VERTICES) == 0u) {
+        return;
+    }
+    let m = g(job, G_MESH_VERTICES);
+    let source = job_word(job, J_SOURCE);
+    let at = geometry[source + G_POSE_AT] + m * POSE_VERTEX_WORDS + geometry[source + G_MORPH_TARGETS] * m * 3u;
+    for (var k = wg.x * WORKGROUP + lane; k < g(job, G_VERTICES) - m; k += groups.x * WORKGROUP) {
+        let record = at + k * OUTLINE_VERTEX_WORDS;
+        let f = geometry[source + record];
+        let face = g(job, G_FACES_AT) + f * FACE_WORDS;
+        let a = position(job, g(job, face));
+        let b = position(job, g(job, face + 1u));
+        let c = position(job, g(job, face + 2u));
+        let p = a + (b - a) * sf(job, record + 1u) + (c - a) * sf(job, record + 2u);
+        let v = g(job, G_VERTICES_AT) + (m + k) * VERTEX_WORDS;
+        set_g3(job, v, p);
+        set_g3(job, v + 3u, face_normal(job, f));
+    }
+}
+
 // Each vertex's normal: its faces' normals summed (`Topology::vertex_normals`).
 // A face meets the vertex at two of its edges, so the sum over the vertex's
 // edges of their faces counts each face twice.
@@ -213,7 +255,8 @@ fn pose_normals(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
     }
     let n = g(job, G_VERTICES);
     let csr = g(job, G_CSR_AT);
-    for (var v = wg.x * WORKGROUP + lane; v < n; v += groups.x * WORKGROUP) {
+    // (An outline vertex's normal is its face's: `pose_outline`.)
+    for (var v = wg.x * WORKGROUP + lane; v < mesh_vertices(job); v += groups.x * WORKGROUP) {
         var sum = vec3(0.0);
         for (var k = g(job, csr + v); k < g(job, csr + v + 1u); k++) {
             let e = g(job, csr + n + 1u + k);

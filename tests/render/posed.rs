@@ -214,51 +214,50 @@ fn grow_blob(world: &mut World) {
 }
 
 #[test]
-fn an_alpha_masked_morph_blob_posed_on_the_cpu_casts_each_pose_cut_out() {
-    // A morphed mesh posed on the CPU (`FinGpuPosing` off) has a topology of
-    // its pose; cut out by a mask, the GPU extracts it from an outline of
-    // that pose. Neither may be kept per mesh asset: at each pose the GPU
+fn an_alpha_masked_morph_blob_casts_each_pose_cut_out_posed_on_the_cpu_or_the_gpu() {
+    // Cut out by a mask, a morphed mesh is extracted on the GPU from an
+    // outline of its pose: posed on the CPU (`FinGpuPosing` off), an outline
+    // of the posed triangles, which may not be kept per mesh asset; posed on
+    // the GPU, its rest outline posed with it (`pose.wgsl`'s `pose_outline`:
+    // the outline's vertices are points of the faces). At each pose the GPU
     // extraction must shadow as the CPU extraction (the core crate, on the
-    // pose's own triangles) does, holes and all — not as the first pose.
-    let sessions = [bevy_shadow_fins::FinExtraction::Gpu, bevy_shadow_fins::FinExtraction::Cpu].map(|extraction| {
-        let mut setup = posed_setup("morph-blob.gltf");
-        setup.settings.extraction = extraction;
-        let mut session = Session::new(&setup);
-        session.app.insert_resource(bevy_shadow_fins::FinGpuPosing(false));
-        session.wait_for_gltf().expect("Bevy loads it");
-        mask_the_blob(session.app.world_mut());
-        session
-    });
-    let mut sessions = sessions;
-    let mut gpu_shots = vec![];
-    for (k, label) in ["masked blob flat", "masked blob grown"].into_iter().enumerate() {
-        let mut shots = vec![];
-        for session in &mut sessions {
-            if k == 1 {
-                grow_blob(session.app.world_mut());
+    // pose's own triangles and outline) does, holes and all.
+    for gpu_posing in [false, true] {
+        let extractions = [bevy_shadow_fins::FinExtraction::Gpu, bevy_shadow_fins::FinExtraction::Cpu];
+        let mut sessions = extractions.map(|extraction| {
+            let mut setup = posed_setup("morph-blob.gltf");
+            setup.settings.extraction = extraction;
+            let mut session = Session::new(&setup);
+            session.app.insert_resource(bevy_shadow_fins::FinGpuPosing(gpu_posing));
+            session.wait_for_gltf().expect("Bevy loads it");
+            mask_the_blob(session.app.world_mut());
+            session
+        });
+        let mut gpu_shots = vec![];
+        for (k, pose) in ["flat", "grown"].into_iter().enumerate() {
+            let label = format!("masked blob {pose}, posed on the {}", if gpu_posing { "GPU" } else { "CPU" });
+            let mut shots = vec![];
+            for (session, extraction) in sessions.iter_mut().zip(extractions) {
+                if k == 1 {
+                    grow_blob(session.app.world_mut());
+                }
+                let shot = session.settle(16).expect("render");
+                assert_not_trivial(&shot);
+                let stats = fin_stats(session);
+                let on_gpu = (gpu_posing && extraction == bevy_shadow_fins::FinExtraction::Gpu) as usize;
+                assert_eq!((stats.extraction, stats.posed_on_gpu), (extraction, on_gpu), "{label}: {stats:?}");
+                shots.push(shot);
             }
-            let shot = session.settle(16).expect("render");
-            assert_not_trivial(&shot);
-            let stats = fin_stats(session);
-            assert_eq!((stats.extraction, stats.posed_on_gpu), (session_extraction(session), 0), "{label}");
-            shots.push(shot);
+            save(&shots[0], &format!("posed_{}", label.replace([' ', ','], "_")));
+            let snapshot = sessions[0].scene_snapshot();
+            assert!(snapshot.scene.objects.iter().any(|o| o.fitting_cutout().is_some()), "{label}: cut out");
+            let (apart, far) = compare(&shots[0].visibility, &shots[1].visibility);
+            println!("{label}: GPU vs CPU extraction mean {apart:.2e}, share > 0.1 {:.3}%", far * 100.0);
+            assert!(apart <= 1e-4 && far == 0.0, "{label}: the GPU extraction shadows another pose ({apart}, {far})");
+            gpu_shots.push(shots.swap_remove(0));
         }
-        save(&shots[0], &format!("posed_{}", label.replace(' ', "_")));
-        let snapshot = sessions[0].scene_snapshot();
-        assert!(snapshot.scene.objects.iter().any(|o| o.fitting_cutout().is_some()), "{label}: the blob is cut out");
-        let (apart, far) = compare(&shots[0].visibility, &shots[1].visibility);
-        println!("{label}: GPU vs CPU extraction mean {apart:.2e}, share > 0.1 {:.3}%", far * 100.0);
-        assert!(apart <= 1e-4 && far == 0.0, "{label}: the GPU extraction shadows another pose ({apart}, {far})");
-        gpu_shots.push(shots.swap_remove(0));
+        assert_shadow_moved(&gpu_shots[0], &gpu_shots[1], "flat vs grown masked blob", "the first pose is cast");
     }
-    assert_shadow_moved(&gpu_shots[0], &gpu_shots[1], "flat vs grown masked blob", "the first pose is cast");
-}
-
-/// The extraction a session's fin light asks for.
-fn session_extraction(session: &mut Session) -> bevy_shadow_fins::FinExtraction {
-    let world = session.app.world_mut();
-    let mut settings = world.query::<&bevy_shadow_fins::FinShadowSettings>();
-    settings.iter(world).next().expect("a fin light").extraction
 }
 
 /// The blob's material (glTF's "clay", linear base colour 0.8, 0.45, 0.3)

@@ -242,6 +242,11 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
         // A posed mesh's topology is this pose's (even where `world` is
         // false: a morph alone): nothing made from it is cached per asset.
         let is_posed = posed.is_some();
+        // A mesh the GPU poses: its mesh at rest, whose outline the GPU poses with it.
+        let rest = match posed.filter(|p| p.gpu.is_some()).and(self.cache.get(&mesh3d.id())) {
+            Some(Ok((core, topology, _))) => Some((core.clone(), topology.clone())),
+            _ => None,
+        };
         let (entry, world, gpu_pose) = match posed {
             Some(p) => (&p.mesh, p.world, p.gpu.clone()),
             None => {
@@ -270,10 +275,21 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
                 let mut gpu_mesh = geometry.clone();
                 if object.casts_shadows {
                     object.cutout = self.materials.cutout(entity, mesh3d.id(), mesh, core, topology, is_posed);
-                    // The GPU extracts an alpha-masked caster from its outline
-                    // (not one it poses itself: the outline is the rest pose's).
-                    if let (Some(cutout), None) = (object.fitting_cutout(), &gpu_pose) {
-                        gpu_mesh = self.materials.outlined_packing(entity, mesh3d.id(), topology, cutout, is_posed);
+                    // The GPU extracts an alpha-masked caster from its outline:
+                    // this pose's, or, when the GPU poses it, its rest
+                    // outline posed with it.
+                    match (object.fitting_cutout(), &gpu_pose) {
+                        (Some(cutout), None) => {
+                            gpu_mesh = self.materials.outlined_packing(entity, mesh3d.id(), topology, cutout, is_posed);
+                        }
+                        (Some(_), Some(_)) => {
+                            let packing = rest.and_then(|(core, topology)| {
+                                self.materials.outlined_posable_packing(entity, mesh3d.id(), mesh, (&core, &topology))
+                            });
+                            // Else it stays solid on the GPU, and its frames extract on the CPU.
+                            gpu_mesh = packing.unwrap_or(gpu_mesh);
+                        }
+                        (None, _) => {}
                     }
                 }
                 // The posed vertices' box (a posable packing's is the rest pose's).

@@ -106,6 +106,9 @@ pub(crate) struct CutoutCache {
     /// The GPU extraction's packing of each cached cut-out's mesh with its
     /// outline, and the outline it was packed with.
     outlined: HashMap<(AssetId<Mesh>, AssetId<StandardMaterial>), (Arc<Outline>, Arc<GpuMeshGeometry>)>,
+    /// The same for meshes the GPU poses: at rest, with a pose section
+    /// that poses the outline's vertices too (`pack_posable`).
+    outlined_posable: HashMap<(AssetId<Mesh>, AssetId<StandardMaterial>), (Arc<Outline>, Arc<GpuMeshGeometry>)>,
     /// Bumped whenever what some material cuts out may have changed: the
     /// frame builder rebuilds when it moved (whoever read the events first,
     /// the builder or a `scene_snapshot`).
@@ -117,6 +120,7 @@ impl CutoutCache {
     pub(crate) fn forget_mesh(&mut self, id: AssetId<Mesh>) {
         self.cutouts.retain(|(mesh, _), _| *mesh != id);
         self.outlined.retain(|(mesh, _), _| *mesh != id);
+        self.outlined_posable.retain(|(mesh, _), _| *mesh != id);
     }
 
     pub(crate) fn generation(&self) -> u64 {
@@ -185,7 +189,7 @@ impl CasterMaterials<'_, '_> {
     /// caster whose material was swapped is signed again by itself: its
     /// material id is in its signature, `casters.rs`.)
     pub(crate) fn refresh(&mut self) {
-        let CutoutCache { masks, cutouts, outlined, generation } = &mut *self.cache;
+        let CutoutCache { masks, cutouts, outlined, outlined_posable, generation } = &mut *self.cache;
         let mut stale = false;
         if let Some(events) = self.material_events.as_mut() {
             for id in events.read().filter_map(changed_asset) {
@@ -202,6 +206,7 @@ impl CasterMaterials<'_, '_> {
                     masks.remove(id);
                     cutouts.retain(|(_, material), _| material != id);
                     outlined.retain(|(_, material), _| material != id);
+                    outlined_posable.retain(|(_, material), _| material != id);
                     stale = true;
                 }
             }
@@ -217,6 +222,7 @@ impl CasterMaterials<'_, '_> {
                     masks.remove(&material);
                     cutouts.retain(|(_, m), _| *m != material);
                     outlined.retain(|(_, m), _| *m != material);
+                    outlined_posable.retain(|(_, m), _| *m != material);
                     stale = true;
                 }
             }
@@ -279,6 +285,36 @@ impl CasterMaterials<'_, '_> {
                 packing
             }
         }
+    }
+
+    /// For a mesh the GPU poses (`pose.wgsl`): its topology at rest packed
+    /// with the outline of its rest cut-out and a pose section that poses
+    /// the outline with the mesh (the outline's vertices are points of its
+    /// faces, fixed there by the UVs), once per mesh and material. `None`
+    /// when it casts solid or its cut-out does not fit: the GPU cannot
+    /// cut it, and its light frames extract on the CPU.
+    pub(crate) fn outlined_posable_packing(
+        &mut self,
+        entity: Entity,
+        mesh_id: AssetId<Mesh>,
+        mesh: &Mesh,
+        rest: (&CoreMesh, &Topology),
+    ) -> Option<Arc<GpuMeshGeometry>> {
+        let material_id = self.material_of(entity)?;
+        let cutout = self.cutout(entity, mesh_id, mesh, rest.0, rest.1, false)?;
+        if cutout.face_uvs.len() != rest.1.faces.len() {
+            return None;
+        }
+        if let Some((outline, packing)) = self.cache.outlined_posable.get(&(mesh_id, material_id))
+            && Arc::ptr_eq(outline, &cutout.outline)
+        {
+            return Some(packing.clone());
+        }
+        let at_rest = GpuMeshGeometry::pack_outlined(rest.1, &cutout);
+        let source = crate::pose::pose_source(mesh);
+        let packing = Arc::new(GpuMeshGeometry::pack_posable(&at_rest, rest.1, &source, Some(&cutout.outline))?);
+        self.cache.outlined_posable.insert((mesh_id, material_id), (cutout.outline.clone(), packing.clone()));
+        Some(packing)
     }
 
     /// A material's mask, read once (and again when it or its texture changes).

@@ -1281,9 +1281,9 @@ fn light_frame(
     }
     let mut extraction = settings.extraction;
     // The GPU extracts an alpha-masked caster from its mesh packed with its
-    // outline (`GpuMeshGeometry::pack_outlined`); one it poses itself has
-    // none (the outline is the rest pose's): such a frame extracts on the
-    // CPU (the maps still run on the GPU).
+    // outline (`GpuMeshGeometry::pack_outlined`, posed with the mesh when the
+    // GPU poses it); one packed without (its cut-out could not be made at
+    // rest) sends the frame to the CPU extraction (the maps still run on the GPU).
     let objects = &state.built.as_ref().expect("built above").objects;
     if objects
         .iter()
@@ -1792,7 +1792,7 @@ pub(crate) fn posed_mesh<'a>(
                 return None;
             };
             let posable = posable.entry(mesh_id).or_insert_with(|| {
-                GpuMeshGeometry::pack_posable(rest_packing, rest, &crate::pose::pose_source(mesh)).map(Arc::new)
+                GpuMeshGeometry::pack_posable(rest_packing, rest, &crate::pose::pose_source(mesh), None).map(Arc::new)
             });
             let same_topology = rest.faces == topology.faces && rest.positions.len() == topology.positions.len();
             Some((posable.clone()?, Arc::new(GpuPose::new(&pose.pose)))).filter(|_| same_topology)

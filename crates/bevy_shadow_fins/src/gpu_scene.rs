@@ -21,11 +21,12 @@ use shadow_fins::{
 /// vertices, edges, vertex → edge lists and non-manifold face lists start;
 /// then, for a posable packing, where its pose section starts (0: none) and
 /// its morph targets; then, for an outlined packing, where its faces' UVs
-/// start (0: none).
+/// start (0: none) and its mesh's own vertices (the outline's follow).
 const HEADER_WORDS: usize = 12;
 const G_POSE_AT: usize = 8;
 const G_MORPH_TARGETS: usize = 9;
 const G_FACE_UVS_AT: usize = 10;
+const G_MESH_VERTICES: usize = 11;
 /// Words per welded vertex in a pose section: bind position, four joint
 /// indices as two `u16` pairs, four weights (then, target-major, each morph
 /// target's displacement of every welded vertex, three words each).
@@ -190,6 +191,7 @@ impl GpuMeshGeometry {
             non_manifold_at as u32,
         ]);
         if let Some(c) = cutout {
+            w[G_MESH_VERTICES] = t.positions.len() as u32;
             w[G_FACE_UVS_AT] = w.len() as u32;
             w.extend(c.face_uvs.iter().flat_map(|uvs| uvs.iter().flat_map(|uv| [bits(uv.x), bits(uv.y)])));
         }
@@ -214,9 +216,20 @@ impl GpuMeshGeometry {
     /// `rest` (the packing of `t`, the topology of the mesh at its bind
     /// positions `source.positions`) with a pose section, for `pose.wgsl` to
     /// pose each instance's copy on the GPU. Each welded vertex is posed as
-    /// its first input vertex (the one welding kept). `None` when `t` is not
-    /// that mesh's topology.
-    pub fn pack_posable(rest: &Self, t: &Topology, source: &PoseSource) -> Option<Self> {
+    /// its first input vertex (the one welding kept). An outlined `rest`
+    /// (`outline`: the one it was packed with) also gets each outline
+    /// vertex's face and barycentrics there, which carry it with the pose.
+    /// `None` when `t` is not that mesh's topology, or `outline` not `rest`'s.
+    pub fn pack_posable(
+        rest: &Self,
+        t: &Topology,
+        source: &PoseSource,
+        outline: Option<&shadow_fins::cutout::Outline>,
+    ) -> Option<Self> {
+        let outline_vertices = outline.map_or(0, |o| o.positions.len());
+        if rest.outlined != outline.is_some() || rest.vertices as usize != t.positions.len() + outline_vertices {
+            return None;
+        }
         let (welded, remap) = shadow_fins::mesh::weld_positions(&source.positions);
         if welded != t.positions {
             return None;
@@ -254,6 +267,11 @@ impl GpuMeshGeometry {
                 g.words.extend([d.x, d.y, d.z].map(bits));
             }
         }
+        for (p, &face) in outline.into_iter().flat_map(|o| o.positions.iter().zip(&o.faces)) {
+            let corners = t.faces[face as usize].map(|v| t.positions[v as usize]);
+            let b = barycentrics(corners, *p);
+            g.words.extend([face, b.y.to_bits(), b.z.to_bits()]);
+        }
         g.words[G_POSE_AT] = pose_at as u32;
         g.words[G_MORPH_TARGETS] = targets.len() as u32;
         Some(g)
@@ -272,6 +290,20 @@ impl GpuMeshGeometry {
             at => &self.words[..at],
         }
     }
+}
+
+/// `p`'s barycentrics in the triangle `c` (the first corner's of a
+/// degenerate one): `p = c₀ + b.y (c₁ − c₀) + b.z (c₂ − c₀)` for a point on it.
+fn barycentrics(c: [Vec3; 3], p: Vec3) -> Vec3 {
+    let (e1, e2, ep) = (c[1] - c[0], c[2] - c[0], p - c[0]);
+    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let det = d11 * d22 - d12 * d12;
+    if !(det.abs() > 0.0) {
+        return Vec3::X;
+    }
+    let v = (d22 * ep.dot(e1) - d12 * ep.dot(e2)) / det;
+    let w = (d11 * ep.dot(e2) - d12 * ep.dot(e1)) / det;
+    Vec3::new(1.0 - v - w, v, w)
 }
 
 /// One caster's pose as `pose.wgsl` reads it: each joint's `Jᵢ · IBPᵢ` as
@@ -852,7 +884,7 @@ mod tests {
             morph_targets: vec![vec![Vec3::X; n], vec![Vec3::splat(f32::NAN); n], vec![Vec3::Y; 3]],
         };
         source.weights[0][2] = f32::NAN;
-        let g = GpuMeshGeometry::pack_posable(&GpuMeshGeometry::pack(&topology), &topology, &source)
+        let g = GpuMeshGeometry::pack_posable(&GpuMeshGeometry::pack(&topology), &topology, &source, None)
             .expect("its own topology");
         assert!(g.posable() && !GpuMeshGeometry::pack(&topology).posable());
         let at = g.words[G_POSE_AT] as usize;
@@ -874,7 +906,7 @@ mod tests {
         assert!(g.words[deltas + 24..deltas + 48].iter().all(|w| *w == 0));
         // Another mesh's topology is not this one's.
         let other = Topology::build(&shapes::cuboid(Vec3::splat(2.0)));
-        assert!(GpuMeshGeometry::pack_posable(&GpuMeshGeometry::pack(&other), &other, &source).is_none());
+        assert!(GpuMeshGeometry::pack_posable(&GpuMeshGeometry::pack(&other), &other, &source, None).is_none());
     }
 
     /// A split cuboid (24 input vertices welded to 8), packed to be posed,
@@ -890,7 +922,7 @@ mod tests {
             positions: split,
             morph_targets: vec![],
         };
-        GpuMeshGeometry::pack_posable(&GpuMeshGeometry::pack(&topology), &topology, &source).unwrap()
+        GpuMeshGeometry::pack_posable(&GpuMeshGeometry::pack(&topology), &topology, &source, None).unwrap()
     }
 
     fn pose_at(x: f32) -> Arc<GpuPose> {
@@ -1065,6 +1097,31 @@ mod tests {
             let words: Vec<u32> = uvs.iter().flat_map(|uv| [uv.x, uv.y]).map(f32::to_bits).collect();
             assert_eq!(g.words[uvs_at + 6 * face..uvs_at + 6 * face + 6], words[..], "face {face}");
         }
+    }
+
+    #[test]
+    fn a_posable_outlined_packing_carries_each_outline_vertex_by_its_face() {
+        let card = &leaf_cards()[1];
+        let cutout = card.fitting_cutout().unwrap();
+        let (t, o) = (&card.topology, &cutout.outline);
+        let source = PoseSource { positions: card.mesh.positions().to_vec(), ..Default::default() };
+        let rest = GpuMeshGeometry::pack_outlined(t, cutout);
+        let g = GpuMeshGeometry::pack_posable(&rest, t, &source, Some(o)).expect("its own outline");
+        assert!(g.posable() && g.outlined);
+        assert_eq!(g.words[G_MESH_VERTICES] as usize, t.positions.len());
+        // After the mesh's vertices (no morph target): face, w1, w2 per outline vertex.
+        let at = g.words[G_POSE_AT] as usize + POSE_VERTEX_WORDS * t.positions.len();
+        assert_eq!(g.words.len(), at + 3 * o.positions.len());
+        for (k, p) in o.positions.iter().enumerate() {
+            let w = &g.words[at + 3 * k..at + 3 * k + 3];
+            assert_eq!(w[0], o.faces[k]);
+            let c = t.faces[w[0] as usize].map(|v| t.positions[v as usize]);
+            let q = c[0] + (c[1] - c[0]) * f32::from_bits(w[1]) + (c[2] - c[0]) * f32::from_bits(w[2]);
+            assert!(q.distance(*p) < 1e-5, "outline vertex {k}: {q} against {p}");
+        }
+        // A packing without the outline is not posed with one, nor the reverse.
+        assert!(GpuMeshGeometry::pack_posable(&GpuMeshGeometry::pack(t), t, &source, Some(o)).is_none());
+        assert!(GpuMeshGeometry::pack_posable(&rest, t, &source, None).is_none());
     }
 
     #[test]

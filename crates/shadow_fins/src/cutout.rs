@@ -376,6 +376,9 @@ pub struct Outline {
     pub positions: Vec<Vec3>,
     /// Per vertex, the normal of a face it lies on (unnormalised).
     pub normals: Vec<Vec3>,
+    /// Per vertex, that face: a pose of the mesh carries the vertex with
+    /// it (the outline's vertices are points of the faces, fixed by the UVs).
+    pub faces: Vec<u32>,
     pub edges: Vec<crate::mesh::Edge>,
     /// Per edge, whether it is a crease: every one-face edge is.
     pub crease: Vec<bool>,
@@ -592,10 +595,11 @@ impl Outline {
                 flush(from, 1.0, o, &mut pending);
             }
         }
-        let mut vertex = |p: Vec3, normal: Vec3, out: &mut Outline| -> u32 {
+        let mut vertex = |p: Vec3, face: u32, out: &mut Outline| -> u32 {
             *welder.entry(p.to_array().map(f32::to_bits)).or_insert_with(|| {
                 out.positions.push(p);
-                out.normals.push(normal);
+                out.normals.push(topology.face_planes[face as usize].0);
+                out.faces.push(face);
                 out.positions.len() as u32 - 1
             })
         };
@@ -603,8 +607,7 @@ impl Outline {
             if a == b {
                 continue;
             }
-            let normal = topology.face_planes[*f as usize].0;
-            let (ia, ib) = (vertex(*a, normal, &mut out), vertex(*b, normal, &mut out));
+            let (ia, ib) = (vertex(*a, *f, &mut out), vertex(*b, *f, &mut out));
             // Opaque on the left in UV space: the face's forward direction
             // when its UV triangle turns the same way as its winding.
             let uv = &face_uvs[*f as usize];
@@ -616,8 +619,7 @@ impl Outline {
             if a == b {
                 continue;
             }
-            let normal = topology.face_planes[faces[0] as usize].0;
-            let (ia, ib) = (vertex(a, normal, &mut out), vertex(b, normal, &mut out));
+            let (ia, ib) = (vertex(a, faces[0], &mut out), vertex(b, faces[0], &mut out));
             let two = faces[1] != NO_FACE;
             // A two-face stretch is a crease when its mesh edge is.
             let crease = !two || {

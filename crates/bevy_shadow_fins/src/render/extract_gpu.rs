@@ -75,7 +75,7 @@ use crate::gpu_scene::SILHOUETTE_BYTES;
 pub(super) use crate::gpu_scene::{CASTER_BYTES, FIN_BYTES};
 
 /// The posing passes' entry points (`pose.wgsl`), in the order they run.
-const POSE_ENTRY_POINTS: [&str; 4] = ["pose_vertices", "pose_faces", "pose_normals", "pose_creases"];
+const POSE_ENTRY_POINTS: [&str; 5] = ["pose_vertices", "pose_faces", "pose_outline", "pose_normals", "pose_creases"];
 /// The most workgroups a posing pass dispatches per job (its threads stride).
 const MAX_POSE_GROUPS: u32 = 1024;
 
@@ -671,7 +671,7 @@ pub(super) fn record(
         pass.set_bind_group(0, pose_bind_group, &[]);
         // Jobs along y, past 65 535 along z too (`pose.wgsl`'s `job_of`).
         let (y, z) = super::workgroups(jobs);
-        for (pipeline, n) in pose.into_iter().zip([vertices, faces, vertices, edges]) {
+        for (pipeline, n) in pose.into_iter().zip([vertices, faces, vertices, vertices, edges]) {
             pass.set_pipeline(pipeline);
             pass.dispatch_workgroups(n.div_ceil(WORKGROUP).clamp(1, MAX_POSE_GROUPS), y, z);
         }
