@@ -248,15 +248,7 @@ pub fn app(setup: &Setup) -> (App, Vec<ViewSlots>) {
             Some(c) => match masked.iter().find(|(m, _)| *m == Arc::as_ptr(&c.mask)) {
                 Some((_, h)) => h.clone(),
                 None => {
-                    let image = world.resource_mut::<Assets<Image>>().add(bevy_shadow_fins::image_of_mask(&c.mask));
-                    let h = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial {
-                        base_color: Color::WHITE.with_alpha(c.mask.base_alpha()),
-                        base_color_texture: Some(image),
-                        alpha_mode: AlphaMode::Mask(c.mask.cutoff()),
-                        double_sided: true,
-                        cull_mode: None,
-                        ..default()
-                    });
+                    let h = masked_material(world, &c.mask);
                     masked.push((Arc::as_ptr(&c.mask), h.clone()));
                     h
                 }
@@ -791,6 +783,21 @@ impl Session {
         // Per-light read-backs follow the lights spawned with the app only.
         replace_light(self.app.world_mut(), setup);
     }
+}
+
+/// A double-sided `AlphaMode::Mask` material over `mask` (its alphas as the
+/// base colour texture, its base alpha and cutoff): how an alpha-masked core
+/// caster (`shadow_fins::cutout`) is drawn by Bevy.
+pub fn masked_material(world: &mut World, mask: &shadow_fins::cutout::AlphaMask) -> Handle<StandardMaterial> {
+    let image = world.resource_mut::<Assets<Image>>().add(bevy_shadow_fins::image_of_mask(mask));
+    world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial {
+        base_color: Color::WHITE.with_alpha(mask.base_alpha()),
+        base_color_texture: Some(image),
+        alpha_mode: AlphaMode::Mask(mask.cutoff()),
+        double_sided: true,
+        cull_mode: None,
+        ..default()
+    })
 }
 
 /// Renders at least `frames` frames until the image settles (see

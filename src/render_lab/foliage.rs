@@ -12,8 +12,8 @@ use bevy_shadow_fins::{FinExtraction, FinShadowSettings, FinShadowStats};
 use shadow_fins::scenes::SceneId;
 use shadow_fins_lab::results::Spread;
 
-use super::scaling::{ScalingRun, split_frame};
-use crate::harness::{Session, Setup};
+use super::scaling::{ScalingRun, split_frame, spot_session};
+use crate::harness::Session;
 
 /// One card count's medians, ms.
 #[derive(Debug, Clone, Copy)]
@@ -40,15 +40,7 @@ pub fn spawn_cards(world: &mut World, n: usize) -> Vec<Entity> {
     let cutout = card.cutout.as_ref().expect("its cut-out");
     let mesh = bevy_shadow_fins::mesh_from_core_with_uvs(&card.mesh, Some(&cutout.vertex_uvs));
     let mesh = world.resource_mut::<Assets<Mesh>>().add(mesh);
-    let image = world.resource_mut::<Assets<Image>>().add(bevy_shadow_fins::image_of_mask(&cutout.mask));
-    let material = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial {
-        base_color: Color::WHITE.with_alpha(cutout.mask.base_alpha()),
-        base_color_texture: Some(image),
-        alpha_mode: AlphaMode::Mask(cutout.mask.cutoff()),
-        double_sided: true,
-        cull_mode: None,
-        ..default()
-    });
+    let material = crate::harness::masked_material(world, &cutout.mask);
     let side = (n as f32).sqrt().ceil().max(1.0);
     let spacing = 6.0 / side;
     let scale = spacing * 0.8;
@@ -96,12 +88,7 @@ fn extract_with(session: &mut Session, extraction: FinExtraction) {
 pub fn run(run: &ScalingRun) -> Result<Vec<FoliageRow>, String> {
     let mut rows = vec![];
     for &n in &run.counts {
-        let built = SceneId::BoxOverPlane.build();
-        let settings = FinShadowSettings { map_resolution: run.map_resolution, ..default() };
-        let mut setup = Setup::new(built.scene, built.light, built.camera, settings, (run.width, run.height));
-        setup.spot = true;
-        setup.sequential_rendering = true;
-        let mut session = Session::new(&setup);
+        let mut session = spot_session(run);
         let Some(&mover) = spawn_cards(session.app.world_mut(), n).get(n / 2) else {
             return Err("the foliage run needs at least one card".into());
         };

@@ -232,16 +232,23 @@ fn time(session: &mut Session, frames: u32, motion: Motion) -> Medians {
     medians
 }
 
+/// The box-over-plane scene under its fin-shadowed `SpotLight`, rendered
+/// sequentially (the main and render worlds timed apart): what the timed
+/// runs spawn their objects into.
+pub(crate) fn spot_session(run: &ScalingRun) -> Session {
+    let built = SceneId::BoxOverPlane.build();
+    let settings = FinShadowSettings { map_resolution: run.map_resolution, ..default() };
+    let mut setup = Setup::new(built.scene, built.light, built.camera, settings, (run.width, run.height));
+    setup.spot = true;
+    setup.sequential_rendering = true;
+    Session::new(&setup)
+}
+
 /// One row per object count, each in its own app.
 pub fn run(run: &ScalingRun) -> Result<Vec<ScalingRow>, String> {
     let mut rows = vec![];
     for &n in &run.counts {
-        let built = SceneId::BoxOverPlane.build();
-        let settings = FinShadowSettings { map_resolution: run.map_resolution, ..default() };
-        let mut setup = Setup::new(built.scene, built.light, built.camera, settings, (run.width, run.height));
-        setup.spot = true;
-        setup.sequential_rendering = true;
-        let mut session = Session::new(&setup);
+        let mut session = spot_session(run);
         let Some(&mover) = spawn_cubes(session.app.world_mut(), n).first() else {
             return Err("the scaling run needs at least one object".into());
         };

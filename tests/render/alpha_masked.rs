@@ -178,9 +178,7 @@ fn masked_cards_extract_on_the_gpu_as_the_cpu_extracts_them() {
     // under a sun (`leaf_cards_gltf`, from Bevy's own load).
     let sun = leaf_cards_gltf();
     for (name, gpu) in [("spot", setup(SceneId::LeafCards, settings())), ("sun", sun)] {
-        let mut cpu = gpu.clone();
-        cpu.settings = FinShadowSettings { extraction: FinExtraction::Cpu, ..gpu.settings };
-        let (g, c) = (shoot(&gpu), shoot(&cpu));
+        let (g, c) = (shoot(&gpu), shoot(&extracted_on_the_cpu(&gpu)));
         save(&g, &format!("alpha_cards_gpu_extraction_{name}"));
         assert_not_trivial(&g);
         assert_eq!((g.stats.extraction, c.stats.extraction), (FinExtraction::Gpu, FinExtraction::Cpu), "{name}");
@@ -219,6 +217,13 @@ fn masked_cards_extract_on_the_gpu_as_the_cpu_extracts_them() {
             assert!(apart > 0.01 && apart > 50.0 * mad, "{name}: the cut-outs hardly mattered ({apart})");
         }
     }
+}
+
+/// `setup` extracting on the CPU (the core crate): the GPU extraction's reference.
+fn extracted_on_the_cpu(setup: &Setup) -> Setup {
+    let mut cpu = setup.clone();
+    cpu.settings = FinShadowSettings { extraction: FinExtraction::Cpu, ..setup.settings };
+    cpu
 }
 
 /// A settled shot of `setup`, after Bevy loaded its glTF if it has one.
@@ -293,9 +298,7 @@ fn masked_cards_at_millimetre_and_kilometre_scales_shadow_as_the_cpu_and_the_ora
     // raster oracle, on the ground.
     for s in [1e-3f32, 1e3] {
         let gpu = scaled(&setup(SceneId::LeafCards, settings()), s);
-        let mut cpu = gpu.clone();
-        cpu.settings = FinShadowSettings { extraction: FinExtraction::Cpu, ..gpu.settings };
-        let (g, c) = (render(&gpu), render(&cpu));
+        let (g, c) = (render(&gpu), render(&extracted_on_the_cpu(&gpu)));
         save(&g, &format!("alpha_cards_scale_{s}"));
         assert_not_trivial(&g);
         assert_eq!((g.stats.extraction, c.stats.extraction), (FinExtraction::Gpu, FinExtraction::Cpu), "×{s}");

@@ -29,7 +29,9 @@ const G_FACE_UVS_AT: usize = 10;
 const G_MESH_VERTICES: usize = 11;
 /// Words per welded vertex in a pose section: bind position, four joint
 /// indices as two `u16` pairs, four weights (then, target-major, each morph
-/// target's displacement of every welded vertex, three words each).
+/// target's displacement of every welded vertex, three words each; then,
+/// in an outlined packing, each outline vertex's face and barycentrics
+/// w1, w2, three words each).
 const POSE_VERTEX_WORDS: usize = 9;
 /// A joint index no skin has: the weight on it counts for nothing.
 const NO_JOINT: u32 = 0xFFFF;
@@ -58,7 +60,8 @@ const EDGE_OUTLINE: u32 = 32;
 ///   silhouette edges meeting at a silhouette vertex;
 /// - non-manifold face lists: `face | forward << 31`;
 /// - a posable packing ([`Self::pack_posable`]) then has a pose section:
-///   what `pose.wgsl` poses a copy of the words before it from;
+///   what `pose.wgsl` poses a copy of the words before it from (an outlined
+///   one's outline vertices too, by their faces);
 /// - an outlined packing ([`Self::pack_outlined`]: an alpha-masked mesh)
 ///   then has its faces' corner UVs (6 words a face).
 #[derive(Debug)]
@@ -227,7 +230,12 @@ impl GpuMeshGeometry {
         outline: Option<&shadow_fins::cutout::Outline>,
     ) -> Option<Self> {
         let outline_vertices = outline.map_or(0, |o| o.positions.len());
-        if rest.outlined != outline.is_some() || rest.vertices as usize != t.positions.len() + outline_vertices {
+        if rest.outlined != outline.is_some()
+            || rest.vertices as usize != t.positions.len() + outline_vertices
+            || outline.is_some_and(|o| {
+                o.faces.len() != outline_vertices || o.faces.iter().any(|&f| f >= t.faces.len() as u32)
+            })
+        {
             return None;
         }
         let (welded, remap) = shadow_fins::mesh::weld_positions(&source.positions);
@@ -294,8 +302,12 @@ impl GpuMeshGeometry {
 
 /// `p`'s barycentrics in the triangle `c` (the first corner's of a
 /// degenerate one): `p = c₀ + b.y (c₁ − c₀) + b.z (c₂ − c₀)` for a point on it.
+/// In f64: the normal equations' determinant cancels as sin² of the
+/// triangle's sharpest angle, and a sliver's barycentrics in f32 would be
+/// right at rest but not once a pose changes its shape.
 fn barycentrics(c: [Vec3; 3], p: Vec3) -> Vec3 {
-    let (e1, e2, ep) = (c[1] - c[0], c[2] - c[0], p - c[0]);
+    let [c0, c1, c2, p] = [c[0], c[1], c[2], p].map(|x| x.as_dvec3());
+    let (e1, e2, ep) = (c1 - c0, c2 - c0, p - c0);
     let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
     let det = d11 * d22 - d12 * d12;
     if !(det.abs() > 0.0) {
@@ -303,7 +315,7 @@ fn barycentrics(c: [Vec3; 3], p: Vec3) -> Vec3 {
     }
     let v = (d22 * ep.dot(e1) - d12 * ep.dot(e2)) / det;
     let w = (d11 * ep.dot(e2) - d12 * ep.dot(e1)) / det;
-    Vec3::new(1.0 - v - w, v, w)
+    bevy::math::DVec3::new(1.0 - v - w, v, w).as_vec3()
 }
 
 /// One caster's pose as `pose.wgsl` reads it: each joint's `Jᵢ · IBPᵢ` as
@@ -1097,6 +1109,23 @@ mod tests {
             let words: Vec<u32> = uvs.iter().flat_map(|uv| [uv.x, uv.y]).map(f32::to_bits).collect();
             assert_eq!(g.words[uvs_at + 6 * face..uvs_at + 6 * face + 6], words[..], "face {face}");
         }
+    }
+
+    #[test]
+    fn a_slivers_barycentrics_hold_once_a_pose_changes_its_shape() {
+        // A face 1000 times longer than wide: at rest any barycentrics near
+        // the right ones rebuild the point, posed only the right ones do.
+        let c = [Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.5, 1e-3, 0.0)];
+        let p = c[0] + (c[1] - c[0]) * 0.3 + (c[2] - c[0]) * 0.2;
+        let b = barycentrics(c, p);
+        assert!((b - Vec3::new(0.5, 0.3, 0.2)).abs().max_element() < 1e-5, "{b}");
+        // Sheared by a pose: the point stays where its barycentrics put it.
+        let posed = [c[0], c[1], Vec3::new(0.5, 0.5, 0.0)];
+        let q = posed[0] + (posed[1] - posed[0]) * b.y + (posed[2] - posed[0]) * b.z;
+        let expected = posed[0] + (posed[1] - posed[0]) * 0.3 + (posed[2] - posed[0]) * 0.2;
+        assert!(q.distance(expected) < 1e-5, "{q} against {expected}");
+        // A degenerate face: its first corner.
+        assert_eq!(barycentrics([Vec3::ZERO; 3], Vec3::ONE), Vec3::X);
     }
 
     #[test]
