@@ -17,7 +17,7 @@ use shadow_fins_app::harness::{Session, Setup};
 
 use super::{
     common::{
-        HEIGHT, WIDTH, assert_not_trivial, assert_visibility_not_trivial, asset, compare, max_difference, oracle,
+        HEIGHT, MovedInPlace, WIDTH, assert_not_trivial, asset, compare, max_difference, moved_in_place, oracle,
         per_pixel, render, save, settings, setup,
     },
     coverage::{coverage_oracle, coverage_settings},
@@ -243,25 +243,8 @@ fn a_masked_card_moved_is_extracted_alone_and_shadows_as_a_fresh_app() {
     // anew: the update must leave what a fresh app renders with the card
     // already there, holes and all.
     let setup = setup(SceneId::LeafCards, settings());
-    let offset = Vec3::new(0.05, 0.0, -0.04);
-    let name = "card-1";
-    let card = setup.scene.objects.iter().find(|o| o.name == name).expect("a card");
-    let at = Vec3::from(card.transform.translation);
-    let mut session = Session::new(&setup);
-    let before = session.settle(6).expect("render").visibility;
-    assert_visibility_not_trivial(&before);
-    let world = session.app.world_mut();
-    let mut meshes = world.query::<(Entity, &Mesh3d, &Transform)>();
-    let entity = meshes.iter(world).find(|(_, _, t)| t.translation.distance(at) < 1e-4).expect("its entity").0;
-    world.get_mut::<Transform>(entity).expect("a transform").translation += offset;
-    let shot = session.settle(6).expect("render");
-    save(&shot, "alpha_card_moved");
-    let stats = session.app.world().resource::<bevy_shadow_fins::FinShadowStats>().0;
-    let mut moved = setup.clone();
-    for o in moved.scene.objects.iter_mut().filter(|o| o.name == name) {
-        o.transform.translation += bevy::math::Vec3A::from(offset);
-    }
-    let expected = render(&moved).visibility;
+    let MovedInPlace { before, shot, stats, fresh: expected } =
+        moved_in_place(&setup, "card-1", Vec3::new(0.05, 0.0, -0.04), "alpha_card_moved");
     let worst = max_difference(&shot.visibility, &expected);
     let (changed, _) = compare(&shot.visibility, &before);
     println!(

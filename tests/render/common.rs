@@ -88,6 +88,48 @@ pub fn max_difference(visibility: &[f32], other: &[f32]) -> f32 {
     visibility.iter().zip(other).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max)
 }
 
+/// `setup` with its object `name` moved by `offset`.
+pub fn with_moved(setup: &Setup, name: &str, offset: bevy::math::Vec3) -> Setup {
+    let mut moved = setup.clone();
+    for o in moved.scene.objects.iter_mut().filter(|o| o.name == name) {
+        o.transform.translation += bevy::math::Vec3A::from(offset);
+    }
+    moved
+}
+
+/// What moving one object of a running app showed ([`moved_in_place`]).
+pub struct MovedInPlace {
+    /// The visibility before the move, settled.
+    pub before: Vec<f32>,
+    /// The settled shot after it, and the fin stats then.
+    pub shot: Shot,
+    pub stats: bevy_shadow_fins::FinFrameStats,
+    /// What a fresh app renders with the object already moved.
+    pub fresh: Vec<f32>,
+}
+
+/// `setup` settled, then its object `name` moved by `offset` in the running
+/// app (its entity found by its translation) and settled again, saved as
+/// `image`; beside a fresh app of [`with_moved`]: what an update in place
+/// must match.
+pub fn moved_in_place(setup: &Setup, name: &str, offset: bevy::math::Vec3, image: &str) -> MovedInPlace {
+    use bevy::prelude::{Entity, Mesh3d, Transform};
+    let object = setup.scene.objects.iter().find(|o| o.name == name).expect("the object to move");
+    let at = bevy::math::Vec3::from(object.transform.translation);
+    let mut session = shadow_fins_app::harness::Session::new(setup);
+    let before = session.settle(6).expect("render").visibility;
+    assert_visibility_not_trivial(&before);
+    let world = session.app.world_mut();
+    let mut meshes = world.query::<(Entity, &Mesh3d, &Transform)>();
+    let entity = meshes.iter(world).find(|(_, _, t)| t.translation.distance(at) < 1e-4).expect("its entity").0;
+    world.get_mut::<Transform>(entity).expect("a transform").translation += offset;
+    let shot = session.settle(6).expect("render");
+    save(&shot, image);
+    let stats = fin_stats(&session);
+    let fresh = render(&with_moved(setup, name, offset)).visibility;
+    MovedInPlace { before, shot, stats, fresh }
+}
+
 /// The first fin-shadowed light's stats ([`bevy_shadow_fins::FinShadowStats`]) now.
 pub fn fin_stats(session: &shadow_fins_app::harness::Session) -> bevy_shadow_fins::FinFrameStats {
     session.app.world().resource::<bevy_shadow_fins::FinShadowStats>().0

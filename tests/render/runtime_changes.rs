@@ -26,15 +26,6 @@ fn run(app: &mut App, slot: &harness::Slot, frames: u32) -> Vec<f32> {
     harness::unpad(WIDTH, HEIGHT, &data).map(f32::from_le_bytes).collect()
 }
 
-/// `setup` with its object `name` moved by `offset`.
-fn with_moved(setup: &harness::Setup, name: &str, offset: Vec3) -> harness::Setup {
-    let mut moved = setup.clone();
-    for o in moved.scene.objects.iter_mut().filter(|o| o.name == name) {
-        o.transform.translation += bevy::math::Vec3A::from(offset);
-    }
-    moved
-}
-
 /// `setup` with the box of `SceneId::BoxOverPlane` moved by `offset`.
 fn with_box_moved(setup: &harness::Setup, offset: Vec3) -> harness::Setup {
     with_moved(setup, "box", offset)
@@ -579,20 +570,8 @@ fn a_part_of_the_kitbash_moved_is_extracted_again_and_shadows_as_a_fresh_app() {
     // the kept depth range) must leave the visibility a fresh app renders
     // with the ball already there.
     let setup = setup(SceneId::Kitbash, settings());
-    let offset = Vec3::new(0.06, -0.02, 0.04);
-    let ball = setup.scene.objects.iter().find(|o| o.name == "ball").expect("the kitbash's ball");
-    let at = Vec3::from(ball.transform.translation);
-    let mut session = harness::Session::new(&setup);
-    let before = session.settle(6).expect("render").visibility;
-    assert_visibility_not_trivial(&before);
-    let world = session.app.world_mut();
-    let mut meshes = world.query::<(Entity, &Mesh3d, &Transform)>();
-    let ball = meshes.iter(world).find(|(_, _, t)| t.translation.distance(at) < 1e-4).expect("the ball's entity").0;
-    world.get_mut::<Transform>(ball).expect("a transform").translation += offset;
-    let shot = session.settle(6).expect("render");
-    save(&shot, "kitbash_ball_moved");
-    let stats = fin_stats(&session);
-    let expected = harness::Session::new(&with_moved(&setup, "ball", offset)).settle(6).expect("render").visibility;
+    let MovedInPlace { before, shot, stats, fresh: expected } =
+        moved_in_place(&setup, "ball", Vec3::new(0.06, -0.02, 0.04), "kitbash_ball_moved");
     let worst = max_difference(&shot.visibility, &expected);
     let (changed, _) = compare(&shot.visibility, &before);
     println!(
