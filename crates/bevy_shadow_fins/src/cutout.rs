@@ -103,12 +103,11 @@ fn key_of(material: &StandardMaterial) -> MaskKey {
 pub(crate) struct CutoutCache {
     masks: HashMap<AssetId<StandardMaterial>, MaterialMask>,
     cutouts: HashMap<(AssetId<Mesh>, AssetId<StandardMaterial>), Option<Cutout>>,
-    /// The GPU extraction's packing of each cached cut-out's mesh with its
-    /// outline, and the outline it was packed with.
-    outlined: HashMap<(AssetId<Mesh>, AssetId<StandardMaterial>), (Arc<Outline>, Arc<GpuMeshGeometry>)>,
-    /// The same for meshes the GPU poses: at rest, with a pose section
-    /// that poses the outline's vertices too (`pack_posable`).
-    outlined_posable: HashMap<(AssetId<Mesh>, AssetId<StandardMaterial>), (Arc<Outline>, Arc<GpuMeshGeometry>)>,
+    /// Per (mesh, material, whether the GPU poses it): the GPU extraction's
+    /// packing of the mesh with its cached cut-out's outline (for a posed
+    /// one, at rest with a pose section that poses the outline too:
+    /// `pack_posable`), and the outline it was packed with.
+    outlined: HashMap<(AssetId<Mesh>, AssetId<StandardMaterial>, bool), (Arc<Outline>, Arc<GpuMeshGeometry>)>,
     /// Bumped whenever what some material cuts out may have changed: the
     /// frame builder rebuilds when it moved (whoever read the events first,
     /// the builder or a `scene_snapshot`).
@@ -119,12 +118,29 @@ impl CutoutCache {
     /// Forgets the cut-outs of a mesh asset that changed.
     pub(crate) fn forget_mesh(&mut self, id: AssetId<Mesh>) {
         self.cutouts.retain(|(mesh, _), _| *mesh != id);
-        self.outlined.retain(|(mesh, _), _| *mesh != id);
-        self.outlined_posable.retain(|(mesh, _), _| *mesh != id);
+        self.outlined.retain(|(mesh, _, _), _| *mesh != id);
     }
 
     pub(crate) fn generation(&self) -> u64 {
         self.generation
+    }
+
+    /// The packing kept for `key` when it was packed with `outline` (the
+    /// cached cut-out's own, not one rebuilt since); else `pack`'s, kept.
+    fn packed_once(
+        &mut self,
+        key: (AssetId<Mesh>, AssetId<StandardMaterial>, bool),
+        outline: &Arc<Outline>,
+        pack: impl FnOnce() -> Option<Arc<GpuMeshGeometry>>,
+    ) -> Option<Arc<GpuMeshGeometry>> {
+        if let Some((kept, packing)) = self.outlined.get(&key)
+            && Arc::ptr_eq(kept, outline)
+        {
+            return Some(packing.clone());
+        }
+        let packing = pack()?;
+        self.outlined.insert(key, (outline.clone(), packing.clone()));
+        Some(packing)
     }
 }
 
@@ -189,7 +205,7 @@ impl CasterMaterials<'_, '_> {
     /// caster whose material was swapped is signed again by itself: its
     /// material id is in its signature, `casters.rs`.)
     pub(crate) fn refresh(&mut self) {
-        let CutoutCache { masks, cutouts, outlined, outlined_posable, generation } = &mut *self.cache;
+        let CutoutCache { masks, cutouts, outlined, generation } = &mut *self.cache;
         let mut stale = false;
         if let Some(events) = self.material_events.as_mut() {
             for id in events.read().filter_map(changed_asset) {
@@ -205,8 +221,7 @@ impl CasterMaterials<'_, '_> {
                 if matters {
                     masks.remove(id);
                     cutouts.retain(|(_, material), _| material != id);
-                    outlined.retain(|(_, material), _| material != id);
-                    outlined_posable.retain(|(_, material), _| material != id);
+                    outlined.retain(|(_, material, _), _| material != id);
                     stale = true;
                 }
             }
@@ -221,8 +236,7 @@ impl CasterMaterials<'_, '_> {
                 for material in reading {
                     masks.remove(&material);
                     cutouts.retain(|(_, m), _| *m != material);
-                    outlined.retain(|(_, m), _| *m != material);
-                    outlined_posable.retain(|(_, m), _| *m != material);
+                    outlined.retain(|(_, m, _), _| *m != material);
                     stale = true;
                 }
             }
@@ -276,15 +290,7 @@ impl CasterMaterials<'_, '_> {
         let Some(material_id) = self.material_of(entity).filter(|_| !posed) else {
             return pack();
         };
-        match self.cache.outlined.get(&(mesh_id, material_id)) {
-            // The cached cut-out's own outline (not one rebuilt since).
-            Some((outline, packing)) if Arc::ptr_eq(outline, &cutout.outline) => packing.clone(),
-            _ => {
-                let packing = pack();
-                self.cache.outlined.insert((mesh_id, material_id), (cutout.outline.clone(), packing.clone()));
-                packing
-            }
-        }
+        self.cache.packed_once((mesh_id, material_id, false), &cutout.outline, || Some(pack())).unwrap_or_else(pack)
     }
 
     /// For a mesh the GPU poses (`pose.wgsl`): its topology at rest packed
@@ -305,16 +311,11 @@ impl CasterMaterials<'_, '_> {
         if cutout.face_uvs.len() != rest.1.faces.len() {
             return None;
         }
-        if let Some((outline, packing)) = self.cache.outlined_posable.get(&(mesh_id, material_id))
-            && Arc::ptr_eq(outline, &cutout.outline)
-        {
-            return Some(packing.clone());
-        }
-        let at_rest = GpuMeshGeometry::pack_outlined(rest.1, &cutout);
-        let source = crate::pose::pose_source(mesh);
-        let packing = Arc::new(GpuMeshGeometry::pack_posable(&at_rest, rest.1, &source, Some(&cutout.outline))?);
-        self.cache.outlined_posable.insert((mesh_id, material_id), (cutout.outline.clone(), packing.clone()));
-        Some(packing)
+        self.cache.packed_once((mesh_id, material_id, true), &cutout.outline, || {
+            let at_rest = GpuMeshGeometry::pack_outlined(rest.1, &cutout);
+            let source = crate::pose::pose_source(mesh);
+            GpuMeshGeometry::pack_posable(&at_rest, rest.1, &source, Some(&cutout.outline)).map(Arc::new)
+        })
     }
 
     /// A material's mask, read once (and again when it or its texture changes).
