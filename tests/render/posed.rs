@@ -35,6 +35,35 @@ fn posed_setup(name: &str) -> Setup {
 /// The shot's visibility on the ground against the oracle of the scene the
 /// plugin saw (its snapshot: the posed triangles) from the same light and camera.
 fn matches_its_oracle(session: &mut Session, setup: &Setup, shot: &Shot, label: &str) -> f32 {
+    let judged = on_the_ground(session, setup, shot, label, None);
+    println!(
+        "{label}: mean |gpu − oracle of the posed scene| = {:.5}, share > 0.1 = {:.2}%",
+        judged.mad,
+        judged.far * 100.0
+    );
+    assert!(judged.mad <= 0.01 && judged.far <= 0.03, "{label}: {} / {}", judged.mad, judged.far);
+    judged.mad
+}
+
+/// How a shot's ground compares with the oracle (and the ray-traced truth).
+struct OnTheGround {
+    /// Mean |shot − oracle| and the share of pixels off by more than 0.1.
+    mad: f32,
+    far: f32,
+    /// Mean |shot − truth| and |oracle − truth|, when asked for.
+    truth: Option<(f32, f32)>,
+}
+
+/// The shot's visibility on the ground against the oracle of the scene the
+/// plugin saw (its snapshot: the posed triangles, cut-outs and all) from the
+/// same light and camera, and against the truth at `truth_samples` rays.
+fn on_the_ground(
+    session: &mut Session,
+    setup: &Setup,
+    shot: &Shot,
+    label: &str,
+    truth_samples: Option<u32>,
+) -> OnTheGround {
     let snapshot = session.scene_snapshot();
     assert!(
         !snapshot.approximated.iter().any(|(_, a)| *a == FinSnapshotApproximation::Unposed),
@@ -59,12 +88,15 @@ fn matches_its_oracle(session: &mut Session, setup: &Setup, shot: &Shot, label: 
     let ground = per_pixel(&judged, &judged.camera, &ls, ground_at);
     let on_ground =
         |v: &[f32]| -> Vec<f32> { v.iter().zip(&ground).filter(|(_, g)| **g == 2.0).map(|(v, _)| *v).collect() };
-    let (gpu, expected) = (on_ground(&shot.visibility), on_ground(&expected));
+    let (gpu, expected_on_ground) = (on_ground(&shot.visibility), on_ground(&expected));
     assert!(gpu.len() > 2000, "{label}: {} ground pixels", gpu.len());
-    let (mad, far) = compare(&gpu, &expected);
-    println!("{label}: mean |gpu − oracle of the posed scene| = {mad:.5}, share > 0.1 = {:.2}%", far * 100.0);
-    assert!(mad <= 0.01 && far <= 0.03, "{label}: {mad} / {far}");
-    mad
+    let (mad, far) = compare(&gpu, &expected_on_ground);
+    let truth = truth_samples.map(|samples| {
+        let truth = shadow_fins::ground_truth::GroundTruth::new(&ls, samples);
+        let truth = on_ground(&per_pixel(&judged, &judged.camera, &ls, |r| truth.visibility(r)));
+        (compare(&gpu, &truth).0, compare(&expected_on_ground, &truth).0)
+    });
+    OnTheGround { mad, far, truth }
 }
 
 /// The next settled shot, saved as `name`, judged against the oracle of the
@@ -277,4 +309,41 @@ fn mask_the_blob(world: &mut World) {
         }
     }
     assert_eq!(masked, 1, "the blob's material");
+}
+
+#[test]
+fn a_masked_blobs_shadow_meets_the_oracle_and_the_truth_once_its_maps_resolve_the_holes() {
+    // The leaf's holes are a few texels of a 256² sun map wide: there both
+    // the plugin (maps fitted to the view) and the oracle (maps fitted to the
+    // casters) are about 0.011–0.014 off the truth on the ground, each its own
+    // way (0.010–0.012 apart). At 512² (8 layers, within the maps' memory
+    // budget) both come within 0.01 of the truth and of each other: the
+    // error is the maps' resolution, not the cut-out's extraction or posing.
+    let mut errors = vec![];
+    for resolution in [256, 512] {
+        let mut setup = posed_setup("morph-blob.gltf");
+        setup.settings.map_resolution = resolution;
+        setup.settings.layers = 8;
+        let mut session = Session::new(&setup);
+        session.wait_for_gltf().expect("Bevy loads it");
+        mask_the_blob(session.app.world_mut());
+        grow_blob(session.app.world_mut());
+        let shot = session.settle(16).expect("render");
+        save(&shot, &format!("posed_masked_blob_maps_{resolution}"));
+        assert_not_trivial(&shot);
+        let stats = fin_stats(&session);
+        assert_eq!((stats.map_resolution, stats.posed_on_gpu, stats.degraded), (resolution, 1, None), "{stats:?}");
+        let label = format!("masked grown blob, {resolution}² maps");
+        let judged = on_the_ground(&mut session, &setup, &shot, &label, Some(4096));
+        let (to_truth, oracle_to_truth) = judged.truth.expect("asked for");
+        println!(
+            "{label}: |gpu − oracle| {:.4} (> 0.1: {:.2}%), |gpu − truth| {to_truth:.4}, |oracle − truth| {oracle_to_truth:.4}",
+            judged.mad,
+            judged.far * 100.0
+        );
+        errors.push((judged.mad, judged.far, to_truth));
+    }
+    let [(_, _, coarse), (mad, far, fine)] = errors[..] else { unreachable!() };
+    assert!(mad <= 0.01 && far <= 0.03 && fine <= 0.01, "512²: {mad} / {far}, truth {fine}");
+    assert!(fine < coarse - 0.002, "the finer maps come nearer the truth: {coarse} → {fine}");
 }
