@@ -123,36 +123,73 @@ fn assert_shadow_moved(before: &Shot, after: &Shot, what: &str, stale: &str) {
 }
 
 #[test]
-fn a_skinned_arm_casts_the_shadow_of_its_current_pose() {
+fn a_skinned_arm_played_by_bevys_animation_casts_the_pose_of_each_animation_time() {
+    // The file's `bend` clip played by Bevy's `AnimationPlayer` (the glTF
+    // loader's, on the joints' root), held at 0 s (straight) and 1 s (each
+    // joint turned about z): the caster follows what the animation wrote.
     let setup = posed_setup("skinned-arm.gltf");
     let mut session = Session::new(&setup);
     session.wait_for_gltf().expect("Bevy loads it");
-    let straight = settled_pose(&mut session, &setup, "posed_arm_straight", "arm straight");
-    // The file's `bend` animation at 1 s: each joint turned about z.
-    let world = session.app.world_mut();
-    let mut joints = world.query::<(&Name, &mut Transform)>();
-    let mut turned = 0;
-    for (name, mut t) in joints.iter_mut(world) {
-        let bend = match name.as_str() {
-            "shoulder" => 0.35,
-            "elbow" => 0.6,
-            "wrist" => 0.5,
-            _ => continue,
-        };
-        t.rotation = Quat::from_xyzw(0.0, 0.0, bend, 1.0).normalize();
-        turned += 1;
-    }
-    assert_eq!(turned, 3, "the arm's three joints");
+    let bend = HeldAnimation::play(session.app.world_mut(), "bend");
+    let straight = settled_pose(&mut session, &setup, "posed_arm_straight", "arm at 0 s of bend");
+    assert_eq!(joint_turns(session.app.world_mut()), [0.0; 3], "straight at 0 s");
+    bend.hold_at(session.app.world_mut(), 1.0);
     let updates = |session: &Session| *session.app.world().resource::<bevy_shadow_fins::FinCasterUpdates>();
     let before = updates(&session);
-    let bent = settled_pose(&mut session, &setup, "posed_arm_bent", "arm bent");
-    assert_shadow_moved(&straight, &bent, "straight vs bent arm", "the bind pose is cast");
+    let bent = settled_pose(&mut session, &setup, "posed_arm_bent", "arm at 1 s of bend");
+    // The animation posed the joints: the file's keys at 1 s (z of the
+    // normalised (0, 0, bend, 1) for bends 0.35, 0.6 and 0.5).
+    let keyed = [0.35f32, 0.6, 0.5].map(|b| b / (1.0 + b * b).sqrt());
+    let turns = joint_turns(session.app.world_mut());
+    assert!(turns.iter().zip(keyed).all(|(t, k)| (t - k).abs() < 1e-4), "joints at 1 s: {turns:?}, keyed {keyed:?}");
+    assert_shadow_moved(&straight, &bent, "arm at 0 s vs 1 s", "the bind pose is cast");
     // The new pose rebuilt the arm's slot in place: no re-collected scene.
     let after = updates(&session);
     assert!(
         after.frames > before.frames && after.records > before.records,
         "the new pose re-collected the scene ({before:?} → {after:?})"
     );
+}
+
+/// A clip of the loaded glTF played by its `AnimationPlayer` and held
+/// (paused) at a time: Bevy's animation system poses what it targets.
+struct HeldAnimation {
+    player: Entity,
+    node: AnimationNodeIndex,
+}
+
+impl HeldAnimation {
+    /// Plays the clip named `clip`, held at 0 s.
+    fn play(world: &mut World, clip: &str) -> Self {
+        let clip = world
+            .resource::<Assets<bevy::gltf::Gltf>>()
+            .iter()
+            .find_map(|(_, gltf)| gltf.named_animations.get(clip).cloned())
+            .expect("the file's clip");
+        let (graph, node) = AnimationGraph::from_clip(clip);
+        let graph = world.resource_mut::<Assets<AnimationGraph>>().add(graph);
+        let player = world.query_filtered::<Entity, With<AnimationPlayer>>().single(world).expect("one player");
+        let mut entity = world.entity_mut(player);
+        entity.insert(AnimationGraphHandle(graph));
+        entity.get_mut::<AnimationPlayer>().expect("the player").play(node).pause();
+        Self { player, node }
+    }
+
+    fn hold_at(&self, world: &mut World, seconds: f32) {
+        let mut player = world.get_mut::<AnimationPlayer>(self.player).expect("the player");
+        player.animation_mut(self.node).expect("playing").seek_to(seconds);
+    }
+}
+
+/// The z of the shoulder's, elbow's and wrist's rotations.
+fn joint_turns(world: &mut World) -> [f32; 3] {
+    let mut turns = [f32::NAN; 3];
+    for (name, t) in world.query::<(&Name, &Transform)>().iter(world) {
+        if let Some(k) = ["shoulder", "elbow", "wrist"].iter().position(|j| *j == name.as_str()) {
+            turns[k] = t.rotation.z;
+        }
+    }
+    turns
 }
 
 /// The arm under `light`, straight, then with its three joints each turned
@@ -218,18 +255,29 @@ fn a_skins_bind_poses_changing_poses_its_caster_again() {
 }
 
 #[test]
-fn a_morph_blob_casts_the_shadow_of_its_current_weights() {
+fn a_morph_blob_played_by_bevys_animation_casts_the_shadow_of_its_current_weights() {
+    // The file's `grow` clip held at 0 s (weights 0, 0: flat) and 1 s (1, 1:
+    // the spike up and the top leaning), as Bevy's animation writes them.
     let setup = posed_setup("morph-blob.gltf");
     let mut session = Session::new(&setup);
     session.wait_for_gltf().expect("Bevy loads it");
-    let flat = settled_pose(&mut session, &setup, "posed_blob_flat", "blob flat");
-    grow_blob(session.app.world_mut());
-    let grown = settled_pose(&mut session, &setup, "posed_blob_grown", "blob grown");
+    let grow = HeldAnimation::play(session.app.world_mut(), "grow");
+    let flat = settled_pose(&mut session, &setup, "posed_blob_flat", "blob at 0 s of grow");
+    grow.hold_at(session.app.world_mut(), 1.0);
+    let grown = settled_pose(&mut session, &setup, "posed_blob_grown", "blob at 1 s of grow");
+    let weights: Vec<Vec<f32>> = session
+        .app
+        .world_mut()
+        .query::<&MorphWeights>()
+        .iter(session.app.world())
+        .map(|w| w.weights().to_vec())
+        .collect();
+    assert_eq!(weights, [[1.0, 1.0]], "the animation's weights at 1 s");
     assert_shadow_moved(&flat, &grown, "flat vs grown blob", "the base shape is cast");
 }
 
-/// Every morph weight of the blob at full: `spike` and `lean`, the top's
-/// middle 1.6 m up, the top leaning.
+/// Every morph weight of the blob at full, as the `grow` clip has them at 1 s:
+/// `spike` and `lean`, the top's middle 1.6 m up, the top leaning.
 fn grow_blob(world: &mut World) {
     let mut set = 0;
     for mut w in world.query::<&mut MorphWeights>().iter_mut(world) {

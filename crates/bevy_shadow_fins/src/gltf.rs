@@ -17,7 +17,7 @@ use std::sync::{
 
 use bevy::{
     asset::LoadState,
-    gltf::{GltfAssetLabel, GltfExtras},
+    gltf::{Gltf, GltfAssetLabel, GltfExtras},
     prelude::*,
     world_serialization::WorldInstanceReady,
 };
@@ -28,6 +28,9 @@ use crate::{FinShadowSettings, FinShadows, MAX_FIN_LIGHTS};
 #[derive(Component, Clone)]
 pub struct GltfSceneLoading {
     pub handle: Handle<WorldAsset>,
+    /// The whole file (its animations, nodes, materials): held while this
+    /// is, as Bevy drops a file's root asset that nothing holds.
+    pub gltf: Handle<Gltf>,
     ready: Arc<AtomicBool>,
     /// When the load began (a load that neither fails nor spawns is given up).
     pub started: std::time::Instant,
@@ -60,10 +63,12 @@ pub fn spawn_gltf_scene(
     scene_index: usize,
 ) -> Entity {
     let path = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
-    let handle: Handle<WorldAsset> = assets.load(GltfAssetLabel::Scene(scene_index).from_asset(path));
+    let handle: Handle<WorldAsset> = assets.load(GltfAssetLabel::Scene(scene_index).from_asset(path.clone()));
+    // The same load as the scene's (one file, one load).
+    let gltf: Handle<Gltf> = assets.load(path);
     let ready = Arc::new(AtomicBool::new(false));
     let flag = ready.clone();
-    let loading = GltfSceneLoading { handle: handle.clone(), ready, started: std::time::Instant::now() };
+    let loading = GltfSceneLoading { handle: handle.clone(), gltf, ready, started: std::time::Instant::now() };
     commands
         .spawn((loading, WorldAssetRoot(handle)))
         .observe(move |spawned: On<WorldInstanceReady>, children: Query<&Children>, mut cameras: Query<&mut Camera>| {
