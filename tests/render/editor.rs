@@ -85,6 +85,20 @@ fn changed_pixels(a: &Image, b: &Image) -> usize {
     changed
 }
 
+/// [`changed_pixels`] over a rectangle (x0..x1, y0..y1), every pixel, with
+/// the count compared.
+fn changed_pixels_in(a: &Image, b: &Image, (x0, x1, y0, y1): (u32, u32, u32, u32)) -> (usize, usize) {
+    let (mut changed, mut n) = (0, 0);
+    for y in y0..y1 {
+        for x in x0..x1 {
+            let (p, q) = (a.get_color_at(x, y).unwrap().to_srgba(), b.get_color_at(x, y).unwrap().to_srgba());
+            changed += ((p.red - q.red).abs() + (p.green - q.green).abs() + (p.blue - q.blue).abs() > 0.06) as usize;
+            n += 1;
+        }
+    }
+    (changed, n)
+}
+
 #[test]
 fn the_editor_starts_draws_panels_and_scene_and_writes_a_screenshot() {
     let image = screenshot("editor", &[], 20);
@@ -203,6 +217,11 @@ fn the_editors_rect_and_point_lights_cast_soft_shadows_that_their_size_changes()
 /// Runs the editor on `scene` for a screenshot; returns it with what the
 /// editor printed (its status and error lines).
 fn screenshot_of_scene(name: &str, scene: &std::path::Path) -> (Image, String) {
+    screenshot_of_scene_with(name, scene, &[])
+}
+
+/// [`screenshot_of_scene`] with more options.
+fn screenshot_of_scene_with(name: &str, scene: &std::path::Path, options: &[&str]) -> (Image, String) {
     let path = out_dir().join(format!("{name}.png"));
     let _ = std::fs::remove_file(&path);
     let output = Command::new("xvfb-run")
@@ -210,6 +229,7 @@ fn screenshot_of_scene(name: &str, scene: &std::path::Path) -> (Image, String) {
         .arg(editor_binary())
         .arg(scene)
         .args(["--no-autosave", "--screenshot", path.to_str().unwrap(), "--frames", "12"])
+        .args(options)
         .output()
         .expect("xvfb-run (scripts/setup.sh installs xvfb)");
     let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
@@ -268,6 +288,27 @@ fn the_editor_opens_a_gltf_as_bevy_loads_it_with_its_own_light_and_camera() {
     assert!(stdout.contains("loaded courtyard.gltf"), "{stdout}");
     assert!(stdout.contains("lights from the file") && stdout.contains("the file's camera"), "{stdout}");
     assert_readable("courtyard", &image);
+}
+
+#[test]
+fn the_editor_plays_a_gltfs_animation_through_bevy_and_shows_the_pose_it_rests_at() {
+    // The skinned arm's `bend` clip, held at 0 s (straight) and 1 s (bent
+    // over): Bevy's animation player poses it, the fin shadows follow.
+    let scene = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/skinned-arm.gltf");
+    let shots = ["0", "1"].map(|t| {
+        let (image, stdout) = screenshot_of_scene_with(&format!("gltf-arm-{t}s"), &scene, &["--animation-time", t]);
+        assert!(!stdout.contains("editor error"), "{stdout}");
+        assert!(stdout.contains(&format!("animations: 1 (held at {t}.00 s of \"bend\")")), "{stdout}");
+        image
+    });
+    // In the viewport between the panels (their text changes with the timings).
+    let (w, h) = (shots[0].width(), shots[0].height());
+    let viewport = (w * 3 / 10, w * 7 / 10, h / 10, h * 9 / 10);
+    let (changed, sampled) = changed_pixels_in(&shots[0], &shots[1], viewport);
+    println!("arm at 0 s vs 1 s of bend: {changed} of {sampled} viewport pixels changed");
+    assert!(changed * 100 > sampled, "the pose (and its shadow) did not change: {changed} of {sampled}");
+    // Not the whole view either: the ground, the pedestal and the sky stay.
+    assert!(changed * 4 < sampled, "more than the arm and its shadow changed: {changed} of {sampled}");
 }
 
 /// A scene of slabs (half sizes, centres) scaled by `scale`, written as a glTF.

@@ -29,6 +29,9 @@ pub struct EditorOptions {
     pub view: Option<crate::ViewKind>,
     /// The other paper's method the peer views show at start (`--peer`).
     pub peer: Option<shadow_fins::peers::PeerMethod>,
+    /// Where a glTF's first animation rests at start, seconds
+    /// (`--animation-time`; wrapped into the clip's length).
+    pub animation_time: Option<f32>,
 }
 
 /// A command line that could not be understood.
@@ -38,6 +41,8 @@ pub enum CliError {
     MissingValue(&'static str),
     #[error("--frames must be a whole number ≥ 1, got {0:?}")]
     BadFrames(String),
+    #[error("--animation-time must be a finite number of seconds, got {0:?}")]
+    BadAnimationTime(String),
     #[error(
         "--view: unknown view {0:?} (final, visibility, layer-index, slab-depth, inner-map, outer-map, error, peer, peer-error)"
     )]
@@ -47,7 +52,7 @@ pub enum CliError {
     )]
     BadPeer(String),
     #[error(
-        "unknown option {0:?} (options: [scene.gltf] --settings FILE --screenshot PATH --frames N --autosave FILE --no-autosave --view NAME --peer METHOD)"
+        "unknown option {0:?} (options: [scene.gltf] --settings FILE --screenshot PATH --frames N --autosave FILE --no-autosave --view NAME --peer METHOD --animation-time SECONDS)"
     )]
     Unknown(String),
 }
@@ -62,6 +67,7 @@ impl Default for EditorOptions {
             autosave: Default::default(),
             view: None,
             peer: None,
+            animation_time: None,
         }
     }
 }
@@ -95,6 +101,11 @@ impl EditorOptions {
                     let v = value("--peer")?;
                     options.peer = Some(shadow_fins::peers::PeerMethod::parse(&v).ok_or(CliError::BadPeer(v))?);
                 }
+                "--animation-time" => {
+                    let v = value("--animation-time")?;
+                    let seconds = v.parse::<f32>().ok().filter(|s| s.is_finite());
+                    options.animation_time = Some(seconds.ok_or(CliError::BadAnimationTime(v))?);
+                }
                 a if a.starts_with("--") => return Err(CliError::Unknown(arg)),
                 _ => options.scene = Some(arg.into()),
             }
@@ -104,7 +115,25 @@ impl EditorOptions {
 }
 
 pub(crate) fn build(app: &mut App) {
-    app.add_systems(Last, (count_frames, take_screenshot_when_due).chain());
+    app.init_resource::<PipelinesReady>().add_systems(Last, (count_frames, take_screenshot_when_due).chain());
+    if let Some(render) = app.get_sub_app_mut(bevy::render::RenderApp) {
+        render.add_systems(bevy::render::ExtractSchedule, report_pipelines_ready);
+    }
+}
+
+/// Frames in a row that Bevy's pipeline cache had nothing left to compile
+/// (a mesh whose pipeline is still compiling is not drawn: a screenshot
+/// then shows an empty view; a skinned mesh's own variant compiles late).
+#[derive(Resource, Default)]
+struct PipelinesReady(u32);
+
+fn report_pipelines_ready(
+    mut main_world: ResMut<bevy::render::MainWorld>,
+    pipelines: Res<bevy::render::render_resource::PipelineCache>,
+) {
+    if let Some(mut ready) = main_world.get_resource_mut::<PipelinesReady>() {
+        ready.0 = if pipelines.waiting_pipelines().next().is_none() { ready.0 + 1 } else { 0 };
+    }
 }
 
 fn count_frames(mut state: ResMut<EditorState>) {
@@ -116,7 +145,8 @@ fn count_frames(mut state: ResMut<EditorState>) {
 const SETTLE_LIMIT_FRAMES: u32 = 600;
 
 /// In screenshot mode: from frame N on, once the fin shadows of the current
-/// settings are extracted and their counts read back, capture the window,
+/// settings are extracted and their counts read back and Bevy has compiled
+/// every pipeline it asked for (for a few frames), capture the window,
 /// save it, exit.
 fn take_screenshot_when_due(
     mut commands: Commands,
@@ -126,6 +156,7 @@ fn take_screenshot_when_due(
     frames: Res<bevy_shadow_fins::FinFrames>,
     loading: Query<(), With<crate::gltf_scene::PendingGltf>>,
     peer: Res<crate::peers::PeerJob>,
+    pipelines: Res<PipelinesReady>,
     (mut requested_at, mut peer_shown_for): (Local<Option<u32>>, Local<u32>),
     mut exit: MessageWriter<AppExit>,
 ) {
@@ -150,7 +181,7 @@ fn take_screenshot_when_due(
         crate::ViewKind::PeerError => *peer_shown_for >= 3 && peer.signed.is_some(),
         _ => true,
     };
-    let settled = settled && peer_ready;
+    let settled = settled && peer_ready && pipelines.0 >= 3;
     if state.frames < due || (!settled && state.frames < due + SETTLE_LIMIT_FRAMES) {
         return;
     }
@@ -213,5 +244,15 @@ mod tests {
         assert_eq!((o.view, o.peer), (Some(crate::ViewKind::Peer), Some(shadow_fins::peers::PeerMethod::Plateaus)));
         assert_eq!(parse(&["--view", "shadows"]), Err(CliError::BadView("shadows".into())));
         assert_eq!(parse(&["--peer", "fins"]), Err(CliError::BadPeer("fins".into())));
+    }
+
+    #[test]
+    fn an_animation_time_is_a_finite_number_of_seconds() {
+        assert_eq!(parse(&["--animation-time", "1.25"]).unwrap().animation_time, Some(1.25));
+        assert_eq!(parse(&[]).unwrap().animation_time, None);
+        for bad in ["NaN", "inf", "-inf", "soon"] {
+            assert_eq!(parse(&["--animation-time", bad]), Err(CliError::BadAnimationTime(bad.into())), "{bad}");
+        }
+        assert_eq!(parse(&["--animation-time"]), Err(CliError::MissingValue("--animation-time")));
     }
 }

@@ -132,6 +132,8 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
         let extent = snapshot.scene.diagonal().unwrap_or(1.0).max(1e-6);
         let lights = adopt_lights(world, root, keep_light, &view, extent);
         let camera = adopt_camera(world, root, keep_light, &view, extent);
+        let start = world.get_resource::<crate::EditorOptions>().and_then(|o| o.animation_time).unwrap_or(0.0);
+        let animations = crate::animation::adopt_animations(world, root, &loading.gltf, start);
         let generation = world.get_resource::<LoadedScene>().map_or(1, |l| l.generation + 1);
         let (objects, triangles) = (snapshot.scene.objects.len(), snapshot.scene.triangle_count());
         world.insert_resource(LoadedScene { name: name.clone(), scene: Arc::new(snapshot.scene), generation, extent });
@@ -147,6 +149,9 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
             );
         }
         let inside = if view.inside { ", seen from inside" } else { "" };
+        if !animations.is_empty() {
+            skipped += &format!("; {animations}");
+        }
         world.resource_mut::<EditorState>().status = Some(format!(
             "loaded {name}: {objects} meshes, {triangles} triangles, {lights}, {camera}{inside}{skipped}"
         ));

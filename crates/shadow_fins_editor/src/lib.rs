@@ -11,9 +11,13 @@
 //! [`LightParams`] and the light's `FinShadowSettings`, `scene.rs` turns them
 //! into components, the plugin renders. Nothing else is shared.
 //!
+//! A glTF's animations play through Bevy's own animation (`animation.rs`).
+//!
 //! `cargo run --example editor -- [scene.gltf] [--settings FILE.ron]
-//! [--screenshot PATH --frames N] [--autosave FILE.ron | --no-autosave]`
+//! [--screenshot PATH --frames N] [--autosave FILE.ron | --no-autosave]
+//! [--animation-time SECONDS]`
 
+mod animation;
 mod autosave;
 mod cli;
 mod gltf_scene;
@@ -27,6 +31,7 @@ mod truth;
 mod ui;
 mod views;
 
+pub use animation::EditorAnimation;
 pub use autosave::AutosaveOption;
 pub use cli::{CliError, EditorOptions};
 pub use gltf_scene::{READABLE_LUX, readable_lumens};
@@ -80,6 +85,7 @@ impl Plugin for EditorPlugin {
         picking::build(app);
         cli::build(app);
         autosave::build(app);
+        animation::build(app);
     }
 }
 

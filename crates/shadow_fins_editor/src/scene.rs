@@ -416,6 +416,8 @@ fn load_scene(
         gltf_scene::fit_clip_planes(&mut projection, None, extent);
     }
     commands.insert_resource(LoadedScene { name: "demo".into(), scene: Arc::new(path.scene), generation, extent });
+    // The demo does not animate.
+    commands.insert_resource(crate::animation::EditorAnimation::default());
     state.status = Some("loaded demo".into());
 }
 

@@ -97,6 +97,7 @@ fn panels(
         Option<Res<LoadedScene>>,
     ),
     mut peer: ResMut<PeerJob>,
+    mut animation: ResMut<crate::animation::EditorAnimation>,
     mut texture: Local<ViewTexture>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?.clone();
@@ -213,6 +214,11 @@ fn panels(
             });
             if s != *fin_settings {
                 *fin_settings = s;
+            }
+
+            if !animation.clips.is_empty() {
+                ui.separator();
+                animation_controls(ui, &mut animation);
             }
 
             ui.separator();
@@ -418,6 +424,31 @@ fn panels(
         );
     }
     Ok(())
+}
+
+/// The glTF's clips: which one, play or rest, and the time it rests at.
+fn animation_controls(ui: &mut egui::Ui, animation: &mut crate::animation::EditorAnimation) {
+    ui.heading("Animation");
+    let mut selected = animation.selected;
+    let name = |k: usize| animation.clips.get(k).map_or_else(String::new, |c| c.name.clone());
+    egui::ComboBox::from_label("clip").selected_text(name(selected)).show_ui(ui, |ui| {
+        for (k, clip) in animation.clips.iter().enumerate() {
+            ui.selectable_value(&mut selected, k, format!("{} ({:.2} s)", clip.name, clip.duration));
+        }
+    });
+    if selected != animation.selected {
+        (animation.selected, animation.time) = (selected, 0.0);
+    }
+    ui.checkbox(&mut animation.playing, "play (loops)");
+    let duration = animation.duration().max(1e-3);
+    ui.add(egui::Slider::new(&mut animation.time, 0.0..=duration).text("time, s"));
+    // The ground truth traces a snapshot: taken when the animation rests.
+    match animation.snapshot_pose {
+        Some((clip, t)) if animation.playing || (clip, t) != (animation.selected, animation.time) => {
+            ui.label(format!("ground truth at {t:.2} s of {} (pause to update)", name(clip)));
+        }
+        _ => {}
+    }
 }
 
 fn vec3_row(ui: &mut egui::Ui, label: &str, v: &mut Vec3, speed: f64) {
