@@ -300,3 +300,28 @@ fn masked_cards_at_millimetre_and_kilometre_scales_shadow_as_the_cpu_and_the_ora
         assert!(mad <= 0.01 && far <= 0.03, "×{s}: {mad} / {far}");
     }
 }
+
+#[test]
+fn masked_cards_over_the_buffer_limit_degrade_with_the_reason_in_the_stats() {
+    // The leaf's mask alone (128² alphas, 16 KiB of words) does not fit a
+    // 12 KiB buffer: the GPU extraction cannot take its inputs (CPU
+    // extraction), and the CPU's cut-outs cannot go up either (the cards
+    // made solid). Forced small with `FinShadowBudget`; still rendered,
+    // finite, and said so — never a validation error.
+    let setup = leaf_cards_gltf();
+    let mut session = Session::new(&setup);
+    session
+        .app
+        .world_mut()
+        .insert_resource(bevy_shadow_fins::FinShadowBudget { max_buffer_bytes: Some(12 << 10), ..Default::default() });
+    session.wait_for_gltf().expect("Bevy loads it");
+    let shot = session.settle(16).expect("render");
+    assert!(shot.visibility.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)), "finite visibility");
+    assert_not_trivial(&shot);
+    let degraded = shot.stats.degraded.expect("the stats say what was cut");
+    println!("masked cards at a 12 KiB limit: {degraded}; {:?}", shot.stats);
+    assert_eq!(shot.stats.extraction, FinExtraction::Cpu, "the mask does not fit the GPU extraction's inputs");
+    // Within the limit, the same cards are extracted on the GPU, cut out, undegraded.
+    let free = shoot(&setup);
+    assert_eq!((free.stats.extraction, free.stats.degraded), (FinExtraction::Gpu, None), "{:?}", free.stats);
+}

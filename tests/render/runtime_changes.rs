@@ -102,7 +102,7 @@ fn radius_layers_and_refinement_change_the_read_back() {
 #[test]
 fn a_hidden_mesh_and_one_with_bevys_not_shadow_caster_cast_no_fin_shadow_until_they_do() {
     // The box over the plane: its shadow is there; `Visibility::Hidden` (the
-    // mesh is not drawn) or Bevy's `NotShadowCaster` takes it away, as
+    // mesh is not drawn), a hidden parent, or Bevy's `NotShadowCaster` takes it away, as
     // removing the box would; undoing either brings it back exactly.
     let setup = setup(SceneId::BoxOverPlane, settings());
     let mut no_box = setup.clone();
@@ -122,6 +122,17 @@ fn a_hidden_mesh_and_one_with_bevys_not_shadow_caster_cast_no_fin_shadow_until_t
             (|e: &mut EntityWorldMut| {
                 e.insert(Visibility::Inherited);
             }) as fn(&mut EntityWorldMut),
+        ),
+        (
+            // Its own `Visibility` says inherit; `InheritedVisibility` says hidden.
+            "a hidden parent",
+            |e: &mut EntityWorldMut| {
+                let parent = e.world_scope(|w| w.spawn((Transform::IDENTITY, Visibility::Hidden)).id());
+                e.insert(ChildOf(parent));
+            },
+            |e: &mut EntityWorldMut| {
+                e.remove::<ChildOf>();
+            },
         ),
         (
             "NotShadowCaster",

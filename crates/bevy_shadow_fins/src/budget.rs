@@ -100,26 +100,38 @@ pub enum FinDegradation {
     LongPlateauCell { sheets: u32, limit: u32 },
 }
 
+/// Bytes for a person: MiB from 1 MiB on (one decimal), KiB below, bytes
+/// under 1 KiB — a test's 12 KiB limit is not "0.0 MiB".
+struct ByteSize(u64);
+
+impl std::fmt::Display for ByteSize {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0 {
+            b if b >= 1 << 20 => write!(f, "{:.1} MiB", b as f64 / (1u64 << 20) as f64),
+            b if b >= 1 << 10 => write!(f, "{:.1} KiB", b as f64 / 1024.0),
+            b => write!(f, "{b} bytes"),
+        }
+    }
+}
+
 impl std::fmt::Display for FinDegradation {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let mib = |b: u64| b as f64 / (1u64 << 20) as f64;
+        let size = ByteSize;
         match *self {
             FinDegradation::Maps { resolution, wanted_resolution, layers, wanted_layers, limit_bytes } => write!(
                 f,
                 "penumbra maps {layers} layers at {resolution}² instead of {wanted_layers} at {wanted_resolution}²: \
-                 over the {:.1} MiB allowed (the light's share of FinShadowBudget::map_bytes, or the GPU's buffer limit)",
-                mib(limit_bytes)
+                 over the {} allowed (the light's share of FinShadowBudget::map_bytes, or the GPU's buffer limit)",
+                size(limit_bytes)
             ),
-            FinDegradation::Capacity { buffer, kept, wanted, limit_bytes } => write!(
-                f,
-                "{buffer}: {kept} of {wanted} kept, the rest dropped (a {:.1} MiB buffer limit)",
-                mib(limit_bytes)
-            ),
+            FinDegradation::Capacity { buffer, kept, wanted, limit_bytes } => {
+                write!(f, "{buffer}: {kept} of {wanted} kept, the rest dropped (a {} buffer limit)", size(limit_bytes))
+            }
             FinDegradation::ExtractedOnCpu { buffer, bytes, limit_bytes } => write!(
                 f,
-                "fins extracted on the CPU: the GPU extraction's {buffer} needs {:.1} MiB, over the {:.1} MiB buffer limit",
-                mib(bytes),
-                mib(limit_bytes)
+                "fins extracted on the CPU: the GPU extraction's {buffer} needs {}, over the {} buffer limit",
+                size(bytes),
+                size(limit_bytes)
             ),
             FinDegradation::Unsupported(why) => write!(f, "fin shadows are off: {why}"),
             FinDegradation::LongCoverageCell { edges, limit } => write!(
@@ -135,15 +147,15 @@ impl std::fmt::Display for FinDegradation {
             }
             FinDegradation::ConvolutionLevels { dropped, limit_bytes } => write!(
                 f,
-                "convolution basis: its {dropped} finest mip level(s) dropped to fit {:.3} MiB (what \
+                "convolution basis: its {dropped} finest mip level(s) dropped to fit {} (what \
                  FinShadowBudget::map_bytes leaves beside the maps, or the GPU's buffer limit)",
-                mib(limit_bytes)
+                size(limit_bytes)
             ),
             FinDegradation::ConvolutionBasis { bytes, limit_bytes } => write!(
                 f,
-                "convolution basis needs {:.3} MiB at its coarsest, over the {:.3} MiB allowed: the light casts no shadow",
-                mib(bytes),
-                mib(limit_bytes)
+                "convolution basis needs {} at its coarsest, over the {} allowed: the light casts no shadow",
+                size(bytes),
+                size(limit_bytes)
             ),
             FinDegradation::LongPlateauCell { sheets, limit } => {
                 write!(f, "a plateau cell lists {sheets} sheets (over {limit}): the rest are skipped there")
@@ -292,6 +304,15 @@ pub(crate) fn check_device(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn degradations_say_their_sizes_in_units_a_person_reads() {
+        assert_eq!(ByteSize(12 << 10).to_string(), "12.0 KiB");
+        assert_eq!(ByteSize(128 << 20).to_string(), "128.0 MiB");
+        assert_eq!(ByteSize(1000).to_string(), "1000 bytes");
+        let capped = FinDegradation::Capacity { buffer: "fins", kept: 1, wanted: 2, limit_bytes: 12 << 10 };
+        assert!(capped.to_string().ends_with("(a 12.0 KiB buffer limit)"), "{capped}");
+    }
 
     #[test]
     fn the_basis_chain_runs_down_to_one_texel_and_drops_its_finest_levels_to_fit() {
