@@ -143,12 +143,57 @@ fn a_skinned_arm_played_by_bevys_animation_casts_the_pose_of_each_animation_time
     let turns = joint_turns(session.app.world_mut());
     assert!(turns.iter().zip(keyed).all(|(t, k)| (t - k).abs() < 1e-4), "joints at 1 s: {turns:?}, keyed {keyed:?}");
     assert_shadow_moved(&straight, &bent, "arm at 0 s vs 1 s", "the bind pose is cast");
+    // The oracles judge the pose the plugin made (`pose.rs`): it must be the
+    // one Bevy draws (`skinning.wgsl`), not just one that moved. Bevy's arm
+    // in the image against the plugin's traced through the snapshot.
+    let (drawn, traced) = arm_pixels(&mut session, &setup, &bent);
+    let (straight_drawn, _) = arm_pixels(&mut session, &setup, &straight);
+    let (matched, other_pose) = (iou(&drawn, &traced), iou(&straight_drawn, &traced));
+    let count = drawn.iter().filter(|d| **d).count();
+    println!("arm at 1 s: {count} pixels drawn; IoU with the snapshot's {matched:.3}, the 0 s image's {other_pose:.3}");
+    assert!(count > 300, "the arm is in view: {count} pixels");
+    assert!(matched > 0.85, "Bevy draws another pose than the plugin posed: IoU {matched}");
+    assert!(other_pose < 0.6, "the check cannot tell the poses apart: IoU {other_pose}");
     // The new pose rebuilt the arm's slot in place: no re-collected scene.
     let after = updates(&session);
     assert!(
         after.frames > before.frames && after.records > before.records,
         "the new pose re-collected the scene ({before:?} → {after:?})"
     );
+}
+
+/// Where the camera sees the arm (or the blob): in Bevy's image (its clay colour, lit or
+/// in shadow: red well above green and blue, where the ground, pedestal
+/// and sky are grey) and, traced through the plugin's snapshot, where the
+/// pixel's first hit is neither ground nor pedestal (0.5 × 0.2 × 0.5 m at
+/// the origin, the arm rising from its top).
+fn arm_pixels(session: &mut Session, setup: &Setup, shot: &Shot) -> (Vec<bool>, Vec<bool>) {
+    let drawn = shot
+        .color
+        .iter()
+        .map(|[r, g, b, _]| {
+            let (r, g, b) = (*r as f32, *g as f32, *b as f32);
+            r > 20.0 && r > 1.2 * g && r > 1.35 * b
+        })
+        .collect();
+    let mut judged = setup.clone();
+    judged.scene = session.scene_snapshot().scene;
+    judged.camera = session.main_camera().expect("the view");
+    let ls = shadow_fins::scene::LightSpaceScene::new(&judged.scene, judged.light);
+    let arm_at = |r: shadow_fins::oracle::Receiver| {
+        let p = ls.frame.to_world(r.position);
+        let on_pedestal = p.x.abs() <= 0.251 && p.z.abs() <= 0.251 && p.y <= 0.201;
+        if p.y > 1e-3 && !on_pedestal { 2.0 } else { 0.0 }
+    };
+    let traced = per_pixel(&judged, &judged.camera, &ls, arm_at).iter().map(|v| *v == 2.0).collect();
+    (drawn, traced)
+}
+
+/// Intersection over union of two pixel masks.
+fn iou(a: &[bool], b: &[bool]) -> f32 {
+    let both = a.iter().zip(b).filter(|(a, b)| **a && **b).count();
+    let either = a.iter().zip(b).filter(|(a, b)| **a || **b).count();
+    both as f32 / either.max(1) as f32
 }
 
 /// A clip of the loaded glTF played by its `AnimationPlayer` and held
@@ -273,6 +318,12 @@ fn a_morph_blob_played_by_bevys_animation_casts_the_shadow_of_its_current_weight
         .map(|w| w.weights().to_vec())
         .collect();
     assert_eq!(weights, [[1.0, 1.0]], "the animation's weights at 1 s");
+    // Bevy draws the weights the plugin posed (`morph.wgsl` against `pose.rs`).
+    let (drawn, traced) = arm_pixels(&mut session, &setup, &grown);
+    let (flat_drawn, _) = arm_pixels(&mut session, &setup, &flat);
+    let (matched, other_pose) = (iou(&drawn, &traced), iou(&flat_drawn, &traced));
+    println!("blob at 1 s: IoU with the snapshot's {matched:.3}, the 0 s image's {other_pose:.3}");
+    assert!(matched > 0.85 && other_pose < matched - 0.1, "Bevy draws another pose: {matched} / {other_pose}");
     assert_shadow_moved(&flat, &grown, "flat vs grown blob", "the base shape is cast");
 }
 
