@@ -88,9 +88,10 @@ fn changed_pixels(a: &Image, b: &Image) -> usize {
 /// [`changed_pixels`] over a rectangle (x0..x1, y0..y1), every pixel, with
 /// the count compared.
 fn changed_pixels_in(a: &Image, b: &Image, (x0, x1, y0, y1): (u32, u32, u32, u32)) -> (usize, usize) {
+    let (w, h) = (a.width().min(b.width()), a.height().min(b.height()));
     let (mut changed, mut n) = (0, 0);
-    for y in y0..y1 {
-        for x in x0..x1 {
+    for y in y0..y1.min(h) {
+        for x in x0..x1.min(w) {
             let (p, q) = (a.get_color_at(x, y).unwrap().to_srgba(), b.get_color_at(x, y).unwrap().to_srgba());
             changed += ((p.red - q.red).abs() + (p.green - q.green).abs() + (p.blue - q.blue).abs() > 0.06) as usize;
             n += 1;
@@ -295,12 +296,20 @@ fn the_editor_plays_a_gltfs_animation_through_bevy_and_shows_the_pose_it_rests_a
     // The skinned arm's `bend` clip, held at 0 s (straight) and 1 s (bent
     // over): Bevy's animation player poses it, the fin shadows follow.
     let scene = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/skinned-arm.gltf");
+    let mut tops = vec![];
     let shots = ["0", "1"].map(|t| {
         let (image, stdout) = screenshot_of_scene_with(&format!("gltf-arm-{t}s"), &scene, &["--animation-time", t]);
         assert!(!stdout.contains("editor error"), "{stdout}");
         assert!(stdout.contains(&format!("animations: 1 (held at {t}.00 s of \"bend\")")), "{stdout}");
+        // The ground truth traces the pose shown (a snapshot taken once Bevy applied it).
+        let traced = format!("editor animation: \"bend\" at {t}.00 s; ground truth traces the pose at {t}.00 s");
+        let line = stdout.lines().find(|l| l.starts_with(&traced)).unwrap_or_else(|| panic!("{traced}:\n{stdout}"));
+        tops.push(line.rsplit("y = ").next().and_then(|y| y.trim().parse::<f32>().ok()).expect("the scene's top"));
         image
     });
+    // Straight, the arm's top is 2 m up (0.2 m pedestal, 1.8 m arm); bent over, far lower.
+    println!("the traced scene's top: {:.3} m at 0 s, {:.3} m at 1 s", tops[0], tops[1]);
+    assert!((tops[0] - 2.0).abs() < 0.01 && tops[1] < 1.8, "the ground truth traces another pose: {tops:?}");
     // In the viewport between the panels (their text changes with the timings).
     let (w, h) = (shots[0].width(), shots[0].height());
     let viewport = (w * 3 / 10, w * 7 / 10, h / 10, h * 9 / 10);

@@ -131,7 +131,11 @@ fn a_hidden_mesh_and_one_with_bevys_not_shadow_caster_cast_no_fin_shadow_until_t
                 e.insert(ChildOf(parent));
             },
             |e: &mut EntityWorldMut| {
+                let parent = e.get::<ChildOf>().map(|c| c.parent());
                 e.remove::<ChildOf>();
+                if let Some(parent) = parent {
+                    e.world_scope(|w| w.despawn(parent));
+                }
             },
         ),
         (

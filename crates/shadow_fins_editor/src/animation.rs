@@ -4,10 +4,12 @@
 //!
 //! The editor owns the clock: the player is kept paused and sought to
 //! [`EditorAnimation::time`], so a time typed in, scrubbed or given on the
-//! command line (`--animation-time`) is exactly the pose shown. The ground
-//! truth and the analysis views trace a snapshot of the scene
-//! ([`LoadedScene`]): it is taken again whenever the animation rests at a new
-//! time (while it plays, they show the last pose it rested at: tracing every
+//! command line (`--animation-time`) is exactly the pose shown (resting, a
+//! time is clamped to the clip, its last pose included; playing loops). The
+//! ground truth and the analysis views trace a snapshot of the scene
+//! ([`LoadedScene`]): it is taken again whenever the animation has rested at
+//! a new time for as long as Bevy takes to apply it (while it plays, or while
+//! a slider is dragged, they show the last pose it rested at: tracing every
 //! frame's pose would never finish).
 
 use bevy::{gltf::Gltf, prelude::*};
@@ -36,8 +38,9 @@ pub struct EditorAnimation {
     /// The pose the ground truth's snapshot was taken at, (clip, time).
     pub snapshot_pose: Option<(usize, f32)>,
     players: Vec<Entity>,
-    /// The pose sought last and the frame it was sought in (Bevy applies it in
-    /// that frame's `PostUpdate`: the snapshot is taken a frame later).
+    /// The pose sought last and the frame it was sought in (Bevy applies it
+    /// in that frame's `PostUpdate`, or the next one's when the animation
+    /// graph was added that frame: [`SNAPSHOT_DELAY_FRAMES`]).
     sought: Option<((usize, f32), u32)>,
 }
 
@@ -47,17 +50,31 @@ impl EditorAnimation {
         self.clips.get(self.selected).map_or(0.0, |c| c.duration)
     }
 
-    /// `seconds` as a time of the selected clip: wrapped into its length
-    /// (playing loops), 0 where it is not a finite number.
-    pub fn wrapped(&self, seconds: f32) -> f32 {
+    /// `seconds` as a time of the selected clip to rest at: clamped into its
+    /// length (its last pose is a pose too), 0 where it is not a number.
+    pub fn resting_at(&self, seconds: f32) -> f32 {
+        if seconds.is_nan() { 0.0 } else { seconds.clamp(0.0, self.duration()) }
+    }
+
+    /// `seconds` as a time of the selected clip while it plays: wrapped into
+    /// its length (it loops), 0 where it is not a finite number.
+    pub fn looped(&self, seconds: f32) -> f32 {
         let d = self.duration();
         if !seconds.is_finite() || d <= 0.0 { 0.0 } else { seconds.rem_euclid(d) }
     }
 }
 
+/// Frames after a seek before the pose is surely applied: Bevy threads a new
+/// animation graph in the `PostUpdate` after the one it was added in
+/// (`thread_animation_graphs` waits for its asset event), so the first pose
+/// of a loaded glTF lands a frame late.
+const SNAPSHOT_DELAY_FRAMES: u32 = 2;
+
 pub(crate) fn build(app: &mut App) {
-    app.init_resource::<EditorAnimation>()
-        .add_systems(Update, (drive_animation, snapshot_rested_pose.after(drive_animation)));
+    app.init_resource::<EditorAnimation>().add_systems(
+        Update,
+        (drive_animation.after(crate::gltf_scene::finish_gltf_loads), snapshot_rested_pose.after(drive_animation)),
+    );
 }
 
 /// Adopts the animations of the glTF `file` spawned under `root` (its
@@ -100,7 +117,7 @@ pub(crate) fn adopt_animations(world: &mut World, root: Entity, file: &Handle<Gl
         world.entity_mut(player).insert(AnimationGraphHandle(graph.clone()));
     }
     animation.players = players;
-    animation.time = animation.wrapped(start_time);
+    animation.time = animation.resting_at(start_time);
     let line = format!(
         "animations: {} (held at {:.2} s of {:?})",
         animation.clips.len(),
@@ -125,10 +142,10 @@ fn drive_animation(
     animation.selected = animation.selected.min(animation.clips.len() - 1);
     if animation.playing {
         let advanced = animation.time + time.delta_secs();
-        animation.time = animation.wrapped(advanced);
+        animation.time = animation.looped(advanced);
     } else {
         // A typed-in time: into the clip's length, never NaN.
-        animation.time = animation.wrapped(animation.time);
+        animation.time = animation.resting_at(animation.time);
     }
     let pose = (animation.selected, animation.time);
     if animation.sought.is_some_and(|(p, _)| p == pose) {
@@ -154,7 +171,7 @@ fn snapshot_rested_pose(world: &mut World) {
     let frame = world.resource::<bevy::diagnostic::FrameCount>().0;
     let animation = world.resource::<EditorAnimation>();
     let Some((pose, sought_in)) = animation.sought else { return };
-    if animation.playing || animation.snapshot_pose == Some(pose) || frame <= sought_in {
+    if animation.playing || animation.snapshot_pose == Some(pose) || frame < sought_in + SNAPSHOT_DELAY_FRAMES {
         return;
     }
     let Some(loaded) = world.get_resource::<LoadedScene>().cloned() else { return };
@@ -174,19 +191,22 @@ mod tests {
     use super::*;
 
     #[test]
-    fn times_wrap_into_the_clip_and_are_never_nan() {
+    fn resting_times_clamp_to_the_clip_playing_ones_loop_and_none_is_nan() {
         let mut a = EditorAnimation::default();
         // No clip: every time is 0.
-        assert_eq!(a.wrapped(1.5), 0.0);
+        assert_eq!((a.resting_at(1.5), a.looped(1.5)), (0.0, 0.0));
         a.clips.push(Clip { name: "bend".into(), duration: 2.0, node: AnimationNodeIndex::new(1) });
-        assert_eq!(a.wrapped(1.5), 1.5);
-        assert_eq!(a.wrapped(2.5), 0.5);
-        assert_eq!(a.wrapped(-0.5), 1.5);
+        assert_eq!(a.resting_at(1.5), 1.5);
+        // The last pose can be rested at; past it and before 0, the ends.
+        assert_eq!((a.resting_at(2.0), a.resting_at(2.5), a.resting_at(-0.5)), (2.0, 2.0, 0.0));
+        assert_eq!((a.looped(2.5), a.looped(-0.5)), (0.5, 1.5));
+        assert_eq!((a.resting_at(f32::INFINITY), a.resting_at(f32::NEG_INFINITY)), (2.0, 0.0));
         for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
-            assert_eq!(a.wrapped(bad), 0.0, "{bad}");
+            assert_eq!(a.looped(bad), 0.0, "{bad}");
         }
+        assert_eq!(a.resting_at(f32::NAN), 0.0);
         // A clip of no length (a single key) rests at 0.
         a.clips[0].duration = 0.0;
-        assert_eq!(a.wrapped(0.7), 0.0);
+        assert_eq!((a.resting_at(0.7), a.looped(0.7)), (0.0, 0.0));
     }
 }

@@ -29,8 +29,8 @@ pub struct EditorOptions {
     pub view: Option<crate::ViewKind>,
     /// The other paper's method the peer views show at start (`--peer`).
     pub peer: Option<shadow_fins::peers::PeerMethod>,
-    /// Where a glTF's first animation rests at start, seconds
-    /// (`--animation-time`; wrapped into the clip's length).
+    /// Where the opened glTF's first animation rests at start, seconds
+    /// (`--animation-time`; clamped to the clip's length).
     pub animation_time: Option<f32>,
 }
 
@@ -132,7 +132,7 @@ fn report_pipelines_ready(
     pipelines: Res<bevy::render::render_resource::PipelineCache>,
 ) {
     if let Some(mut ready) = main_world.get_resource_mut::<PipelinesReady>() {
-        ready.0 = if pipelines.waiting_pipelines().next().is_none() { ready.0 + 1 } else { 0 };
+        ready.0 = if pipelines.waiting_pipelines().next().is_none() { ready.0.saturating_add(1) } else { 0 };
     }
 }
 
@@ -156,7 +156,11 @@ fn take_screenshot_when_due(
     frames: Res<bevy_shadow_fins::FinFrames>,
     loading: Query<(), With<crate::gltf_scene::PendingGltf>>,
     peer: Res<crate::peers::PeerJob>,
-    pipelines: Res<PipelinesReady>,
+    (pipelines, animation, loaded): (
+        Res<PipelinesReady>,
+        Res<crate::animation::EditorAnimation>,
+        Option<Res<crate::scene::LoadedScene>>,
+    ),
     (mut requested_at, mut peer_shown_for): (Local<Option<u32>>, Local<u32>),
     mut exit: MessageWriter<AppExit>,
 ) {
@@ -181,7 +185,11 @@ fn take_screenshot_when_due(
         crate::ViewKind::PeerError => *peer_shown_for >= 3 && peer.signed.is_some(),
         _ => true,
     };
-    let settled = settled && peer_ready && pipelines.0 >= 3;
+    // A resting animation's pose applied and its snapshot taken (the views trace it).
+    let posed = animation.clips.is_empty()
+        || animation.playing
+        || animation.snapshot_pose == Some((animation.selected, animation.time));
+    let settled = settled && peer_ready && pipelines.0 >= 3 && posed;
     if state.frames < due || (!settled && state.frames < due + SETTLE_LIMIT_FRAMES) {
         return;
     }
@@ -194,6 +202,15 @@ fn take_screenshot_when_due(
         if let Some(line) = line {
             println!("editor {label}: {line}");
         }
+    }
+    // The pose shown and the one the ground truth traces (its scene's top).
+    if let (Some(clip), Some(loaded)) = (animation.clips.get(animation.selected), &loaded) {
+        let top = loaded.scene.bounds().map_or(f32::NAN, |(_, hi)| hi.y);
+        let traced = animation.snapshot_pose.map_or("none".into(), |(_, t)| format!("{t:.2} s"));
+        println!(
+            "editor animation: {:?} at {:.2} s; ground truth traces the pose at {traced}, its scene's top at y = {top:.3}",
+            clip.name, animation.time
+        );
     }
     commands.spawn(Screenshot::primary_window()).observe(
         move |captured: On<ScreenshotCaptured>, mut exit: MessageWriter<AppExit>| {

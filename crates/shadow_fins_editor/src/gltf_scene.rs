@@ -132,7 +132,9 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
         let extent = snapshot.scene.diagonal().unwrap_or(1.0).max(1e-6);
         let lights = adopt_lights(world, root, keep_light, &view, extent);
         let camera = adopt_camera(world, root, keep_light, &view, extent);
-        let start = world.get_resource::<crate::EditorOptions>().and_then(|o| o.animation_time).unwrap_or(0.0);
+        // `--animation-time` is for the glTF the editor opens with; later ones start at 0.
+        let start = world.get_resource_mut::<crate::EditorOptions>().and_then(|mut o| o.animation_time.take());
+        let start = start.unwrap_or(0.0);
         let animations = crate::animation::adopt_animations(world, root, &loading.gltf, start);
         let generation = world.get_resource::<LoadedScene>().map_or(1, |l| l.generation + 1);
         let (objects, triangles) = (snapshot.scene.objects.len(), snapshot.scene.triangle_count());

@@ -440,8 +440,9 @@ fn animation_controls(ui: &mut egui::Ui, animation: &mut crate::animation::Edito
         (animation.selected, animation.time) = (selected, 0.0);
     }
     ui.checkbox(&mut animation.playing, "play (loops)");
-    let duration = animation.duration().max(1e-3);
-    ui.add(egui::Slider::new(&mut animation.time, 0.0..=duration).text("time, s"));
+    let duration = animation.duration();
+    // A clip of one key has one pose: nothing to scrub.
+    ui.add_enabled(duration > 0.0, egui::Slider::new(&mut animation.time, 0.0..=duration.max(1e-3)).text("time, s"));
     // The ground truth traces a snapshot: taken when the animation rests.
     match animation.snapshot_pose {
         Some((clip, t)) if animation.playing || (clip, t) != (animation.selected, animation.time) => {
