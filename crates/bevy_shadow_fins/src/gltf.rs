@@ -37,9 +37,10 @@ pub struct GltfSceneLoading {
 }
 
 impl GltfSceneLoading {
-    /// Spawned (the frame after, its transforms are propagated).
-    pub fn is_ready(&self) -> bool {
-        self.ready.load(Ordering::Relaxed)
+    /// Spawned (the frame after, its transforms are propagated), and the
+    /// whole file loaded (see [`spawn_gltf_scene`]).
+    pub fn is_ready(&self, assets: &AssetServer) -> bool {
+        self.ready.load(Ordering::Relaxed) && assets.is_loaded_with_dependencies(&self.gltf)
     }
 
     /// Bevy's loader's error, once it failed.
@@ -64,8 +65,11 @@ pub fn spawn_gltf_scene(
 ) -> Entity {
     let path = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
     let handle: Handle<WorldAsset> = assets.load(GltfAssetLabel::Scene(scene_index).from_asset(path.clone()));
-    // The same load as the scene's (one file, one load).
-    let gltf: Handle<Gltf> = assets.load(path);
+    // The whole file, for its animations. Bevy may load it a second time for
+    // this typed request, and that load's copies replace the first one's
+    // assets (materials, meshes) when it lands: the scene is ready only once
+    // it has (`is_ready`), so no change made to them after is lost.
+    let gltf = assets.load::<Gltf>(path);
     let ready = Arc::new(AtomicBool::new(false));
     let flag = ready.clone();
     let loading = GltfSceneLoading { handle: handle.clone(), gltf, ready, started: std::time::Instant::now() };

@@ -80,11 +80,15 @@ pub(crate) fn build(app: &mut App) {
 /// Adopts the animations of the glTF `file` spawned under `root` (its
 /// clips, on every animation player under `root`), held at
 /// `start_time` s of the first clip. Returns what it did, for the status line.
-pub(crate) fn adopt_animations(world: &mut World, root: Entity, file: &Handle<Gltf>, start_time: f32) -> String {
+pub(crate) fn adopt_animations(
+    world: &mut World,
+    root: Entity,
+    file: Option<&Handle<Gltf>>,
+    start_time: f32,
+) -> String {
     let players = bevy_shadow_fins::descendants_with::<AnimationPlayer>(world, root);
-    let clips: Vec<(String, Handle<AnimationClip>)> = world
-        .resource::<Assets<Gltf>>()
-        .get(file)
+    let clips: Vec<(String, Handle<AnimationClip>)> = file
+        .and_then(|file| world.resource::<Assets<Gltf>>().get(file))
         .map(|gltf| {
             gltf.animations
                 .iter()

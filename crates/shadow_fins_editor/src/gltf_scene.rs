@@ -104,7 +104,7 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
         pending.iter(world).map(|(e, p, l)| (e, p.name.clone(), p.keep_light, l.clone())).collect();
     for (root, name, keep_light, loading) in loads {
         let failed = loading.failed(world.resource::<AssetServer>()).or_else(|| {
-            (!loading.is_ready() && loading.started.elapsed() > GLTF_LOAD_TIMEOUT)
+            (!loading.is_ready(world.resource::<AssetServer>()) && loading.started.elapsed() > GLTF_LOAD_TIMEOUT)
                 .then(|| format!("Bevy had not spawned it after {} s", GLTF_LOAD_TIMEOUT.as_secs()))
         });
         if let Some(e) = failed {
@@ -112,7 +112,7 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
             world.despawn(root);
             continue;
         }
-        if !loading.is_ready() {
+        if !loading.is_ready(world.resource::<AssetServer>()) {
             continue;
         }
         let snapshot = bevy_shadow_fins::scene_snapshot(world, Some(root));
@@ -135,7 +135,7 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
         // `--animation-time` is for the glTF the editor opens with; later ones start at 0.
         let start = world.get_resource_mut::<crate::EditorOptions>().and_then(|mut o| o.animation_time.take());
         let start = start.unwrap_or(0.0);
-        let animations = crate::animation::adopt_animations(world, root, &loading.gltf, start);
+        let animations = crate::animation::adopt_animations(world, root, Some(&loading.gltf), start);
         let generation = world.get_resource::<LoadedScene>().map_or(1, |l| l.generation + 1);
         let (objects, triangles) = (snapshot.scene.objects.len(), snapshot.scene.triangle_count());
         world.insert_resource(LoadedScene { name: name.clone(), scene: Arc::new(snapshot.scene), generation, extent });
