@@ -76,13 +76,16 @@ fn changed_pixels(a: &Image, b: &Image) -> usize {
     let mut changed = 0;
     for y in (h / 4..h * 3 / 4).step_by(2) {
         for x in (w / 4..w * 3 / 4).step_by(2) {
-            let (p, q) = (a.get_color_at(x, y).unwrap().to_srgba(), b.get_color_at(x, y).unwrap().to_srgba());
-            if (p.red - q.red).abs() + (p.green - q.green).abs() + (p.blue - q.blue).abs() > 0.06 {
-                changed += 1;
-            }
+            changed += pixel_changed(a, b, x, y) as usize;
         }
     }
     changed
+}
+
+/// Whether the pixel (x, y) differs by more than 0.06 of sRGB, summed over the channels.
+fn pixel_changed(a: &Image, b: &Image, x: u32, y: u32) -> bool {
+    let (p, q) = (a.get_color_at(x, y).unwrap().to_srgba(), b.get_color_at(x, y).unwrap().to_srgba());
+    (p.red - q.red).abs() + (p.green - q.green).abs() + (p.blue - q.blue).abs() > 0.06
 }
 
 /// [`changed_pixels`] over a rectangle (x0..x1, y0..y1), every pixel, with
@@ -92,8 +95,7 @@ fn changed_pixels_in(a: &Image, b: &Image, (x0, x1, y0, y1): (u32, u32, u32, u32
     let (mut changed, mut n) = (0, 0);
     for y in y0..y1.min(h) {
         for x in x0..x1.min(w) {
-            let (p, q) = (a.get_color_at(x, y).unwrap().to_srgba(), b.get_color_at(x, y).unwrap().to_srgba());
-            changed += ((p.red - q.red).abs() + (p.green - q.green).abs() + (p.blue - q.blue).abs() > 0.06) as usize;
+            changed += pixel_changed(a, b, x, y) as usize;
             n += 1;
         }
     }

@@ -24,9 +24,11 @@
 //!   part did not change, and the render world writes only the instance
 //!   records that differ (`render/extract_gpu.rs`).
 //!
-//! What still scales with the scene when one caster moves is the GPU's
-//! extraction passes, run for every caster (the maps are redrawn only under
-//! the moved caster when the plan stayed: `extract.wgsl`), a few flat loops
+//! What still scales with the scene when one caster moves is the GPU passes
+//! that touch every instance or record once without extracting it (depth
+//! and footprint reductions, retiring, layer assignment, gathering: only
+//! the moved instances are extracted and the maps redrawn under them when
+//! the plan stayed, `extract.wgsl`), a few flat loops
 //! here (the scene's box, a copy of the instance records) and, for a caster
 //! with new geometry (a mesh swapped, or a pose the GPU cannot pose), each
 //! light's records and packed geometry.

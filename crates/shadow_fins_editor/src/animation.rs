@@ -73,8 +73,17 @@ const SNAPSHOT_DELAY_FRAMES: u32 = 2;
 pub(crate) fn build(app: &mut App) {
     app.init_resource::<EditorAnimation>().add_systems(
         Update,
-        (drive_animation.after(crate::gltf_scene::finish_gltf_loads), snapshot_rested_pose.after(drive_animation)),
+        (
+            drive_animation.after(crate::gltf_scene::finish_gltf_loads),
+            // Exclusive (it snapshots the world): only while a sought pose is untraced.
+            snapshot_rested_pose.after(drive_animation).run_if(pose_untraced),
+        ),
     );
+}
+
+/// A pose was sought that the ground truth's snapshot does not hold yet.
+fn pose_untraced(animation: Res<EditorAnimation>) -> bool {
+    animation.sought.is_some_and(|(pose, _)| animation.snapshot_pose != Some(pose))
 }
 
 /// Adopts the animations of the glTF `file` spawned under `root` (its
