@@ -5,7 +5,7 @@
 // `ConvolutionModel::visibility` with the mipmap prefilter.
 #import bevy_render::view::View
 #import bevy_shadow_fins::fin_types::{FinParams, orthographic, penumbra_half_width}
-#import bevy_shadow_fins::fin_view::{FinView, PIXEL_BACKGROUND, PIXEL_OTHER_FACE, pixel_receiver}
+#import bevy_shadow_fins::fin_view::{FinView, prepass_normal, PIXEL_BACKGROUND, PIXEL_OTHER_FACE, pixel_receiver}
 #import bevy_shadow_fins::convolution_types::{
     ConvolutionParams, ConvolutionState, c_k, level_resolution, level_offset, empty_channel, far_depth, near_depth,
     normalised,
@@ -122,7 +122,8 @@ fn convolution_pass(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let pixel = vec2<i32>(id.xy);
-    let r = pixel_receiver(view, fin_view, params, id.xy, textureLoad(depth_prepass, pixel, 0), textureLoad(normal_prepass, pixel, 0));
+    let r = pixel_receiver(view, fin_view, params, id.xy, textureLoad(depth_prepass, pixel, 0),
+        prepass_normal(textureLoad(normal_prepass, pixel, 0)));
     if (r.kind == PIXEL_BACKGROUND) {
         textureStore(visibility, pixel, vec4<f32>(1.0));
         return;

@@ -22,6 +22,7 @@
 #import bevy_render::view::View
 #import bevy_shadow_fins::coverage_types::{CoverageParams, Edge, CHUNK, MAX_CHUNKS, list_stride, texel_center}
 #import bevy_shadow_fins::fin_view::FinView
+#import bevy_shadow_fins::receiver_normal::{clamped_to, receiver_normal}
 #import bevy_shadow_fins::fin_types::in_face
 
 @group(0) @binding(0) var<uniform> params: CoverageParams;
@@ -40,6 +41,8 @@
 @group(0) @binding(11) var<storage, read_write> reference: array<u32>;
 // Per pixel: visible samples (low 16 bits) and samples above the horizon (high).
 @group(0) @binding(12) var<storage, read_write> tally: array<atomic<u32>>;
+// Bevy's deferred G-buffer (`receiver_normal.wgsl`), zeros without one.
+@group(0) @binding(13) var gbuffer: texture_2d<u32>;
 
 // `reference` sentinels: no receiver here (visibility 1); a receiver no
 // sample is above, or one in front of the near plane (visibility 0).
@@ -482,7 +485,8 @@ fn receiver_at(id: vec2<u32>) -> Receiver {
     let uv = (vec2<f32>(id) + 0.5 - view.viewport.xy) / view.viewport.zw;
     let in_view = view.view_from_clip * vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
     let position = view_to_frame(in_view.xyz / in_view.w);
-    r.normal = dir_to_frame(normalize(textureLoad(normal_prepass, pixel, 0).xyz * 2.0 - 1.0));
+    let gbuffer_texel = textureLoad(gbuffer, clamped_to(textureDimensions(gbuffer), pixel), 0);
+    r.normal = dir_to_frame(receiver_normal(textureLoad(normal_prepass, pixel, 0), gbuffer_texel));
     // The core's lift (`surface_epsilon`), and at least the rasteriser's own
     // f32 error in world space, 2ε·(|camera| + |p_view|) (FinView's w is the
     // camera's part): far from the origin a receiver rebuilt from the depth

@@ -44,6 +44,11 @@ fn pixel_position(view: View, fin_view: FinView, id: vec2<u32>, depth: f32) -> v
     return view_to_frame(fin_view, in_view.xyz / in_view.w);
 }
 
+// The world normal Bevy's normal prepass holds at a pixel.
+fn prepass_normal(encoded: vec4<f32>) -> vec3<f32> {
+    return normalize(encoded.xyz * 2.0 - 1.0);
+}
+
 // What a pass does at a target pixel: background or outside the viewport
 // (fully lit: the light's own half-space test is the compositing pass's),
 // a receiver another cube face's pass shades (a point light's six passes
@@ -60,14 +65,15 @@ struct PixelReceiver {
 }
 
 // The receiver at target pixel `id`, from its prepass depth (reverse Z: 0 is
-// the far plane) and encoded normal.
+// the far plane) and its world normal (`prepass_normal`, or
+// `receiver_normal::receiver_normal` where the G-buffer is read).
 fn pixel_receiver(
     view: View,
     fin_view: FinView,
     params: FinParams,
     id: vec2<u32>,
     depth: f32,
-    encoded_normal: vec4<f32>,
+    world_normal: vec3<f32>,
 ) -> PixelReceiver {
     var r: PixelReceiver;
     r.kind = PIXEL_BACKGROUND;
@@ -79,7 +85,7 @@ fn pixel_receiver(
         r.kind = PIXEL_OTHER_FACE;
         return r;
     }
-    r.normal = dir_to_frame(params, normalize(encoded_normal.xyz * 2.0 - 1.0));
+    r.normal = dir_to_frame(params, world_normal);
     r.kind = PIXEL_RECEIVER;
     return r;
 }

@@ -46,7 +46,25 @@ var<private> fin_surface: vec3<f32>;
 override fn pbr_functions::apply_pbr_lighting(in: pbr_types::PbrInput) -> vec4<f32> {
     fin_receiver = (in.flags & MESH_FLAGS_SHADOW_RECEIVER_BIT) != 0u;
     fin_surface = in.world_position.xyz;
-    return pbr_functions::apply_pbr_lighting(in);
+    return pbr_functions::apply_pbr_lighting(on_the_shaded_side(in));
+}
+
+// `in` with N on the side of the surface Bevy shades. With the normal prepass
+// that `FinShadowView` adds, Bevy's main pass loads N from it
+// (`LOAD_PREPASS_NORMALS`). An alpha-masked material drawn deferred, which
+// Bevy 0.19 draws again in the main pass, finds there its deferred prepass's
+// normal: the vertex normal, not turned to the camera on a double-sided back
+// face (`pbr_deferred_functions::deferred_output`), so the face would read
+// as facing away from every light (a lit leaf's back drawn dark).
+// `world_normal` is turned (`prepare_world_normal`): N takes its side. Any
+// other N (forward prepass, computed in the main pass) is on that side
+// already and stays as it is.
+fn on_the_shaded_side(in: pbr_types::PbrInput) -> pbr_types::PbrInput {
+    var out = in;
+    if (dot(in.N, in.world_normal) < 0.0) {
+        out.N = -in.N;
+    }
+    return out;
 }
 
 // Whether V applies to a light evaluated at `p`: a receiving mesh's own surface.

@@ -6,7 +6,7 @@
 // texture (the same values at the pixels' own points, no texel grid).
 #import bevy_render::view::View
 #import bevy_shadow_fins::fin_types::{FinParams, CHANNELS, orthographic}
-#import bevy_shadow_fins::fin_view::{FinView, PIXEL_BACKGROUND, PIXEL_OTHER_FACE, pixel_receiver}
+#import bevy_shadow_fins::fin_view::{FinView, prepass_normal, PIXEL_BACKGROUND, PIXEL_OTHER_FACE, pixel_receiver}
 
 // `PlateauUniform` in `plateau_frame.rs`.
 struct PlateauParams {
@@ -153,7 +153,8 @@ fn plateaus_pass(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let pixel = vec2<i32>(id.xy);
-    let r = pixel_receiver(view, fin_view, params, id.xy, textureLoad(depth_prepass, pixel, 0), textureLoad(normal_prepass, pixel, 0));
+    let r = pixel_receiver(view, fin_view, params, id.xy, textureLoad(depth_prepass, pixel, 0),
+        prepass_normal(textureLoad(normal_prepass, pixel, 0)));
     if (r.kind == PIXEL_BACKGROUND) {
         textureStore(visibility, pixel, vec4<f32>(1.0));
         return;

@@ -7,6 +7,7 @@
     FinParams, FinSample, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, texel_index, decode_min_key, decode_max_key,
     orthographic, penumbra_half_width,
 }
+#import bevy_shadow_fins::receiver_normal::{clamped_to, receiver_normal}
 #import bevy_shadow_fins::fin_view::{FinView, PIXEL_BACKGROUND, PIXEL_OTHER_FACE, pixel_receiver}
 
 @group(0) @binding(0) var<uniform> params: FinParams;
@@ -16,6 +17,8 @@
 @group(0) @binding(4) var visibility: texture_storage_2d<r32float, write>;
 @group(0) @binding(5) var<uniform> view: View;
 @group(0) @binding(6) var<uniform> fin_view: FinView;
+// Bevy's deferred G-buffer (`receiver_normal.wgsl`), zeros without one.
+@group(0) @binding(7) var gbuffer: texture_2d<u32>;
 
 fn half_width(lb: f32, lr: f32) -> f32 {
     return penumbra_half_width(params, lb, lr);
@@ -93,7 +96,8 @@ fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let pixel = vec2<i32>(id.xy);
-    let r = pixel_receiver(view, fin_view, params, id.xy, textureLoad(depth_prepass, pixel, 0), textureLoad(normal_prepass, pixel, 0));
+    let r = pixel_receiver(view, fin_view, params, id.xy, textureLoad(depth_prepass, pixel, 0),
+        receiver_normal(textureLoad(normal_prepass, pixel, 0), textureLoad(gbuffer, clamped_to(textureDimensions(gbuffer), pixel), 0)));
     if (r.kind == PIXEL_BACKGROUND) {
         textureStore(visibility, pixel, vec4<f32>(1.0));
         return;

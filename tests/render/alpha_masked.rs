@@ -17,8 +17,8 @@ use shadow_fins_app::harness::{Session, Setup};
 
 use super::{
     common::{
-        HEIGHT, MovedInPlace, WIDTH, assert_not_trivial, asset, compare, max_difference, moved_in_place, oracle,
-        per_pixel, render, save, settings, setup,
+        HEIGHT, MovedInPlace, WIDTH, assert_not_trivial, asset, compare, linear_rgb, max_difference, moved_in_place,
+        oracle, per_pixel, render, save, settings, setup,
     },
     coverage::{coverage_oracle, coverage_settings},
 };
@@ -55,6 +55,17 @@ fn leaf_cards_gltf() -> Setup {
     setup.gltf = Some(path);
     setup.sun_illuminance = 1500.0;
     setup
+}
+
+/// The core's leaf cards under their spot light, at twice the suite's image
+/// size: their shadows are mostly penumbra (holes, a 0.4 m light), and at
+/// 96 × 72 fewer than 50 pixels are in umbra, too few for
+/// `assert_not_trivial` (until the cards' own back faces stopped shadowing
+/// themselves, those made up the count).
+fn core_leaf_cards(settings: FinShadowSettings) -> Setup {
+    let mut s = setup(SceneId::LeafCards, settings);
+    (s.width, s.height) = (2 * WIDTH, 2 * HEIGHT);
+    s
 }
 
 /// `setup` with every caster solid (its cut-out dropped).
@@ -123,7 +134,7 @@ fn gpu_coverage_and_fins_cut_a_core_scenes_masked_cards_as_the_oracles_do() {
     // Spawned by the harness from the core scene (masked materials over the
     // core's masks): fins against the raster oracle, coverage against the
     // coverage oracle at the same resolution and samples.
-    let fins = setup(SceneId::LeafCards, settings());
+    let fins = core_leaf_cards(settings());
     let shot = render(&fins);
     save(&shot, "alpha_leaf_cards_fins");
     assert_not_trivial(&shot);
@@ -152,7 +163,7 @@ fn gpu_coverage_and_fins_cut_a_core_scenes_masked_cards_as_the_oracles_do() {
     assert!(mad <= 0.01 && far <= 0.03, "fins, nearest: {mad} / {far}");
     assert!(filters_apart > 0.0005, "the nearest filter changed nothing: {filters_apart}");
 
-    let coverage = setup(SceneId::LeafCards, coverage_settings());
+    let coverage = core_leaf_cards(coverage_settings());
     let shot = render(&coverage);
     save(&shot, "alpha_leaf_cards_coverage");
     assert_not_trivial(&shot);
@@ -177,7 +188,7 @@ fn masked_cards_extract_on_the_gpu_as_the_cpu_extracts_them() {
     // perspective-correct UVs, casters clipped at the near plane) and
     // under a sun (`leaf_cards_gltf`, from Bevy's own load).
     let sun = leaf_cards_gltf();
-    for (name, gpu) in [("spot", setup(SceneId::LeafCards, settings())), ("sun", sun)] {
+    for (name, gpu) in [("spot", core_leaf_cards(settings())), ("sun", sun)] {
         let (g, c) = (shoot(&gpu), shoot(&extracted_on_the_cpu(&gpu)));
         save(&g, &format!("alpha_cards_gpu_extraction_{name}"));
         assert_not_trivial(&g);
@@ -242,7 +253,7 @@ fn a_masked_card_moved_is_extracted_alone_and_shadows_as_a_fresh_app() {
     // cut-outs (at the casters' own indices) and extracts the moved card's
     // anew: the update must leave what a fresh app renders with the card
     // already there, holes and all.
-    let setup = setup(SceneId::LeafCards, settings());
+    let setup = core_leaf_cards(settings());
     let MovedInPlace { before, shot, stats, fresh: expected } =
         moved_in_place(&setup, "card-1", Vec3::new(0.05, 0.0, -0.04), "alpha_card_moved");
     let worst = max_difference(&shot.visibility, &expected);
@@ -280,7 +291,7 @@ fn masked_cards_at_millimetre_and_kilometre_scales_shadow_as_the_cpu_and_the_ora
     // cut-outs, perspective-correct UVs) against the CPU extraction and the
     // raster oracle, on the ground.
     for s in [1e-3f32, 1e3] {
-        let gpu = scaled(&setup(SceneId::LeafCards, settings()), s);
+        let gpu = scaled(&core_leaf_cards(settings()), s);
         let (g, c) = (render(&gpu), render(&extracted_on_the_cpu(&gpu)));
         save(&g, &format!("alpha_cards_scale_{s}"));
         assert_not_trivial(&g);
@@ -324,4 +335,120 @@ fn masked_cards_over_the_buffer_limit_degrade_with_the_reason_in_the_stats() {
     // Within the limit, the same cards are extracted on the GPU, cut out, undegraded.
     let free = shoot(&setup);
     assert_eq!((free.stats.extraction, free.stats.degraded), (FinExtraction::Gpu, None), "{:?}", free.stats);
+}
+
+/// The pixels inside a card's face (each of its eight neighbours sees the
+/// same card: no outline, no hole's edge, no other card's) whose surface
+/// faces the light, split by the side of the card the camera sees: `(front,
+/// back)` pixel indices, the back ones those where the camera sees the
+/// side its geometric normal points away from (a double-sided material's
+/// back face).
+fn lit_card_faces(setup: &Setup) -> (Vec<usize>, Vec<usize>) {
+    use shadow_fins::bvh::Bvh;
+    let ls = shadow_fins::scene::LightSpaceScene::new(&setup.scene, setup.light);
+    let bvh = Bvh::new(&ls.casters);
+    let (w, h) = (setup.width, setup.height);
+    let hits: Vec<Option<(f32, u32, bool, bool)>> = (0..w * h)
+        .map(|i| {
+            let (o, d) = setup.camera.ray(i % w, i / w, w, h);
+            let (o, d) = (ls.frame.to_frame(o), ls.frame.dir_to_frame(d));
+            let hit = bvh.closest_hit_where(o, d, 0.0, |k, u, v| ls.blocks_at(k as usize, u, v))?;
+            let on_ground = ls.frame.to_world(o + d * hit.t).y.abs() < 1e-3;
+            let back = hit.normal.dot(d) > 0.0;
+            let receiver = shadow_fins::oracle::Receiver {
+                position: o + d * hit.t,
+                normal: if back { -hit.normal } else { hit.normal },
+            };
+            (!on_ground && receiver.faces_light(&ls.frame)).then_some((hit.t, hit.triangle / 2, back, true))
+        })
+        .collect();
+    let (mut front, mut back) = (Vec::new(), Vec::new());
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let i = (y * w + x) as usize;
+            let Some((t, card, is_back, _)) = hits[i] else { continue };
+            let inside = (-1i32..=1).all(|dy| {
+                (-1i32..=1).all(|dx| {
+                    let j = ((y as i32 + dy) as u32 * w + (x as i32 + dx) as u32) as usize;
+                    hits[j].is_some_and(|(tj, cj, ..)| cj == card && (tj - t).abs() < 0.05 * t)
+                })
+            });
+            if inside {
+                if is_back { back.push(i) } else { front.push(i) }
+            }
+        }
+    }
+    (front, back)
+}
+
+#[test]
+fn a_double_sided_cards_back_face_is_shadowed_and_lit_as_the_side_the_camera_sees() {
+    // Bevy shades the back face of a double-sided material with its normal
+    // turned to the camera; the fins' receiver must be that surface too (the
+    // oracle's and the truth's `pixel_receiver`), in the deferred path, whose
+    // normal prepass holds the unturned vertex normal (before the fix the
+    // back faces lit from the camera's side read V ≈ 0.23, their truth 1:
+    // `fin_view.wgsl`'s `receiver_normal`), and in the forward one. Under a
+    // sun, and under the file's own spot light and camera (the editor's
+    // first view). And drawn lit: Bevy draws a deferred alpha-masked
+    // material again in its main pass, with N loaded from that unturned
+    // prepass normal, which drew the lit back face as dark as its unlit side
+    // (`forward_hook.wgsl`'s `on_the_shaded_side`): the deferred image must
+    // be the forward one there.
+    let sun = leaf_cards_gltf();
+    let mut spot = leaf_cards_gltf();
+    (spot.gltf_lights, spot.gltf_camera, spot.gltf_light_radius) = (true, true, 0.4);
+    let forward = Setup { forward: true, ..sun.clone() };
+    let mut colours = Vec::new();
+    for (name, setup) in [("sun, deferred", &sun), ("sun, forward", &forward), ("spot, deferred", &spot)] {
+        let mut session = Session::new(setup);
+        session.wait_for_gltf().expect("Bevy loads it");
+        let shot = session.settle(16).expect("render");
+        save(&shot, &format!("alpha_card_faces_{}", name.replace(", ", "_")));
+        assert_not_trivial(&shot);
+        let mut judged = setup.clone();
+        judged.scene = session.scene_snapshot().scene;
+        judged.light = session.fin_lights()[0].1;
+        judged.camera = session.main_camera().expect("the view");
+        let (front, back) = lit_card_faces(&judged);
+        assert!(front.len() >= 40 && back.len() >= 40, "{name}: {} front, {} back pixels", front.len(), back.len());
+        let expected = oracle(&judged, Method::MultiLayer);
+        let ls = shadow_fins::scene::LightSpaceScene::new(&judged.scene, judged.light);
+        let truth = shadow_fins::ground_truth::GroundTruth::new(&ls, 4096);
+        let truth = super::common::per_pixel(&judged, &judged.camera, &ls, |r| truth.visibility(r));
+        for (side, pixels) in [("front", &front), ("back", &back)] {
+            let pick = |v: &[f32]| -> Vec<f32> { pixels.iter().map(|&i| v[i]).collect() };
+            let (gpu, oracle, truth) = (pick(&shot.visibility), pick(&expected), pick(&truth));
+            let (vs_oracle, far) = compare(&gpu, &oracle);
+            let (vs_truth, _) = compare(&gpu, &truth);
+            let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
+            println!(
+                "{name}, {side} faces ({} px): gpu–oracle {vs_oracle:.4} (share > 0.1: {:.1}%), gpu–truth \
+                 {vs_truth:.4}; mean V gpu {:.3}, truth {:.3}",
+                pixels.len(),
+                far * 100.0,
+                mean(&gpu),
+                mean(&truth),
+            );
+            assert!(vs_oracle <= 0.01 && vs_truth <= 0.01, "{name}, {side}: {vs_oracle} / {vs_truth}");
+        }
+        if name.starts_with("sun") {
+            colours.push((linear_rgb(&shot), back));
+        }
+    }
+    // The sun's deferred and forward images on the back faces (the same
+    // pixels: one camera, one scene). Tolerance: the two paths are Bevy's
+    // same BRDF and V, apart by 8-bit rounding; the dark side read 0.08 of it.
+    let [(deferred, back), (forward, _)] = &colours[..] else { unreachable!() };
+    let luminance = |c: &[f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    let (d, f): (f32, f32) = back
+        .iter()
+        .map(|&i| (luminance(&deferred[i]), luminance(&forward[i])))
+        .fold((0.0, 0.0), |(d, f), (a, b)| (d + a, f + b));
+    println!(
+        "lit back faces' mean luminance: deferred {:.4}, forward {:.4}",
+        d / back.len() as f32,
+        f / back.len() as f32
+    );
+    assert!((d - f).abs() <= 0.02 * f, "the deferred back faces are drawn {d} against the forward {f}");
 }

@@ -140,6 +140,7 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
                 uniform_buffer_sized(false, None),
                 storage_buffer_sized(false, None),
                 storage_buffer_sized(false, None),
+                super::gbuffer_entry(),
             ),
         ),
     );
@@ -329,6 +330,7 @@ fn prepare_view_bind_groups(
     pipelines: Option<Res<CoveragePipelines>>,
     pipeline_cache: Res<PipelineCache>,
     view_uniforms: Res<ViewUniforms>,
+    no_gbuffer: Res<super::NoGBuffer>,
     mut views: Query<(Entity, &FinViewTexture, &ViewPrepassTextures, &ExtractedView, Option<&mut CoverageViewBuffers>)>,
 ) {
     let binding = view_uniforms.uniforms.binding();
@@ -394,6 +396,7 @@ fn prepare_view_bind_groups(
                         buffer.as_entire_binding(),
                         per_pixel.reference.as_entire_binding(),
                         per_pixel.tally.as_entire_binding(),
+                        super::gbuffer_input(prepass, &no_gbuffer),
                     )),
                 );
                 Some((bind_group, gpu.counts.2.clamp(1, 8)))

@@ -51,6 +51,7 @@ pub(crate) fn build(app: &mut App) {
     load_shader_library!(app, "shaders/fin_types.wgsl");
     load_shader_library!(app, "shaders/cutout.wgsl");
     load_shader_library!(app, "shaders/fin_view.wgsl");
+    load_shader_library!(app, "shaders/receiver_normal.wgsl");
     embedded_asset!(app, "shaders/maps.wgsl");
     embedded_asset!(app, "shaders/visibility.wgsl");
     app.init_resource::<FinPartialRedraw>().init_resource::<FinIncrementalExtraction>().add_plugins((
@@ -123,7 +124,7 @@ pub(crate) fn finish(app: &mut App) {
     render_app
         .init_resource::<FinLightsGpu>()
         .init_resource::<ViewsWithVisibility>()
-        .add_systems(bevy::render::RenderStartup, init_pipelines)
+        .add_systems(bevy::render::RenderStartup, (init_pipelines, init_no_gbuffer))
         .add_systems(
             Render,
             (
@@ -258,6 +259,7 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
                 texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
                 uniform_buffer::<ViewUniform>(true),
                 uniform_buffer_sized(false, None),
+                gbuffer_entry(),
             ),
         ),
     );
@@ -824,6 +826,46 @@ pub(super) fn prepass_inputs(prepass: &ViewPrepassTextures) -> Option<(&TextureV
     Some((depth, normal))
 }
 
+/// The camera's deferred G-buffer, whose normal says which side of a
+/// double-sided surface Bevy shades (`receiver_normal.wgsl`),
+/// or [`NoGBuffer`]'s when it has no deferred prepass.
+pub(super) fn gbuffer_input<'a>(prepass: &'a ViewPrepassTextures, no_gbuffer: &'a NoGBuffer) -> &'a TextureView {
+    prepass.deferred_view().unwrap_or(&no_gbuffer.0)
+}
+
+/// A 1×1 G-buffer of zeros (no deferred pixel): what the visibility passes
+/// read in place of a camera's G-buffer when it has no deferred prepass
+/// (every pixel forward-shaded, its prepass normal already the shaded side).
+#[derive(Resource)]
+pub(super) struct NoGBuffer(TextureView);
+
+/// The layout entry of the G-buffer a visibility pass reads (Bevy's
+/// `DEFERRED_PREPASS_FORMAT`, `Rgba32Uint`).
+pub(super) fn gbuffer_entry() -> BindGroupLayoutEntryBuilder {
+    texture_2d(TextureSampleType::Uint)
+}
+
+fn init_no_gbuffer(mut commands: Commands, device: Res<RenderDevice>, queue: Res<RenderQueue>) {
+    let size = Extent3d { width: 1, height: 1, depth_or_array_layers: 1 };
+    let texture = device.create_texture(&TextureDescriptor {
+        label: Some("fin_no_gbuffer"),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: TextureDimension::D2,
+        format: TextureFormat::Rgba32Uint,
+        usage: TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    queue.write_texture(
+        texture.as_image_copy(),
+        &[0; 16],
+        TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(16), rows_per_image: None },
+        size,
+    );
+    commands.insert_resource(NoGBuffer(texture.create_view(&TextureViewDescriptor::default())));
+}
+
 #[allow(clippy::too_many_arguments)]
 fn prepare_view_bind_groups(
     mut commands: Commands,
@@ -834,6 +876,7 @@ fn prepare_view_bind_groups(
     pipelines: Option<Res<FinPipelines>>,
     pipeline_cache: Res<PipelineCache>,
     view_uniforms: Res<ViewUniforms>,
+    no_gbuffer: Res<NoGBuffer>,
     mut views: Query<(Entity, &FinViewTexture, &ViewPrepassTextures, &ExtractedView, Option<&mut FinViewBuffer>)>,
 ) {
     let (Some(pipelines), Some(view_binding)) = (pipelines, view_uniforms.uniforms.binding()) else {
@@ -847,6 +890,7 @@ fn prepare_view_bind_groups(
         // the pass does not run on last frame's maps and nothing composites
         // stale shadows.
         let inputs = prepass_inputs(prepass);
+        let gbuffer = gbuffer_input(prepass, &no_gbuffer);
         let mut buffers = view_buffers.map(|mut b| std::mem::take(&mut b.0)).unwrap_or_default();
         let groups = frames
             .0
@@ -878,6 +922,7 @@ fn prepare_view_bind_groups(
                         layer,
                         view_binding.clone(),
                         buffer.as_entire_binding(),
+                        gbuffer,
                     )),
                 ))
             })
