@@ -383,10 +383,9 @@ fn spawn_gltf(world: &mut World, path: &std::path::Path, adoption: GltfAdoption)
 /// the first camera its view, as [`Setup`] asks (its own cameras are off:
 /// `spawn_gltf_scene` turns them off).
 fn adopt_gltf(world: &mut World) {
-    let assets = world.resource::<AssetServer>().clone();
     let Some((root, setup)) = world
         .get_resource::<GltfLoad>()
-        .filter(|l| !l.adopted && l.loading.is_ready(&assets))
+        .filter(|l| !l.adopted && l.loading.is_ready())
         .map(|l| (l.root, l.adoption.clone()))
     else {
         return;

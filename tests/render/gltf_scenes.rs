@@ -188,3 +188,27 @@ fn a_gltf_bevy_cannot_read_is_an_error_not_a_hang() {
     let error = result.err().expect("a broken glTF is an error");
     assert!(error.contains("could not load"), "{error}");
 }
+
+#[test]
+fn a_scene_the_file_does_not_have_is_an_error_that_says_so() {
+    // `spawn_gltf_scene` loads the file once, as a `Gltf`, and spawns its
+    // `scenes[i]`: an index past them is a load that never spawns, and says why.
+    let (_, setup) = gltf_setup("leaf-cards.gltf");
+    let mut session = Session::new(&setup);
+    session.wait_for_gltf().expect("Bevy loads it");
+    let assets = session.app.world().resource::<AssetServer>().clone();
+    let path = asset("leaf-cards.gltf");
+    let root = bevy_shadow_fins::spawn_gltf_scene(&mut session.app.world_mut().commands(), &assets, &path, 7);
+    session.app.world_mut().flush();
+    let loading = session.app.world().get::<bevy_shadow_fins::GltfSceneLoading>(root).expect("spawned").clone();
+    for _ in 0..100 {
+        if loading.failed(&assets).is_some() {
+            break;
+        }
+        session.update();
+    }
+    let error = loading.failed(&assets).expect("a scene the file lacks fails");
+    println!("scene 7 of leaf-cards.gltf: {error}");
+    assert!(error.contains("1 scene(s)") && error.contains("scene 7"), "{error}");
+    assert!(!loading.is_ready() && session.app.world().get::<WorldAssetRoot>(root).is_none());
+}

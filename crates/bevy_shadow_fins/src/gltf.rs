@@ -11,13 +11,13 @@
 //! `shadow-fins-lab make-assets`), else the caller's fallback.
 
 use std::sync::{
-    Arc,
+    Arc, Mutex,
     atomic::{AtomicBool, Ordering},
 };
 
 use bevy::{
     asset::LoadState,
-    gltf::{Gltf, GltfAssetLabel, GltfExtras},
+    gltf::{Gltf, GltfExtras},
     prelude::*,
     world_serialization::WorldInstanceReady,
 };
@@ -25,38 +25,57 @@ use bevy::{
 use crate::{FinShadowSettings, FinShadows, MAX_FIN_LIGHTS};
 
 /// A glTF scene being spawned by [`spawn_gltf_scene`] (on its root entity).
+/// Clones share the load's state.
 #[derive(Component, Clone)]
 pub struct GltfSceneLoading {
-    pub handle: Handle<WorldAsset>,
-    /// The whole file (its animations, nodes, materials): held while this
-    /// is, as Bevy drops a file's root asset that nothing holds.
+    /// The whole file (its scenes, animations, nodes, materials): held while
+    /// this is, as Bevy drops a file's root asset that nothing holds.
     pub gltf: Handle<Gltf>,
-    ready: Arc<AtomicBool>,
+    /// The scene of the file that is spawned (an index into `Gltf::scenes`).
+    pub scene_index: usize,
+    state: Arc<LoadingState>,
     /// When the load began (a load that neither fails nor spawns is given up).
     pub started: std::time::Instant,
 }
 
+#[derive(Default)]
+struct LoadingState {
+    /// The scene's instance has spawned.
+    spawned: AtomicBool,
+    /// Why the scene cannot spawn although the file loaded.
+    failure: Mutex<Option<String>>,
+}
+
 impl GltfSceneLoading {
-    /// Spawned (the frame after, its transforms are propagated), and the
+    /// Spawned (the frame after, its transforms are propagated), from the
     /// whole file loaded (see [`spawn_gltf_scene`]).
-    pub fn is_ready(&self, assets: &AssetServer) -> bool {
-        self.ready.load(Ordering::Relaxed) && assets.is_loaded_with_dependencies(&self.gltf)
+    pub fn is_ready(&self) -> bool {
+        self.state.spawned.load(Ordering::Relaxed)
     }
 
-    /// Bevy's loader's error, once it failed.
+    /// Bevy's loader's error, once it failed, or why the loaded file has no
+    /// such scene.
     pub fn failed(&self, assets: &AssetServer) -> Option<String> {
-        match assets.load_state(&self.handle) {
+        match assets.load_state(&self.gltf) {
             LoadState::Failed(e) => Some(e.to_string()),
-            _ => None,
+            _ => self.state.failure.lock().ok()?.clone(),
         }
     }
 }
 
 /// Spawns scene `scene_index` of the glTF at `path` with Bevy's own loader
-/// (`WorldAssetRoot`; a relative path is made absolute, since Bevy would read
-/// it from its asset folder) and returns its root, which carries a
-/// [`GltfSceneLoading`]. The file's cameras are turned off as the scene
-/// spawns (Bevy makes the first active, and it would draw over the app's).
+/// and returns its root, which carries a [`GltfSceneLoading`] (a relative
+/// path is made absolute, since Bevy would read it from its asset folder).
+///
+/// The file is loaded once, as a `Gltf` (Bevy loads a file a second time for
+/// a second kind of request — the scene's label, then the file's root — and
+/// that load's copies replace the first one's materials and meshes when it
+/// lands, changes made to them in between lost): once it has loaded with its
+/// dependencies, [`ShadowFinsPlugin`](crate::ShadowFinsPlugin) gives the root
+/// the file's `Gltf::scenes[scene_index]` as its `WorldAssetRoot` (the asset
+/// `GltfAssetLabel::Scene(scene_index)` names). The file's cameras are
+/// turned off as the scene spawns (Bevy makes the first active, and it would
+/// draw over the app's).
 pub fn spawn_gltf_scene(
     commands: &mut Commands,
     assets: &AssetServer,
@@ -64,26 +83,49 @@ pub fn spawn_gltf_scene(
     scene_index: usize,
 ) -> Entity {
     let path = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
-    let handle: Handle<WorldAsset> = assets.load(GltfAssetLabel::Scene(scene_index).from_asset(path.clone()));
-    // The whole file, for its animations. Bevy may load it a second time for
-    // this typed request, and that load's copies replace the first one's
-    // assets (materials, meshes) when it lands: the scene is ready only once
-    // it has (`is_ready`), so no change made to them after is lost.
     let gltf = assets.load::<Gltf>(path);
-    let ready = Arc::new(AtomicBool::new(false));
-    let flag = ready.clone();
-    let loading = GltfSceneLoading { handle: handle.clone(), gltf, ready, started: std::time::Instant::now() };
+    let state = Arc::new(LoadingState::default());
+    let spawned = state.clone();
+    let loading = GltfSceneLoading { gltf, scene_index, state, started: std::time::Instant::now() };
     commands
-        .spawn((loading, WorldAssetRoot(handle)))
-        .observe(move |spawned: On<WorldInstanceReady>, children: Query<&Children>, mut cameras: Query<&mut Camera>| {
-            for e in children.iter_descendants(spawned.entity) {
+        .spawn(loading)
+        .observe(move |ready: On<WorldInstanceReady>, children: Query<&Children>, mut cameras: Query<&mut Camera>| {
+            for e in children.iter_descendants(ready.entity) {
                 if let Ok(mut camera) = cameras.get_mut(e) {
                     camera.is_active = false;
                 }
             }
-            flag.store(true, Ordering::Relaxed);
+            spawned.spawned.store(true, Ordering::Relaxed);
         })
         .id()
+}
+
+/// Gives each [`spawn_gltf_scene`] root whose file has loaded (with its
+/// dependencies) its scene to spawn, or says why there is none.
+pub(crate) fn spawn_loaded_gltf_scenes(
+    mut commands: Commands,
+    assets: Res<AssetServer>,
+    gltfs: Res<Assets<Gltf>>,
+    roots: Query<(Entity, &GltfSceneLoading), Without<WorldAssetRoot>>,
+) {
+    for (root, loading) in &roots {
+        if !assets.is_loaded_with_dependencies(&loading.gltf) {
+            continue;
+        }
+        let Some(gltf) = gltfs.get(&loading.gltf) else { continue };
+        match gltf.scenes.get(loading.scene_index) {
+            Some(scene) => {
+                commands.entity(root).insert(WorldAssetRoot(scene.clone()));
+            }
+            None => {
+                let mut failure = loading.state.failure.lock().unwrap_or_else(|e| e.into_inner());
+                if failure.is_none() {
+                    let n = gltf.scenes.len();
+                    *failure = Some(format!("the file has {n} scene(s); scene {} was asked for", loading.scene_index));
+                }
+            }
+        }
+    }
 }
 
 /// `root`'s descendants with a `T`, in the order the scene spawned them

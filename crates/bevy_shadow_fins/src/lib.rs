@@ -274,6 +274,7 @@ impl Plugin for ShadowFinsPlugin {
             .init_resource::<FinGpuPosing>()
             .init_resource::<budget::FinDeviceLimits>()
             .add_systems(PostUpdate, turn_off_msaa_on_fin_views)
+            .add_systems(PreUpdate, gltf::spawn_loaded_gltf_scenes)
             .add_observer(add_not_shadow_receiver)
             .add_observer(remove_not_shadow_receiver);
         extract::build(app);

@@ -104,7 +104,7 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
         pending.iter(world).map(|(e, p, l)| (e, p.name.clone(), p.keep_light, l.clone())).collect();
     for (root, name, keep_light, loading) in loads {
         let failed = loading.failed(world.resource::<AssetServer>()).or_else(|| {
-            (!loading.is_ready(world.resource::<AssetServer>()) && loading.started.elapsed() > GLTF_LOAD_TIMEOUT)
+            (!loading.is_ready() && loading.started.elapsed() > GLTF_LOAD_TIMEOUT)
                 .then(|| format!("Bevy had not spawned it after {} s", GLTF_LOAD_TIMEOUT.as_secs()))
         });
         if let Some(e) = failed {
@@ -112,7 +112,7 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
             world.despawn(root);
             continue;
         }
-        if !loading.is_ready(world.resource::<AssetServer>()) {
+        if !loading.is_ready() {
             continue;
         }
         let snapshot = bevy_shadow_fins::scene_snapshot(world, Some(root));
