@@ -43,6 +43,10 @@ struct History {
 struct ViewTexture {
     handle: Option<egui::TextureHandle>,
     key: (Option<ViewKind>, u64, usize, u64, u32),
+    /// A hash of the pixels the handle holds: the same pixels are not set
+    /// again (bevy_egui uploads a texture set anew a frame later, and the
+    /// frame between draws no view: a screenshot could land on it).
+    pixels: u64,
 }
 
 pub(crate) fn build(app: &mut App) {
@@ -387,11 +391,20 @@ fn panels(
     if texture.key != key {
         texture.key = key;
         if let Some((w, h, px)) = view_pixels(state.view, &latest, analysis, &error, &peer) {
-            let image = egui::ColorImage::from_rgba_unmultiplied([w as usize, h as usize], px.as_flattened());
+            let hash = {
+                use std::hash::{Hash, Hasher};
+                let mut hasher = std::collections::hash_map::DefaultHasher::new();
+                (w, h, &px).hash(&mut hasher);
+                hasher.finish()
+            };
+            let image = || egui::ColorImage::from_rgba_unmultiplied([w as usize, h as usize], px.as_flattened());
+            let unchanged = texture.pixels == hash;
             match texture.handle.as_mut() {
-                Some(t) => t.set(image, egui::TextureOptions::NEAREST),
-                None => texture.handle = Some(ctx.load_texture("editor_view", image, egui::TextureOptions::NEAREST)),
+                Some(_) if unchanged => {}
+                Some(t) => t.set(image(), egui::TextureOptions::NEAREST),
+                None => texture.handle = Some(ctx.load_texture("editor_view", image(), egui::TextureOptions::NEAREST)),
             }
+            texture.pixels = hash;
         } else {
             texture.handle = None;
         }
