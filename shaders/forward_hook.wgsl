@@ -56,14 +56,23 @@ override fn pbr_functions::apply_pbr_lighting(in: pbr_types::PbrInput) -> vec4<f
 // normal: the vertex normal, not turned to the camera on a double-sided back
 // face (`pbr_deferred_functions::deferred_output`), so the face would read
 // as facing away from every light (a lit leaf's back drawn dark).
-// `world_normal` is turned (`prepare_world_normal`): N takes its side. Any
-// other N (forward prepass, computed in the main pass) is on that side
-// already and stays as it is.
+// `world_normal` is turned (`prepare_world_normal`): N takes its side. Not
+// with vertex tangents or a normal map: then `world_normal` is never turned
+// and N is (`apply_normal_mapping`, in the forward prepass too), so it is
+// left alone — and such a deferred masked back face stays dark (nothing here
+// says which face was drawn). Any other N (the forward prepass's, or
+// computed in the main pass) is on `world_normal`'s side already.
 fn on_the_shaded_side(in: pbr_types::PbrInput) -> pbr_types::PbrInput {
     var out = in;
+#ifdef LOAD_PREPASS_NORMALS
+#ifndef VERTEX_TANGENTS
+#ifndef STANDARD_MATERIAL_NORMAL_MAP
     if (dot(in.N, in.world_normal) < 0.0) {
         out.N = -in.N;
     }
+#endif
+#endif
+#endif
     return out;
 }
 

@@ -15,6 +15,7 @@
 // two passes run it fine; the cause was not found. Their deferred
 // double-sided back faces keep the prepass normal, and shadow themselves.
 #define_import_path bevy_shadow_fins::receiver_normal
+#import bevy_shadow_fins::fin_view::prepass_normal
 #import bevy_pbr::{
     pbr_deferred_types::{DEFERRED_MESH_FLAGS_SHADOW_RECEIVER_BIT, unpack_24bit_normal, unpack_flags},
     utils::octahedral_decode,
@@ -25,11 +26,14 @@
 // G-buffer holds a shadow receiver, the G-buffer's normal decides the side,
 // and the prepass normal stays the direction (no normal map, full
 // precision). Anywhere else — a forward pixel, whose G-buffer texel is Bevy's
-// clear value (0, 0, 0, 1) and whose prepass normal is already turned, or a
-// camera without a G-buffer (`NoGBuffer`: zeros) — the prepass normal is it.
-// (A deferred pixel that receives no shadow has no visibility to get right.)
+// clear value (0, 0, 0, 1) and whose prepass normal is on the side Bevy
+// shades, or a camera without a G-buffer (`NoGBuffer`: zeros) — the prepass
+// normal is it. (A deferred pixel that receives no shadow has no visibility
+// to get right.) One known gap: with occlusion culling, a forward mesh drawn
+// only in the late prepass, after the early deferred prepass, over a
+// deferred receiver keeps that receiver's texel, for about a frame.
 fn receiver_normal(encoded_normal: vec4<f32>, gbuffer: vec4<u32>) -> vec3<f32> {
-    let n = normalize(encoded_normal.xyz * 2.0 - 1.0);
+    let n = prepass_normal(encoded_normal);
     if ((unpack_flags(gbuffer.a) & DEFERRED_MESH_FLAGS_SHADOW_RECEIVER_BIT) == 0u) {
         return n;
     }

@@ -212,3 +212,36 @@ fn a_scene_the_file_does_not_have_is_an_error_that_says_so() {
     assert!(error.contains("1 scene(s)") && error.contains("scene 7"), "{error}");
     assert!(!loading.is_ready() && session.app.world().get::<WorldAssetRoot>(root).is_none());
 }
+
+/// What a load did: `Gltf`s loaded with their dependencies, and materials
+/// replaced (a second load of a file lands as `Modified` on the first's).
+#[derive(Resource, Default, Debug)]
+struct LoadEvents {
+    gltfs_loaded: usize,
+    materials_modified: usize,
+}
+
+fn count_load_events(
+    mut gltfs: MessageReader<AssetEvent<bevy::gltf::Gltf>>,
+    mut materials: MessageReader<AssetEvent<StandardMaterial>>,
+    mut events: ResMut<LoadEvents>,
+) {
+    events.gltfs_loaded += gltfs.read().filter(|e| matches!(e, AssetEvent::LoadedWithDependencies { .. })).count();
+    events.materials_modified += materials.read().filter(|e| matches!(e, AssetEvent::Modified { .. })).count();
+}
+
+#[test]
+fn a_gltf_is_loaded_once_and_its_materials_stay_the_ones_bevy_spawned() {
+    // `spawn_gltf_scene` asks Bevy for the file once, as a `Gltf`. Asked for
+    // the scene's label and then for the file's root, Bevy loaded it twice,
+    // and the second load's materials replaced the first's after the scene
+    // spawned (a change made to them in between was lost).
+    let (_, setup) = gltf_setup("leaf-cards.gltf");
+    let mut session = Session::new(&setup);
+    session.app.init_resource::<LoadEvents>().add_systems(Update, count_load_events);
+    session.wait_for_gltf().expect("Bevy loads it");
+    session.settle(8).expect("render");
+    let events = session.app.world().resource::<LoadEvents>();
+    println!("{events:?}");
+    assert_eq!((events.gltfs_loaded, events.materials_modified), (1, 0), "{events:?}");
+}

@@ -11,12 +11,12 @@
 //! `shadow-fins-lab make-assets`), else the caller's fallback.
 
 use std::sync::{
-    Arc, Mutex,
+    Arc, OnceLock,
     atomic::{AtomicBool, Ordering},
 };
 
 use bevy::{
-    asset::LoadState,
+    asset::{LoadState, RecursiveDependencyLoadState},
     gltf::{Gltf, GltfExtras},
     prelude::*,
     world_serialization::WorldInstanceReady,
@@ -43,7 +43,7 @@ struct LoadingState {
     /// The scene's instance has spawned.
     spawned: AtomicBool,
     /// Why the scene cannot spawn although the file loaded.
-    failure: Mutex<Option<String>>,
+    failure: OnceLock<String>,
 }
 
 impl GltfSceneLoading {
@@ -53,13 +53,17 @@ impl GltfSceneLoading {
         self.state.spawned.load(Ordering::Relaxed)
     }
 
-    /// Bevy's loader's error, once it failed, or why the loaded file has no
-    /// such scene.
+    /// Bevy's loader's error, once the file or one of its dependencies (an
+    /// external texture, a buffer) failed, or why the loaded file has no such
+    /// scene.
     pub fn failed(&self, assets: &AssetServer) -> Option<String> {
-        match assets.load_state(&self.gltf) {
-            LoadState::Failed(e) => Some(e.to_string()),
-            _ => self.state.failure.lock().ok()?.clone(),
+        if let LoadState::Failed(e) = assets.load_state(&self.gltf) {
+            return Some(e.to_string());
         }
+        if let RecursiveDependencyLoadState::Failed(e) = assets.recursive_dependency_load_state(&self.gltf) {
+            return Some(format!("a file it needs: {e}"));
+        }
+        self.state.failure.get().cloned()
     }
 }
 
@@ -118,11 +122,10 @@ pub(crate) fn spawn_loaded_gltf_scenes(
                 commands.entity(root).insert(WorldAssetRoot(scene.clone()));
             }
             None => {
-                let mut failure = loading.state.failure.lock().unwrap_or_else(|e| e.into_inner());
-                if failure.is_none() {
-                    let n = gltf.scenes.len();
-                    *failure = Some(format!("the file has {n} scene(s); scene {} was asked for", loading.scene_index));
-                }
+                let n = gltf.scenes.len();
+                let failure = format!("the file has {n} scene(s); scene {} was asked for", loading.scene_index);
+                // Said once: set again every frame, it is the same.
+                let _ = loading.state.failure.set(failure);
             }
         }
     }
