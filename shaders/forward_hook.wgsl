@@ -49,28 +49,33 @@ override fn pbr_functions::apply_pbr_lighting(in: pbr_types::PbrInput) -> vec4<f
     return pbr_functions::apply_pbr_lighting(on_the_shaded_side(in));
 }
 
-// `in` with N on the side of the surface Bevy shades. With the normal prepass
-// that `FinShadowView` adds, Bevy's main pass loads N from it
-// (`LOAD_PREPASS_NORMALS`). An alpha-masked material drawn deferred, which
-// Bevy 0.19 draws again in the main pass, finds there its deferred prepass's
-// normal: the vertex normal, not turned to the camera on a double-sided back
-// face (`pbr_deferred_functions::deferred_output`), so the face would read
-// as facing away from every light (a lit leaf's back drawn dark).
-// `world_normal` is turned (`prepare_world_normal`): N takes its side. Not
-// with vertex tangents or a normal map: then `world_normal` is never turned
-// and N is (`apply_normal_mapping`, in the forward prepass too), so it is
-// left alone — and such a deferred masked back face stays dark (nothing here
-// says which face was drawn). Any other N (the forward prepass's, or
-// computed in the main pass) is on `world_normal`'s side already.
+// Whether the fragment is a double-sided material's back face, as Bevy's
+// `prepare_world_normal` is told (by `pbr_input_from_vertex_output`, before
+// the lighting).
+var<private> fin_back_face: bool = false;
+
+override fn pbr_functions::prepare_world_normal(world_normal: vec3<f32>, double_sided: bool, is_front: bool) -> vec3<f32> {
+    fin_back_face = double_sided && !is_front;
+    return pbr_functions::prepare_world_normal(world_normal, double_sided, is_front);
+}
+
+// `in` with N on the side of the surface Bevy shades. An alpha-masked
+// material drawn deferred is drawn again by Bevy 0.19 in its main pass
+// (`FIN_DEFERRED_REDRAW`, set by `render/forward.rs` on such pipelines), where,
+// with the normal prepass that `FinShadowView` adds, N is loaded from it
+// (`LOAD_PREPASS_NORMALS`): the deferred prepass's normal, the vertex normal
+// never turned to the camera on a double-sided back face
+// (`pbr_deferred_functions::deferred_output`), so the face would read as
+// facing away from every light (a lit leaf's back drawn dark). There N is
+// turned as Bevy turns it everywhere else. A forward material's prepass
+// normal is turned already (`pbr_prepass.wgsl`), and stays as it is.
 fn on_the_shaded_side(in: pbr_types::PbrInput) -> pbr_types::PbrInput {
     var out = in;
+#ifdef FIN_DEFERRED_REDRAW
 #ifdef LOAD_PREPASS_NORMALS
-#ifndef VERTEX_TANGENTS
-#ifndef STANDARD_MATERIAL_NORMAL_MAP
-    if (dot(in.N, in.world_normal) < 0.0) {
+    if (fin_back_face) {
         out.N = -in.N;
     }
-#endif
 #endif
 #endif
     return out;

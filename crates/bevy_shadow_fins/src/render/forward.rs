@@ -41,8 +41,8 @@ use bevy::{
     core_pipeline::core_3d::{AlphaMask3d, Opaque3d},
     ecs::system::{SystemParamItem, lifetimeless::SRes},
     material::{
-        MaterialProperties, RenderPhaseType, key::ErasedMaterialPipelineKey, labels::DrawFunctionLabel,
-        specialize::SpecializedMeshPipelineError,
+        MaterialProperties, OpaqueRendererMethod, RenderPhaseType, key::ErasedMaterialPipelineKey,
+        labels::DrawFunctionLabel, specialize::SpecializedMeshPipelineError,
     },
     mesh::MeshVertexBufferLayoutRef,
     pbr::{
@@ -274,7 +274,11 @@ fn use_fin_pipelines(
             bindless: p.bindless,
             base_specialize: p.base_specialize,
             prepass_specialize: p.prepass_specialize,
-            user_specialize: Some(specialize_with_fin_shadows),
+            user_specialize: Some(if p.render_method == OpaqueRendererMethod::Deferred {
+                specialize_deferred_with_fin_shadows
+            } else {
+                specialize_with_fin_shadows
+            }),
             material_key: p.material_key.clone(),
             shadows_enabled: p.shadows_enabled,
             prepass_enabled: p.prepass_enabled,
@@ -310,6 +314,28 @@ fn specialize_with_fin_shadows(
         descriptor.layout.push(light_layout());
         if let Some(fragment) = descriptor.fragment.as_mut() {
             fragment.shader_defs.push(ShaderDefVal::Bool("FIN_FORWARD".into(), true));
+        }
+    }
+    Ok(())
+}
+
+/// [`specialize_with_fin_shadows`] for a material drawn deferred: its main
+/// pass (Bevy 0.19 draws an alpha-masked one there again) also gets
+/// `FIN_DEFERRED_REDRAW`, with which the hook turns the normal Bevy loads from
+/// the deferred prepass on a double-sided back face (`forward_hook.wgsl`'s
+/// `on_the_shaded_side`).
+fn specialize_deferred_with_fin_shadows(
+    pipeline: &dyn Any,
+    descriptor: &mut RenderPipelineDescriptor,
+    layout: &MeshVertexBufferLayoutRef,
+    key: ErasedMaterialPipelineKey,
+) -> Result<(), SpecializedMeshPipelineError> {
+    specialize_with_fin_shadows(pipeline, descriptor, layout, key)?;
+    if let Some(fragment) = descriptor.fragment.as_mut() {
+        let hooked =
+            fragment.shader_defs.iter().any(|d| matches!(d, ShaderDefVal::Bool(name, true) if name == "FIN_FORWARD"));
+        if hooked {
+            fragment.shader_defs.push(ShaderDefVal::Bool("FIN_DEFERRED_REDRAW".into(), true));
         }
     }
     Ok(())
