@@ -49,34 +49,37 @@ override fn pbr_functions::apply_pbr_lighting(in: pbr_types::PbrInput) -> vec4<f
     return pbr_functions::apply_pbr_lighting(on_the_shaded_side(in));
 }
 
-// Whether the fragment is a double-sided material's back face, as Bevy's
-// `prepare_world_normal` is told (by `pbr_input_from_vertex_output`, before
-// the lighting).
+// Whether the fragment is a double-sided material's back face, and its
+// vertex normal before Bevy turns it, as Bevy's `prepare_world_normal` is
+// told (once, by `pbr_input_from_vertex_output`, before the lighting).
 var<private> fin_back_face: bool = false;
+var<private> fin_vertex_normal: vec3<f32>;
 
 override fn pbr_functions::prepare_world_normal(world_normal: vec3<f32>, double_sided: bool, is_front: bool) -> vec3<f32> {
     fin_back_face = double_sided && !is_front;
+    fin_vertex_normal = world_normal;
     return pbr_functions::prepare_world_normal(world_normal, double_sided, is_front);
 }
 
 // `in` with N on the side of the surface Bevy shades. An alpha-masked
-// material drawn deferred is drawn again by Bevy 0.19 in its main pass
-// (`FIN_DEFERRED_REDRAW`, set by `render/forward.rs` on such pipelines), where,
-// with the normal prepass that `FinShadowView` adds, N is loaded from it
-// (`LOAD_PREPASS_NORMALS`): the deferred prepass's normal, the vertex normal
-// never turned to the camera on a double-sided back face
+// material drawn deferred is drawn again by Bevy 0.19 in its main pass,
+// where, with the normal prepass that `FinShadowView` adds, N is loaded from
+// it (`LOAD_PREPASS_NORMALS`): the deferred prepass's normal, the vertex
+// normal never turned to the camera on a double-sided back face
 // (`pbr_deferred_functions::deferred_output`), so the face would read as
 // facing away from every light (a lit leaf's back drawn dark). There N is
-// turned as Bevy turns it everywhere else. A forward material's prepass
-// normal is turned already (`pbr_prepass.wgsl`), and stays as it is.
+// turned, as Bevy turns it everywhere else. Which prepass wrote N is told by
+// N itself, not by a shader def (a pipeline of a forward and one of a
+// deferred material can be the same cached pipeline): on a back face the
+// forward prepass's N is turned (`pbr_prepass.wgsl`, its normal map
+// included), against the vertex normal; the deferred prepass's is the
+// vertex normal.
 fn on_the_shaded_side(in: pbr_types::PbrInput) -> pbr_types::PbrInput {
     var out = in;
-#ifdef FIN_DEFERRED_REDRAW
 #ifdef LOAD_PREPASS_NORMALS
-    if (fin_back_face) {
+    if (fin_back_face && dot(in.N, fin_vertex_normal) > 0.0) {
         out.N = -in.N;
     }
-#endif
 #endif
     return out;
 }

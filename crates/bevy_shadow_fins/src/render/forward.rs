@@ -9,7 +9,10 @@
 //!   `directional_light`, `rect_light` — times the light's visibility
 //!   layer V at the fragment's pixel — and `shadows::fetch_*_shadow` — 1 for
 //!   a fin-shadowed light, so V replaces Bevy's shadow S as the compositing
-//!   pass makes it do. The module is added to the imports of Bevy's
+//!   pass makes it do; and `pbr_functions::apply_pbr_lighting` and
+//!   `prepare_world_normal`, to know the surface being lit and to turn a
+//!   deferred alpha-masked back face's prepass normal (`on_the_shaded_side`).
+//!   The module is added to the imports of Bevy's
 //!   `bevy_pbr::pbr_fragment` shader asset at run time (Bevy's text is not
 //!   copied or edited: one import is added), and is empty unless a pipeline
 //!   has the shader def `FIN_FORWARD`. Overriding a function Bevy did not
@@ -23,7 +26,7 @@
 //!   dummy of no light elsewhere, where Bevy's shading is untouched.
 //!
 //! What a Bevy upgrade can break, and the tests that would say so
-//! (`tests/render/forward.rs`): the signatures of those seven WGSL functions,
+//! (`tests/render/forward.rs`, `alpha_masked.rs`): the signatures of those nine WGSL functions,
 //! `MaterialProperties`' public fields and the main pass's draw-function
 //! labels. Five bind groups are needed (a device with fewer keeps the
 //! forward limitation: Bevy's shadow, said once). Alpha-blended and
@@ -41,8 +44,8 @@ use bevy::{
     core_pipeline::core_3d::{AlphaMask3d, Opaque3d},
     ecs::system::{SystemParamItem, lifetimeless::SRes},
     material::{
-        MaterialProperties, OpaqueRendererMethod, RenderPhaseType, key::ErasedMaterialPipelineKey,
-        labels::DrawFunctionLabel, specialize::SpecializedMeshPipelineError,
+        MaterialProperties, RenderPhaseType, key::ErasedMaterialPipelineKey, labels::DrawFunctionLabel,
+        specialize::SpecializedMeshPipelineError,
     },
     mesh::MeshVertexBufferLayoutRef,
     pbr::{
@@ -274,11 +277,7 @@ fn use_fin_pipelines(
             bindless: p.bindless,
             base_specialize: p.base_specialize,
             prepass_specialize: p.prepass_specialize,
-            user_specialize: Some(if p.render_method == OpaqueRendererMethod::Deferred {
-                specialize_deferred_with_fin_shadows
-            } else {
-                specialize_with_fin_shadows
-            }),
+            user_specialize: Some(specialize_with_fin_shadows),
             material_key: p.material_key.clone(),
             shadows_enabled: p.shadows_enabled,
             prepass_enabled: p.prepass_enabled,
@@ -314,28 +313,6 @@ fn specialize_with_fin_shadows(
         descriptor.layout.push(light_layout());
         if let Some(fragment) = descriptor.fragment.as_mut() {
             fragment.shader_defs.push(ShaderDefVal::Bool("FIN_FORWARD".into(), true));
-        }
-    }
-    Ok(())
-}
-
-/// [`specialize_with_fin_shadows`] for a material drawn deferred: its main
-/// pass (Bevy 0.19 draws an alpha-masked one there again) also gets
-/// `FIN_DEFERRED_REDRAW`, with which the hook turns the normal Bevy loads from
-/// the deferred prepass on a double-sided back face (`forward_hook.wgsl`'s
-/// `on_the_shaded_side`).
-fn specialize_deferred_with_fin_shadows(
-    pipeline: &dyn Any,
-    descriptor: &mut RenderPipelineDescriptor,
-    layout: &MeshVertexBufferLayoutRef,
-    key: ErasedMaterialPipelineKey,
-) -> Result<(), SpecializedMeshPipelineError> {
-    specialize_with_fin_shadows(pipeline, descriptor, layout, key)?;
-    if let Some(fragment) = descriptor.fragment.as_mut() {
-        let hooked =
-            fragment.shader_defs.iter().any(|d| matches!(d, ShaderDefVal::Bool(name, true) if name == "FIN_FORWARD"));
-        if hooked {
-            fragment.shader_defs.push(ShaderDefVal::Bool("FIN_DEFERRED_REDRAW".into(), true));
         }
     }
     Ok(())
