@@ -445,10 +445,8 @@ fn a_double_sided_cards_back_face_is_shadowed_and_lit_as_the_side_the_camera_see
     // back faces' luminance was 0.08 of the forward one's.
     let [(deferred, back), (forward, _)] = &colours[..] else { unreachable!() };
     let luminance = |c: &[f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
-    let (d, f): (f32, f32) = back
-        .iter()
-        .map(|&i| (luminance(&deferred[i]), luminance(&forward[i])))
-        .fold((0.0, 0.0), |(d, f), (a, b)| (d + a, f + b));
+    let total = |image: &[[f32; 3]]| back.iter().map(|&i| luminance(&image[i])).sum::<f32>();
+    let (d, f) = (total(deferred), total(forward));
     println!(
         "lit back faces' mean luminance: deferred {:.4}, forward {:.4}",
         d / back.len() as f32,

@@ -113,7 +113,8 @@ pub(crate) fn spawn_loaded_gltf_scenes(
     roots: Query<(Entity, &GltfSceneLoading), Without<WorldAssetRoot>>,
 ) {
     for (root, loading) in &roots {
-        if !assets.is_loaded_with_dependencies(&loading.gltf) {
+        // A root that failed stays (its caller reads why) and is not looked at again.
+        if loading.state.failure.get().is_some() || !assets.is_loaded_with_dependencies(&loading.gltf) {
             continue;
         }
         let Some(gltf) = gltfs.get(&loading.gltf) else { continue };
@@ -124,7 +125,6 @@ pub(crate) fn spawn_loaded_gltf_scenes(
             None => {
                 let n = gltf.scenes.len();
                 let failure = format!("the file has {n} scene(s); scene {} was asked for", loading.scene_index);
-                // Said once: set again every frame, it is the same.
                 let _ = loading.state.failure.set(failure);
             }
         }
