@@ -39,7 +39,7 @@ pub fn pixel_receiver(
     (x, y, width, height): (u32, u32, u32, u32),
     light_space: &crate::scene::LightSpaceScene,
     bvh: &crate::bvh::Bvh,
-) -> Option<crate::oracle::Receiver> {
+) -> Option<crate::receiver::Receiver> {
     let (o, d) = camera.ray(x, y, width, height);
     let (o, d) = (light_space.frame.to_frame(o), light_space.frame.dir_to_frame(d));
     // An alpha-masked surface is seen where it is opaque, as it casts.
@@ -50,6 +50,6 @@ pub fn pixel_receiver(
     };
     hit.map(|h| {
         let normal = if h.normal.dot(d) > 0.0 { -h.normal } else { h.normal };
-        crate::oracle::Receiver { position: o + d * h.t, normal }
+        crate::receiver::Receiver { position: o + d * h.t, normal }
     })
 }

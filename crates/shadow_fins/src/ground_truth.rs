@@ -4,23 +4,10 @@
 
 use glam::Vec2;
 
-use crate::{bvh::Bvh, light::Projection, oracle::Receiver, scene::LightSpaceScene};
+use crate::{bvh::Bvh, light::Projection, receiver::Receiver, scene::LightSpaceScene};
 
 /// Default sample count.
 pub const DEFAULT_SAMPLES: u32 = 1024;
-
-/// `count` points on the unit disk on a Fibonacci (sunflower) spiral: equal area
-/// per point, deterministic, no clumping.
-pub fn disk_samples(count: u32) -> Vec<Vec2> {
-    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
-    (0..count.max(1))
-        .map(|i| {
-            let r = ((i as f32 + 0.5) / count.max(1) as f32).sqrt();
-            let a = i as f32 * golden;
-            Vec2::new(r * a.cos(), r * a.sin())
-        })
-        .collect()
-}
 
 /// Many-sample visibility of the light, in the light frame of a [`LightSpaceScene`].
 pub struct GroundTruth<'a> {
@@ -79,7 +66,7 @@ impl<'a> GroundTruth<'a> {
             // A sphere: its outline seen from p, in any face's frame (the
             // frame's origin is the sphere's centre). Inside it, nothing
             // comes between.
-            let Some((center, r, e1, e2)) = crate::sphere_light::outline_seen_from(radius, p) else { return 1.0 };
+            let Some((center, r, e1, e2)) = crate::light::outline_seen_from(radius, p) else { return 1.0 };
             for s in &self.samples {
                 let dir = center + e1 * (s.x * r) + e2 * (s.y * r) - p;
                 if n.dot(dir) < 0.0 {

@@ -5,8 +5,7 @@
 //! Multi-layered Shadow Fins*, CGF 25(1), 2006), on the CPU, with no Bevy:
 //!
 //! - [`mesh`]: validated triangle meshes, welding, edge → face adjacency;
-//! - [`light`]: disk, rectangle and sun lights and the light frame everything runs in;
-//! - [`sphere_light`]: sphere (point) lights, as six cube-face frames;
+//! - [`light`]: disk, rectangle, sun and sphere (point: six cube-face frames) lights, and the light frame everything runs in;
 //! - [`silhouette`], [`fins`], [`layers`], [`refine`]: the method's stages;
 //! - [`cutout`]: alpha-masked casters' holes (glTF `MASK` materials);
 //! - [`coverage`]: exact coverage with occluder fusion (beyond the paper):
@@ -57,12 +56,12 @@ pub mod mesh;
 pub mod metrics;
 pub mod oracle;
 pub mod peers;
+pub mod receiver;
 pub mod refine;
 pub mod scene;
 pub mod scenes;
 pub mod shapes;
 pub mod silhouette;
-pub mod sphere_light;
 
 pub use error::{GltfError, LightError, MeshError, SettingsError};
 pub use glam;

@@ -295,9 +295,9 @@ impl LightSpaceScene {
 
     /// The scene in every frame the light's maps are made in: one for a
     /// disk, a rectangle or the sun (as [`Self::new`]); six for a sphere,
-    /// in [`crate::sphere_light::CubeFace::ALL`] order, their maps' margin
+    /// in [`crate::light::CubeFace::ALL`] order, their maps' margin
     /// from the caster nearest to its centre
-    /// ([`crate::sphere_light::SphereLight::face_window`]). Which one shades
+    /// ([`crate::light::SphereLight::face_window`]). Which one shades
     /// a receiver: [`Self::face_of`].
     pub fn faces(scene: &Scene, light: Light) -> Vec<Self> {
         let Light::Sphere(sphere) = light else { return vec![Self::new(scene, light)] };
@@ -310,17 +310,17 @@ impl LightSpaceScene {
     /// cube face whose frustum holds it (0 when there is one frame).
     pub fn face_of(faces: &[Self], p: Vec3) -> usize {
         match faces.first().map(|f| f.light) {
-            Some(Light::Sphere(s)) if faces.len() == 6 => crate::sphere_light::CubeFace::of(p - s.center).index(),
+            Some(Light::Sphere(s)) if faces.len() == 6 => crate::light::CubeFace::of(p - s.center).index(),
             _ => 0,
         }
     }
 
     /// A receiver at world point `p` with world normal `n`, in the frame of
     /// the face of [`Self::faces`] that shadows it, and that face's index.
-    pub fn receiver_in_face(faces: &[Self], p: Vec3, n: Vec3) -> (usize, crate::oracle::Receiver) {
+    pub fn receiver_in_face(faces: &[Self], p: Vec3, n: Vec3) -> (usize, crate::receiver::Receiver) {
         let k = Self::face_of(faces, p);
         let frame = &faces[k].frame;
-        (k, crate::oracle::Receiver { position: frame.to_frame(p), normal: frame.dir_to_frame(n) })
+        (k, crate::receiver::Receiver { position: frame.to_frame(p), normal: frame.dir_to_frame(n) })
     }
 
     /// `receivers` (in this scene's frame) grouped by the light's frame
@@ -328,7 +328,7 @@ impl LightSpaceScene {
     /// [`Self::faces`] (empty ones too, in face order), each face's reference
     /// plane covering its receivers; for any other light, one group, this
     /// frame's. What every evaluation of a sphere light does first.
-    pub fn group_by_face(&self, scene: &Scene, receivers: &[crate::oracle::Receiver]) -> Vec<FaceGroup> {
+    pub fn group_by_face(&self, scene: &Scene, receivers: &[crate::receiver::Receiver]) -> Vec<FaceGroup> {
         if !matches!(self.light, Light::Sphere(_)) {
             return vec![FaceGroup {
                 light_space: self.clone(),
@@ -338,7 +338,7 @@ impl LightSpaceScene {
         }
         let faces = Self::faces(scene, self.light);
         let frame = &self.frame;
-        let routed: Vec<(usize, crate::oracle::Receiver)> = receivers
+        let routed: Vec<(usize, crate::receiver::Receiver)> = receivers
             .iter()
             .map(|r| Self::receiver_in_face(&faces, frame.to_world(r.position), frame.dir_to_world(r.normal)))
             .collect();
@@ -394,7 +394,7 @@ pub struct FaceGroup {
     /// Where the receivers were in the list grouped.
     pub indices: Vec<usize>,
     /// The receivers in that frame.
-    pub receivers: Vec<crate::oracle::Receiver>,
+    pub receivers: Vec<crate::receiver::Receiver>,
 }
 
 /// The distance from `point` to the nearest shadow-casting triangle (world

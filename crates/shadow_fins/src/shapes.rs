@@ -271,4 +271,25 @@ mod tests {
         assert!(p.triangles().all(|[a, b, c]| (b - a).cross(c - a).y > 0.0));
         assert!(bumpy_blob(100_000).triangle_count() >= 100_000);
     }
+
+    #[test]
+    fn points_inside_a_closed_mesh_are_found_by_ray_parity() {
+        let cube = Topology::build(&cuboid(Vec3::splat(0.5)));
+        assert!(cube.is_closed_manifold());
+        for p in [Vec3::ZERO, Vec3::splat(0.45), Vec3::new(-0.49, 0.0, 0.3), Vec3::new(0.0, 0.25, 0.0)] {
+            assert!(cube.contains_point(p), "{p:?} is inside");
+        }
+        for p in [Vec3::splat(0.51), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, -0.7, 0.0)] {
+            assert!(!cube.contains_point(p), "{p:?} is outside");
+        }
+        // Just off the centre, where the diagonal ray would graze edges.
+        assert!(cube.contains_point(Vec3::new(1e-12, 1e-12, 1e-12)));
+        let sphere = Topology::build(&uv_sphere(1.0, 24, 12));
+        assert!(sphere.contains_point(Vec3::new(0.1, -0.2, 0.3)));
+        assert!(!sphere.contains_point(Vec3::new(0.8, 0.8, 0.0)));
+        // An open quad has no inside.
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
+        let quad = Topology::build(&crate::mesh::Mesh::new(p, vec![0, 1, 2, 0, 2, 3]).unwrap());
+        assert!(!quad.contains_point(Vec3::new(0.5, 0.5, 0.0)));
+    }
 }

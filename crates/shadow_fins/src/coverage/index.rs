@@ -9,7 +9,7 @@
 
 use glam::{Vec2, Vec3};
 
-use super::CoverageEdge;
+use super::edges::CoverageEdge;
 use crate::cell_grid::{CellGrid, cell_range};
 use crate::light::{LightFrame, Projection};
 

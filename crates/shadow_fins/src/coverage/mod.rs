@@ -56,7 +56,7 @@ use glam::{Vec2, Vec3};
 use crate::{
     bvh::Bvh,
     light::Projection,
-    oracle::Receiver,
+    receiver::Receiver,
     scene::{LightSpaceScene, Scene, surface_epsilon},
 };
 
@@ -158,7 +158,7 @@ enum LightShape {
     Sun {
         tan_angle: f32,
     },
-    /// A sphere's outline seen from one receiver (`sphere_light::outline_seen_from`):
+    /// A sphere's outline seen from one receiver (`light::outline_seen_from`):
     /// the disk of centre `center`, radius `radius`, spanned by `e1`, `e2`.
     Outline {
         center: Vec3,
@@ -197,7 +197,7 @@ impl<'a> CoverageModel<'a> {
     /// sphere light (nothing can come between).
     fn shape_at(&self, p: Vec3) -> Option<LightShape> {
         if let Some(radius) = self.light_space.frame.sphere_radius() {
-            let (center, radius, e1, e2) = crate::sphere_light::outline_seen_from(radius, p)?;
+            let (center, radius, e1, e2) = crate::light::outline_seen_from(radius, p)?;
             return Some(LightShape::Outline { center, radius, e1, e2 });
         }
         Some(match self.light_space.frame.projection {

@@ -2,8 +2,9 @@
 
 use glam::Vec2;
 
-use super::{FinShadowModel, LayerTexel, Receiver};
+use super::{combine::LayerTexel, model::FinShadowModel};
 use crate::cell_grid::CellGrid;
+use crate::receiver::Receiver;
 
 /// Perspective map coordinates beyond this (about 89° off the light axis) are
 /// clamped when indexing; geometry out there is seen edge-on by the light.
@@ -85,5 +86,12 @@ impl<'m, 'a> AnalyticIndex<'m, 'a> {
         self.layer_texels(m.map(p), texels);
         let slack = if receiver.normal == glam::Vec3::ZERO { eps } else { 0.0 };
         m.visibility_from(texels, p.z, p.z * (1.0 - 1e-6) - slack)
+    }
+}
+
+impl<'a> FinShadowModel<'a> {
+    /// Builds the map-space index for exact evaluation.
+    pub fn analytic(&self) -> AnalyticIndex<'_, 'a> {
+        AnalyticIndex::new(self)
     }
 }

@@ -180,7 +180,7 @@ mod tests {
     #[test]
     fn a_cube_faces_casters_are_clipped_to_its_window_and_keep_what_lies_in_it() {
         let light = SphereLight::new(Vec3::ZERO, 0.1).unwrap();
-        let frame = light.face_frame(crate::sphere_light::CubeFace::PosZ, 1.25);
+        let frame = light.face_frame(crate::light::CubeFace::PosZ, 1.25);
         // In frame space: a big triangle through the window and the light's plane.
         let tri = [Vec3::new(-9.0, -1.0, 0.5), Vec3::new(6.0, -2.0, 3.0), Vec3::new(1.0, 8.0, -1.0)];
         let original = MapTriangle::clipped(

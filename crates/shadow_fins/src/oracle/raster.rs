@@ -8,7 +8,8 @@
 
 use glam::{Vec2, Vec3};
 
-use super::{FinShadowModel, LayerTexel, Receiver};
+use super::{combine::LayerTexel, model::FinShadowModel};
+use crate::receiver::Receiver;
 
 /// Perspective map coordinates beyond this (about 83° off the light axis) are
 /// not mapped.
@@ -163,5 +164,12 @@ impl<'m, 'a> RasterMaps<'m, 'a> {
     /// Memory held by the maps, in bytes.
     pub fn memory_bytes(&self) -> usize {
         self.layers.iter().map(|l| l.len() * std::mem::size_of::<LayerTexel>()).sum()
+    }
+}
+
+impl<'a> FinShadowModel<'a> {
+    /// Renders the per-layer light-space maps at `resolution²`, as the GPU does.
+    pub fn raster(&self, resolution: u32) -> RasterMaps<'_, 'a> {
+        RasterMaps::new(self, resolution)
     }
 }

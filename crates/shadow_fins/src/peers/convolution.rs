@@ -63,7 +63,8 @@ use glam::{Vec2, Vec3};
 
 use crate::{
     light::{Aperture, LightFrame},
-    oracle::{MapRegion, RASTER_MAP_LIMIT, Receiver},
+    oracle::{MapRegion, RASTER_MAP_LIMIT},
+    receiver::Receiver,
     scene::{LightSpaceScene, surface_epsilon},
 };
 

@@ -32,8 +32,8 @@ use glam::Vec3;
 use crate::{
     bvh::Bvh,
     light::{Light, SunLight},
-    oracle::Receiver,
     peers::convolution::{ConvolutionModel, ConvolutionSettings},
+    receiver::Receiver,
     scene::{LightSpaceScene, Scene},
 };
 
@@ -391,7 +391,7 @@ pub fn shade(
 /// golden-angle spiral over the disk (equal areas of the tangent plane,
 /// equal solid angles for a small cap).
 fn disk_visibility(casters: &WorldCasters, size: f32, r: WorldReceiver, light: &EnvLight, samples: u32) -> f32 {
-    let (u, v) = crate::peers::across(light.direction);
+    let (u, v) = crate::peers::geometry::across(light.direction);
     let tan = match light.light() {
         Some(Light::Sun(s)) => s.angular_radius.tan(),
         _ => 0.0,

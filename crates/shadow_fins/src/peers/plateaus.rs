@@ -62,8 +62,9 @@ use crate::{
     coverage::index::MAX_ENTRIES,
     cutout::caster_blocks_at,
     light::{Aperture, Projection},
-    oracle::{FinExtractor, Receiver},
-    peers::across,
+    oracle::FinExtractor,
+    peers::geometry::across,
+    receiver::Receiver,
     refine::Falloff,
     scene::{LightSpaceScene, Scene, surface_epsilon},
 };

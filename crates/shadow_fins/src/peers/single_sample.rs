@@ -49,8 +49,8 @@ use glam::{DVec2, Vec2, Vec3};
 use crate::{
     bvh::{Bvh, ray_hits_box},
     light::{Aperture, Projection},
-    oracle::Receiver,
-    peers::{across, clip_convex},
+    peers::geometry::{across, clip_convex},
+    receiver::Receiver,
     refine::Falloff,
     scene::{LightSpaceScene, surface_epsilon},
 };

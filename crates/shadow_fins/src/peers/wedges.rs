@@ -76,8 +76,9 @@ use crate::{
     coverage::{edges::CoverageEdge, index::EdgeIndex},
     light::{Aperture, LightFrame},
     mesh::NO_FACE,
-    oracle::{FinExtractor, Receiver},
-    peers::clip_convex,
+    oracle::FinExtractor,
+    peers::geometry::clip_convex,
+    receiver::Receiver,
     scene::{LightSpaceScene, Scene, surface_epsilon},
     silhouette::NO_PATCH,
 };
