@@ -67,7 +67,7 @@ fn sphere() -> bool {
 
 // The light as receiver p sees it (perspective lights): a disk of centre
 // `center` and radius `radius` spanned by e1, e2 — the disk light itself, or
-// a sphere's outline (`sphere_light::outline_seen_from`: the tangent circle,
+// a sphere's outline (`light::outline_seen_from`: the tangent circle,
 // its axes glam's `any_orthonormal_pair` of the direction to p, as the CPU's).
 struct LightAt {
     center: vec3<f32>,

@@ -11,7 +11,7 @@
 @group(0) @binding(2) var<storage, read> casters: array<Caster>;
 @group(0) @binding(3) var<storage, read> work: array<vec2<u32>>;
 
-// `coverage_frame::LIST_BLOCK_TEXELS`.
+// `frame/coverage.rs::LIST_BLOCK_TEXELS`.
 const LIST_BLOCK: u32 = 4096u;
 
 @compute @workgroup_size(64, 1, 1)

@@ -152,7 +152,7 @@ struct Silhouette {
 @group(0) @binding(7) var<storage, read_write> fins: array<Fin>;
 @group(0) @binding(8) var<storage, read_write> casters: array<Caster>;
 
-// `control` layout (u32 words). Keep in sync with `render/extract_gpu.rs`.
+// `control` layout (u32 words). Keep in sync with `render/extraction.rs`.
 // The live records (what a full extraction emits; read back as what the
 // frame wanted) ...
 const C_SILHOUETTES: u32 = 0u;
@@ -192,7 +192,7 @@ const STAGE_ACCEPTED: u32 = 2u;
 
 // After the histogram, `control` keeps what a partial redraw needs from
 // frame to frame (`history`, words relative to C_HISTOGRAM + sub-layers);
-// keep in sync with `render/extract_gpu.rs`:
+// keep in sync with `render/extraction.rs`:
 const H_PLAN: u32 = 0u; // last frame's FinParams words 0..32, then its planes (count + 31)
 const H_DIRTY_COUNT: u32 = 64u; // written by the CPU: dirty instances listed, or FULL
 const H_VALID: u32 = 65u; // 1 once a plan is kept

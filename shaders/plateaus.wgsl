@@ -8,7 +8,7 @@
 #import bevy_shadow_fins::fin_types::{FinParams, CHANNELS, orthographic}
 #import bevy_shadow_fins::fin_view::{FinView, prepass_normal, PIXEL_BACKGROUND, PIXEL_OTHER_FACE, pixel_receiver}
 
-// `PlateauUniform` in `plateau_frame.rs`.
+// `PlateauUniform` in `frame/plateaus.rs`.
 struct PlateauParams {
     point: vec4<f32>,
     normal: vec4<f32>,
@@ -40,7 +40,7 @@ struct Sheet {
 @group(0) @binding(9) var<uniform> view: View;
 @group(0) @binding(10) var<uniform> fin_view: FinView;
 
-// Sheets one cell's pixels walk (`MAX_CELL_SHEETS` in `plateau_frame.rs`,
+// Sheets one cell's pixels walk (`MAX_CELL_SHEETS` in `frame/plateaus.rs`,
 // which reports a longer cell): llvmpipe stops an invocation after 65535
 // loop iterations, so `sheet_tau` has no loop of its own.
 const MAX_CELL_SHEETS: u32 = 16384u;

@@ -1,5 +1,5 @@
 //! Bevy's `PointLight` with fin shadows: a sphere of the light's radius,
-//! modelled by six cube-face frames (`shadow_fins::sphere_light`), each with
+//! modelled by six cube-face frames (`shadow_fins::light`), each with
 //! its own extraction and maps, whose visibility passes fill the light's one
 //! layer between them; the compositing pass takes `(1 − V)` of Bevy's own
 //! `lighting::point_light` away.

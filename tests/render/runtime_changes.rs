@@ -283,7 +283,7 @@ fn a_still_scene_is_not_walked_again_and_a_moved_caster_moves_its_shadow() {
     // Change detection: once settled, frames in which nothing changed do not
     // walk the meshes (`FinCasterScans` stays), and moving the box is seen
     // without a walk either: its record alone is rebuilt in place
-    // (`FinCasterUpdates`, `casters.rs`), and its shadow is then the one a
+    // (`FinCasterUpdates`, `casters/mod.rs`), and its shadow is then the one a
     // fresh app renders with the box there. Moved behind the light, it
     // stops casting (every later record renumbered): no shadow, as fresh.
     let setup = setup(SceneId::BoxOverPlane, settings());
@@ -548,7 +548,7 @@ fn a_pose_that_tears_welded_vertices_apart_is_posed_on_the_cpu_and_still_shadows
     // copies of a cuboid corner (one per face) carry different weights
     // welds them at rest but pulls them apart when bent: the posed mesh's
     // topology is another, so that pose falls back to the CPU's posed mesh
-    // (`extract::posed_mesh`) — and shadows as a fresh app does.
+    // (`casters::mesh::posed_mesh`) — and shadows as a fresh app does.
     use shadow_fins_app::render_lab::scaling::spawn_skinned_bar_weighted;
     let setup = setup(SceneId::BoxOverPlane, settings());
     let at = Vec3::new(1.2, 0.9, 1.2);

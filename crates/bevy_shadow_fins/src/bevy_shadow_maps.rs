@@ -24,9 +24,9 @@
 use bevy::{prelude::*, render::extract_resource::ExtractResource};
 
 use crate::{
-    extract::{FinFrames, LightShading},
-    light::FinShadowView,
+    frame::{FinFrames, LightShading},
     receivers::FinReceivers,
+    settings::FinShadowView,
 };
 
 /// Why fin-shadowed Bevy lights keep Bevy's own shadow maps on too (see the
@@ -54,7 +54,7 @@ pub(crate) fn build(app: &mut App) {
         PostUpdate,
         decide_bevy_shadow_maps
             .after(crate::receivers::count_unreached_receivers)
-            .after(crate::extract::FinFramesUpdate),
+            .after(crate::frame::update::FinFramesUpdate),
     );
 }
 

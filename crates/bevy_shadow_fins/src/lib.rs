@@ -153,7 +153,7 @@
 //! [`FinMethod::Coverage`] replaces stages 1–3 by exact coverage with occluder
 //! fusion (`shadow_fins::coverage`): on the CPU, when something moved, the
 //! potential silhouette edges of the light's disk, binned by penumbra
-//! footprint into light-space cells (`coverage_frame.rs`); on the GPU
+//! footprint into light-space cells (`frame/coverage.rs`); on the GPU
 //! (`shaders/coverage_lists.wgsl`) per-texel depth lists of every caster (24
 //! near, 6 far depths, the total), then per camera pixel
 //! (`shaders/coverage.wgsl`) the reference count from those lists, the
@@ -192,40 +192,37 @@
 mod bevy_shadow_maps;
 mod budget;
 mod casters;
-mod coverage_frame;
-mod cutout;
-mod extract;
+mod forward_hook;
+mod frame;
 mod gltf;
-mod gpu_scene;
-mod light;
-mod plateau_frame;
-mod pose;
+mod gpu_layout;
+mod hashing;
 mod receivers;
 mod render;
-mod snapshot;
-mod sun_fit;
+mod settings;
+mod stats;
 
 pub use bevy_shadow_maps::BevyShadowMapsKept;
 pub use budget::{FinDegradation, FinShadowBudget};
-pub use casters::FinCasterUpdates;
-pub use cutout::{FinDefaultImageSampler, image_of_mask, mask_of_image};
-pub use extract::{
-    FinCasterScans, FinFrameStats, FinFrames, FinLightFrame, FinLightStats, FinSceneError, FinShadowStats,
-    MAX_FIN_LIGHTS,
+pub use casters::{
+    FinCasterUpdates,
+    cutout::{FinDefaultImageSampler, image_of_mask, mask_of_image},
+    pose::FinGpuPosing,
+    snapshot::{FinSceneSnapshot, FinSnapshotApproximation, FinSnapshotSkip, scene_snapshot},
 };
+pub use forward_hook::FinForwardShading;
+pub use frame::{FinFrames, FinLightFrame, MAX_FIN_LIGHTS, update::FinCasterScans};
 pub use gltf::{
     GltfLightsAdopted, GltfSceneLoading, descendants_with, give_gltf_lights_fin_shadows, gltf_light_radius,
     gltf_light_radius_or, spawn_gltf_scene,
 };
-pub use light::{
-    FinExtraction, FinLight, FinMethod, FinShadowSettings, FinShadowView, FinShadows, NotFinShadowCaster,
-    NotFinShadowReceiver,
-};
-pub use pose::FinGpuPosing;
 pub use receivers::FinReceivers;
-pub use render::{FinForwardShading, FinIncrementalExtraction, FinPartialRedraw};
+pub use settings::{
+    FinIncrementalExtraction, FinLight, FinMethod, FinPartialRedraw, FinShadowSettings, FinShadowView, FinShadows,
+    NotFinShadowCaster, NotFinShadowReceiver,
+};
 pub use shadow_fins;
-pub use snapshot::{FinSceneSnapshot, FinSnapshotApproximation, FinSnapshotSkip, scene_snapshot};
+pub use stats::{FinExtraction, FinFrameStats, FinLightStats, FinSceneError, FinShadowStats};
 
 use bevy::prelude::*;
 
@@ -277,14 +274,14 @@ impl Plugin for ShadowFinsPlugin {
             .add_systems(PreUpdate, gltf::spawn_loaded_gltf_scenes)
             .add_observer(add_not_shadow_receiver)
             .add_observer(remove_not_shadow_receiver);
-        extract::build(app);
+        frame::update::build(app);
         receivers::build(app);
         bevy_shadow_maps::build(app);
         render::build(app);
     }
 
     fn finish(&self, app: &mut App) {
-        cutout::finish(app);
+        casters::cutout::finish(app);
         render::finish(app);
     }
 }

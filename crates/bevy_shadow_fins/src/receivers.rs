@@ -17,7 +17,7 @@ use bevy::{
     reflect::tuple_struct::TupleStruct,
 };
 
-use crate::{extract::FinFrames, light::NotFinShadowReceiver};
+use crate::{frame::FinFrames, settings::NotFinShadowReceiver};
 
 /// Meshes of Bevy's forward passes (see the module docs): the alpha-blended
 /// and transmissive ones fin shadows do not reach — a documented limitation,
@@ -92,7 +92,7 @@ pub(crate) fn count_unreached_receivers(
     >,
     mut counted: ResMut<FinReceivers>,
     forward: Option<Res<crate::FinForwardShading>>,
-    pending: Option<Res<crate::render::PbrFragment>>,
+    pending: Option<Res<crate::forward_hook::PbrFragment>>,
 ) {
     let material_changed = events.read().count() > 0;
     let (mut gone_material, mut gone_fin_marker, mut gone_marker) = removed;

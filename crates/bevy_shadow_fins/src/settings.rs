@@ -1,10 +1,15 @@
-//! The fin light, its settings, the camera opt-in and the caster/receiver markers.
+//! What users put on lights and cameras: the fin light, its settings, the
+//! camera opt-in and the caster/receiver markers; and the resources that
+//! switch the GPU extraction's partial work off ([`FinPartialRedraw`],
+//! [`FinIncrementalExtraction`]) for measuring it.
 
 use bevy::prelude::*;
 use shadow_fins::{
     oracle::{FinSettings, Method, Overlap},
     refine::Falloff,
 };
+
+use crate::stats::FinExtraction;
 
 /// A disk light whose shadows are soft and physically sized by its radius.
 ///
@@ -77,7 +82,7 @@ impl FinLight {
 ///   wider along the map position `m` than across it, which sizes the fins
 ///   off a face's axis), whose visibility passes each shade the receivers in
 ///   their face and fill the light's one visibility layer between them
-///   (`shadow_fins::sphere_light`). A face that sees no caster runs no
+///   (`shadow_fins::light`). A face that sees no caster runs no
 ///   extraction or map pass (its visibility pass writes 1 on its pixels).
 ///   `radius: 0` gives exactly the hard shadow. The penumbra-map
 ///   budget is shared per face: a point light takes six shares.
@@ -167,19 +172,6 @@ impl From<FinMethod> for Method {
             FinMethod::MultiLayer => Method::MultiLayer,
         }
     }
-}
-
-/// Where fins are extracted and layers assigned.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Reflect)]
-pub enum FinExtraction {
-    /// Compute passes (`shaders/extract.wgsl`): caster geometry is uploaded once
-    /// per mesh and only instance transforms when something moves; silhouettes,
-    /// patches, fins, the depth histogram and the layer cut all run on the GPU.
-    #[default]
-    Gpu,
-    /// The core crate on the CPU (the paper's split), uploading map-space
-    /// casters and fins. The reference the GPU path is tested against.
-    Cpu,
 }
 
 /// The most layers a light's maps may have.
@@ -314,3 +306,34 @@ pub struct NotFinShadowCaster;
 #[derive(Component, Debug, Clone, Copy, Default, Reflect)]
 #[reflect(Component, Default, Debug, Clone)]
 pub struct NotFinShadowReceiver;
+
+/// Whether the GPU extraction may redraw the penumbra maps in part when a few
+/// casters of many moved (only the texels under their old and new
+/// footprints; see `FinFrameStats::partial_redraw`). On by default: the
+/// result is texel for texel a full redraw's. Off, every update redraws the
+/// maps whole — for measuring what the partial redraw saves
+/// (`shadow-fins-render-lab scaling`).
+#[derive(Resource, Clone, Copy, Debug, PartialEq, Eq, bevy::render::extract_resource::ExtractResource)]
+pub struct FinPartialRedraw(pub bool);
+
+impl Default for FinPartialRedraw {
+    fn default() -> Self {
+        Self(true)
+    }
+}
+
+/// Whether the GPU extraction may extract only the casters that moved, when
+/// a few of many moved, and keep every other caster's silhouettes, fins and
+/// map triangles from the update before (see
+/// `FinFrameStats::incremental_extraction`). On by default: the result is
+/// record for record a full extraction's. Off, every update extracts every
+/// caster — for measuring what it saves (`shadow-fins-render-lab scaling`).
+/// It applies where a partial redraw may ([`FinPartialRedraw`]).
+#[derive(Resource, Clone, Copy, Debug, PartialEq, Eq, bevy::render::extract_resource::ExtractResource)]
+pub struct FinIncrementalExtraction(pub bool);
+
+impl Default for FinIncrementalExtraction {
+    fn default() -> Self {
+        Self(true)
+    }
+}

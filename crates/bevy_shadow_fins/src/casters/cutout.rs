@@ -29,7 +29,7 @@
 
 use std::{collections::HashMap, sync::Arc};
 
-use crate::gpu_scene::GpuMeshGeometry;
+use crate::casters::gpu_geometry::GpuMeshGeometry;
 
 use bevy::{
     asset::AssetId,
@@ -203,7 +203,7 @@ impl CasterMaterials<'_, '_> {
     /// mask inputs changed, one that arrived as a mask, a texture a mask reads
     /// or waits for. A colour change, a non-mask material's, is none. (A
     /// caster whose material was swapped is signed again by itself: its
-    /// material id is in its signature, `casters.rs`.)
+    /// material id is in its signature, `casters/mod.rs`.)
     pub(crate) fn refresh(&mut self) {
         let CutoutCache { masks, cutouts, outlined, generation } = &mut *self.cache;
         let mut stale = false;
@@ -313,7 +313,7 @@ impl CasterMaterials<'_, '_> {
         }
         self.cache.packed_once((mesh_id, material_id, true), &cutout.outline, || {
             let at_rest = GpuMeshGeometry::pack_outlined(rest.1, &cutout);
-            let source = crate::pose::pose_source(mesh);
+            let source = crate::casters::pose::pose_source(mesh);
             GpuMeshGeometry::pack_posable(&at_rest, rest.1, &source, Some(&cutout.outline)).map(Arc::new)
         })
     }
@@ -480,6 +480,23 @@ pub fn image_of_mask(mask: &AlphaMask) -> Image {
         }
     });
     image
+}
+
+/// Appends `m` to `words` as `cutout.wgsl` reads a mask: a header (width,
+/// height, threshold bits, wrap modes and filter), then four 8-bit alphas a
+/// word. Returns the word it starts at.
+pub(crate) fn pack_mask(m: &shadow_fins::cutout::AlphaMask, words: &mut Vec<u32>) -> u32 {
+    let at = words.len() as u32;
+    let code = |a: shadow_fins::cutout::Address| match a {
+        shadow_fins::cutout::Address::Repeat => 0u32,
+        shadow_fins::cutout::Address::MirroredRepeat => 1,
+        shadow_fins::cutout::Address::ClampToEdge => 2,
+    };
+    let [u, v] = m.address();
+    let nearest = (m.filter() == shadow_fins::cutout::Filter::Nearest) as u32;
+    words.extend([m.width(), m.height(), m.threshold().to_bits(), code(u) | code(v) << 8 | nearest << 16]);
+    words.extend(m.alpha().chunks(4).map(|q| q.iter().enumerate().fold(0u32, |w, (k, &a)| w | (a as u32) << (8 * k))));
+    at
 }
 
 #[cfg(test)]

@@ -18,11 +18,11 @@
 //!   ([`CasterScene::update`]; new geometry makes each light pack its
 //!   meshes again, `gpu_scene.rs`); one that appears, goes, is hidden or
 //!   shown re-collects the scene.
-//! - each light's objects and GPU instance records (`extract.rs`,
+//! - each light's objects and GPU instance records (`frame/build.rs`,
 //!   `gpu_scene.rs`): after an in-place update of the scene, only the slots
 //!   it names ([`CasterScene::dirty`]) are recomputed for a light whose own
 //!   part did not change, and the render world writes only the instance
-//!   records that differ (`render/extract_gpu.rs`).
+//!   records that differ (`render/extraction.rs`).
 //!
 //! What still scales with the scene when one caster moves is the GPU passes
 //! that touch every instance or record once without extracting it (depth
@@ -45,14 +45,21 @@ use shadow_fins::{
     scene::SceneObject,
 };
 
-use crate::{
-    extract::{
-        CachedMesh, Casters, LightSees, core_mesh, hash_floats, hash_layers, nearest_distance, out_of_reach,
-        outside_face, posed_mesh, world_corners,
-    },
-    gpu_scene::{GpuMeshGeometry, GpuPose},
-    sun_fit,
+use crate::hashing::{hash_floats, hash_layers};
+
+use self::{
+    gpu_geometry::{GpuMeshGeometry, GpuPose},
+    mesh::{CachedMesh, Casters, core_mesh, posed_mesh},
+    reach::{LightSees, nearest_distance, out_of_reach, outside_face, world_corners},
 };
+
+pub(crate) mod cutout;
+pub(crate) mod gpu_geometry;
+pub(crate) mod gpu_scene;
+pub(crate) mod mesh;
+pub(crate) mod pose;
+pub(crate) mod reach;
+pub(crate) mod snapshot;
 
 /// How many caster records were rebuilt in place, without a walk over every
 /// mesh: `frames` in which it happened, `records` in all (a diagnostic of
@@ -100,7 +107,7 @@ fn sign_caster(
     casters: &Casters,
     meshes: &Assets<Mesh>,
     material_of: impl Fn(Entity) -> Option<AssetId<StandardMaterial>>,
-    poses: &crate::pose::Poses,
+    poses: &crate::casters::pose::Poses,
     fitting: bool,
 ) -> Option<SignedCaster> {
     let (entity, mesh, transform, caster) = casters.get(entity).ok()?;
@@ -141,7 +148,7 @@ impl CasterSignature {
         casters: &Casters,
         meshes: &Assets<Mesh>,
         material_of: impl Fn(Entity) -> Option<AssetId<StandardMaterial>>,
-        poses: &crate::pose::Poses,
+        poses: &crate::casters::pose::Poses,
         fitting: bool,
     ) -> bool {
         let walk = changed.is_none() || self.signature.is_none() || self.fitting != fitting;
@@ -216,12 +223,12 @@ pub(crate) struct SlotSources<'a, 'cw, 'cs, 'pw, 'ps, 'mw, 'ms> {
     pub casters: &'a Casters<'cw, 'cs>,
     pub meshes: &'a Assets<Mesh>,
     pub cache: &'a mut HashMap<AssetId<Mesh>, CachedMesh>,
-    pub posed: &'a mut HashMap<Entity, crate::extract::PosedCaster>,
+    pub posed: &'a mut HashMap<Entity, crate::casters::mesh::PosedCaster>,
     pub posable: &'a mut HashMap<AssetId<Mesh>, Option<Arc<GpuMeshGeometry>>>,
-    /// The GPU poses what it can ([`FinGpuPosing`](crate::pose::FinGpuPosing)).
+    /// The GPU poses what it can ([`FinGpuPosing`](crate::casters::pose::FinGpuPosing)).
     pub gpu_posing: bool,
-    pub poses: &'a crate::pose::Poses<'pw, 'ps>,
-    pub materials: &'a mut crate::cutout::CasterMaterials<'mw, 'ms>,
+    pub poses: &'a crate::casters::pose::Poses<'pw, 'ps>,
+    pub materials: &'a mut crate::casters::cutout::CasterMaterials<'mw, 'ms>,
 }
 
 impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
@@ -268,7 +275,7 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
         let placed = if world { bevy::math::Affine3A::IDENTITY } else { transform.affine() };
         if world {
             // Its box is where the pose put it, not Bevy's (which may lag a frame).
-            corners = Some(sun_fit::corners(topology.bounds));
+            corners = Some(crate::casters::reach::box_corners(topology.bounds));
         }
         match SceneObject::shared("mesh", core.clone(), topology.clone(), placed) {
             Ok(mut object) => {
@@ -295,7 +302,7 @@ impl SlotSources<'_, '_, '_, '_, '_, '_, '_> {
                     }
                 }
                 // The posed vertices' box (a posable packing's is the rest pose's).
-                let world_box = sun_fit::corners(topology.bounds)
+                let world_box = crate::casters::reach::box_corners(topology.bounds)
                     .map(|c| object.transform.transform_point3(c))
                     .into_iter()
                     .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));

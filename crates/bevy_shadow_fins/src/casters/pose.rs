@@ -23,7 +23,7 @@
 //!
 //! The GPU poses the topology at rest (welded vertices, faces, edges); a pose
 //! whose own topology differs (it welds two vertices apart, or folds a face
-//! to nothing) is posed on the CPU for the GPU too (`extract::posed_mesh`).
+//! to nothing) is posed on the CPU for the GPU too (`casters::mesh::posed_mesh`).
 //!
 //! Cost: the CPU still poses and rebuilds the topology of a posed mesh in
 //! every frame in which its pose changed (its time is in the main world's).
@@ -193,12 +193,13 @@ fn skin_attributes(mesh: &Mesh) -> Option<(&[[u16; 4]], &[[f32; 4]])> {
     }
 }
 
-/// What poses `mesh` on the GPU (`gpu_scene::PoseSource`): its bind
+/// What poses `mesh` on the GPU ([`PoseSource`]): its bind
 /// positions, its joints and weights (none when either attribute is missing
 /// or of another format: then it is not skinned, as [`Poses::pose`] finds),
 /// its morph targets' position displacements, target-major.
-pub(crate) fn pose_source(mesh: &Mesh) -> crate::gpu_scene::PoseSource {
-    let mut source = crate::gpu_scene::PoseSource { positions: bind_positions(mesh).unwrap_or_default(), ..default() };
+pub(crate) fn pose_source(mesh: &Mesh) -> crate::casters::pose::PoseSource {
+    let mut source =
+        crate::casters::pose::PoseSource { positions: bind_positions(mesh).unwrap_or_default(), ..default() };
     if let Some((j, w)) = skin_attributes(mesh) {
         (source.joints, source.weights) = (j.to_vec(), w.to_vec());
     }
@@ -237,6 +238,17 @@ fn skinned(p: Vec3, joints: &[u16; 4], weights: &[f32; 4], matrices: &[Mat4]) ->
         sum *= 1.0 / total;
     }
     sum.transform_point3(p)
+}
+
+/// What a posable packing poses (`pose.rs`' inputs, per input vertex of the
+/// Bevy mesh): bind positions, the skin's joints and weights (empty when the
+/// mesh has none), and the morph targets' displacements, target-major.
+#[derive(Debug, Default)]
+pub(crate) struct PoseSource {
+    pub positions: Vec<Vec3>,
+    pub joints: Vec<[u16; 4]>,
+    pub weights: Vec<[f32; 4]>,
+    pub morph_targets: Vec<Vec<Vec3>>,
 }
 
 #[cfg(test)]

@@ -7,7 +7,8 @@ use shadow_fins::scene::{Scene, SceneObject};
 
 use crate::{
     NotFinShadowReceiver,
-    extract::{CasterFlags, FinSceneError, core_mesh},
+    casters::mesh::{CasterFlags, core_mesh},
+    stats::FinSceneError,
 };
 
 /// A Bevy world's meshes as the core's scene, and the meshes left out.
@@ -75,10 +76,10 @@ pub fn scene_snapshot(world: &mut World, root: Option<Entity>) -> FinSceneSnapsh
         Query<&ChildOf>,
         Res<Assets<Mesh>>,
         Option<Res<Assets<StandardMaterial>>>,
-        crate::pose::Poses,
-        crate::cutout::CasterMaterials,
+        crate::casters::pose::Poses,
+        crate::casters::cutout::CasterMaterials,
     )> = {
-        world.init_resource::<crate::cutout::CutoutCache>();
+        world.init_resource::<crate::casters::cutout::CutoutCache>();
         SystemState::new(world)
     };
     // No `Assets<Mesh>` (a world without Bevy's render plugins): no meshes.
@@ -99,11 +100,18 @@ pub fn scene_snapshot(world: &mut World, root: Option<Entity>) -> FinSceneSnapsh
             snapshot.skipped.push((entity, FinSnapshotSkip::NotLoaded));
             continue;
         };
-        // Posed as the plugin poses it (`extract::posed_mesh`), else as stored.
+        // Posed as the plugin poses it (`casters::mesh::posed_mesh`), else as stored.
         // The posed triangles only: no packing for the GPU to pose.
-        let posed_entry =
-            crate::extract::posed_mesh(entity, mesh3d.id(), mesh, &mut posed, &mut Default::default(), None, &poses)
-                .map(|p| (p.mesh.clone(), p.world));
+        let posed_entry = crate::casters::mesh::posed_mesh(
+            entity,
+            mesh3d.id(),
+            mesh,
+            &mut posed,
+            &mut Default::default(),
+            None,
+            &poses,
+        )
+        .map(|p| (p.mesh.clone(), p.world));
         let unposed = poses.is_posed(entity) && posed_entry.is_none();
         let is_posed = posed_entry.is_some();
         let (core, world) = match posed_entry {

@@ -14,7 +14,7 @@ use shadow_fins::{
 
 use crate::{
     budget::{FinDegradation, allocate_maps},
-    extract::GpuCaster,
+    gpu_layout::GpuCaster,
 };
 
 /// Caster depths each texel's near list keeps, as the core's
@@ -66,7 +66,7 @@ pub(crate) struct CoverageFrame {
     pub dims: [u32; 2],
     pub casters: Vec<GpuCaster>,
     /// The casters' cut-outs and the alpha masks they read (`cutout.wgsl`).
-    pub cutouts: Vec<crate::extract::GpuCutout>,
+    pub cutouts: Vec<crate::gpu_layout::GpuCutout>,
     pub mask_words: Vec<u32>,
     /// `raster_lists` work: (caster, block of `LIST_BLOCK_TEXELS` texels of
     /// its bounding box), one workgroup each.
@@ -114,7 +114,7 @@ fn raster_blocks(corners: &[Vec2; 3], region: &MapRegion) -> u32 {
 /// the depth lists (resolution first), the buffer limit the edge lists.
 pub(crate) fn coverage_frame(
     scene: &Scene,
-    in_frame: crate::extract::InFrame,
+    in_frame: crate::frame::in_frame::InFrame,
     resolution: u32,
     samples: u32,
     receiver_bound: impl Iterator<Item = Vec3>,
@@ -175,7 +175,7 @@ pub(crate) fn coverage_frame(
         cell_starts.push(cell_items.len() as u32);
     }
     let (mut casters, mut cutouts, mut mask_words) =
-        crate::extract::gpu_casters(&triangles[..n_casters], None, &ls.masks);
+        crate::frame::map_casters::gpu_casters(&triangles[..n_casters], None, &ls.masks);
     let mut raster_work: Vec<[u32; 2]> = triangles
         .iter()
         .take(n_casters)
@@ -185,7 +185,7 @@ pub(crate) fn coverage_frame(
     // Blocks past the buffer limit are dropped (their texels miss casters).
     let n_work = keep("depth-list raster work", raster_work.len(), size_of::<[u32; 2]>() as u64);
     raster_work.truncate(n_work);
-    if let Some(why) = crate::extract::fit_cutouts(&mut casters, &mut cutouts, &mut mask_words, max_buffer) {
+    if let Some(why) = crate::frame::map_casters::fit_cutouts(&mut casters, &mut cutouts, &mut mask_words, max_buffer) {
         degraded = degraded.or(Some(why));
     }
     if degraded.is_none() {

@@ -20,6 +20,7 @@
 //! its direction, so it can be compared between frames before the scene is
 //! collected; [`window_in_frame`] moves it into a frame's map coordinates.
 
+use crate::casters::reach::box_corners as corners;
 use bevy::{math::DVec3, prelude::*};
 use shadow_fins::light::{LightFrame, SunLight};
 
@@ -235,17 +236,6 @@ fn hexahedron((a, b): (Vec3, Vec3)) -> [Vec3; 8] {
         |z: f32| [Vec3::new(b.x, a.y, z), Vec3::new(b.x, b.y, z), Vec3::new(a.x, b.y, z), Vec3::new(a.x, a.y, z)];
     let (near, far) = (face(a.z), face(b.z));
     [near[0], near[1], near[2], near[3], far[0], far[1], far[2], far[3]]
-}
-
-/// The box's corners in bit order (x, y, z): for projecting it.
-pub(crate) fn corners((a, b): (Vec3, Vec3)) -> [Vec3; 8] {
-    std::array::from_fn(|k| {
-        Vec3::new(
-            if k & 1 == 0 { a.x } else { b.x },
-            if k & 2 == 0 { a.y } else { b.y },
-            if k & 4 == 0 { a.z } else { b.z },
-        )
-    })
 }
 
 #[cfg(test)]

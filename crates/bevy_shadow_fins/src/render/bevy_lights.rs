@@ -9,7 +9,7 @@
 //! changed; this system then clears `shadow_maps_enabled` on the extracted
 //! copy of every fin-shadowed Bevy light, before Bevy's `prepare_lights`
 //! allocates shadow maps. The main world marks a light changed when it stops
-//! being fin-shadowed (`extract.rs`) and when Bevy's maps start or stop being
+//! being fin-shadowed (`frame/update.rs`) and when Bevy's maps start or stop being
 //! kept (`bevy_shadow_maps.rs`), so Bevy extracts it again with the user's
 //! own setting.
 
@@ -21,7 +21,7 @@ use bevy::{
 
 use crate::{
     BevyShadowMapsKept,
-    extract::{FinFrames, LightShading},
+    frame::{FinFrames, LightShading},
 };
 
 pub(super) fn finish(app: &mut App) {

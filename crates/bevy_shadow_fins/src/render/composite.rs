@@ -55,10 +55,10 @@ use bevy::{
 
 use bytemuck::Zeroable;
 
-use super::FinViewTexture;
+use crate::render::view::FinViewTexture;
 use crate::{
-    extract::{FinFrames, LightShading, MAX_FIN_LIGHTS},
-    light::{FinLight, FinShadowView},
+    frame::{FinFrames, LightShading, MAX_FIN_LIGHTS},
+    settings::{FinLight, FinShadowView},
 };
 
 /// The fin light as the compositing shader reads it (`FinLightUniform` in
@@ -384,7 +384,7 @@ fn fin_composite(
         &FinCompositePipeline,
         &FinCompositeBindGroup,
     )>,
-    written: Res<super::ViewsWithVisibility>,
+    written: Res<crate::render::view::ViewsWithVisibility>,
     frames: Res<FinFrames>,
     pipeline_cache: Res<PipelineCache>,
     pass_ids: Res<ComponentUniforms<PbrDeferredLightingDepthId>>,

@@ -31,11 +31,15 @@ use shadow_fins::peers::convolution::{
     ConvolutionSettings, VARIANCE_MATCHED_MIP_BIAS, basis, depth_span, kernel_shape, ringing_scale, step_shift,
 };
 
-use super::{FinLightsGpu, FinViewTexture, ViewsWithVisibility, extract_gpu::ensure, view_transform, workgroups};
+use crate::render::{
+    extraction::ensure,
+    maps::FinLightsGpu,
+    view::{FinViewTexture, ViewsWithVisibility, view_transform, workgroups},
+};
 use crate::{
     budget::BasisLayout,
-    extract::{FinFrameData, FinFrames, FrameKey},
-    light::{FinMethod, FinShadowView},
+    frame::{FinFrameData, FinFrames, FrameKey},
+    settings::{FinMethod, FinShadowView},
 };
 
 /// Mip levels a chain may have.
@@ -58,11 +62,14 @@ pub(super) fn finish(app: &mut App) {
         .add_systems(
             Render,
             (
-                prepare_convolution.in_set(RenderSystems::PrepareResources).after(super::prepare_maps),
+                prepare_convolution.in_set(RenderSystems::PrepareResources).after(crate::render::maps::prepare_maps),
                 prepare_view_bind_groups.in_set(RenderSystems::PrepareBindGroups),
             ),
         )
-        .add_systems(RenderGraph, render_basis.after(super::render_maps).in_set(super::FinLightPasses))
+        .add_systems(
+            RenderGraph,
+            render_basis.after(crate::render::maps::render_maps).in_set(crate::render::view::FinLightPasses),
+        )
         .add_systems(Core3d, convolution_visibility.after(Core3dSystems::Prepass).before(Core3dSystems::MainPass));
 }
 
@@ -111,8 +118,9 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
     );
     let maps_shader = load_embedded_asset!(asset_server.as_ref(), "shaders/convolution_maps.wgsl");
     let view_shader = load_embedded_asset!(asset_server.as_ref(), "shaders/convolution.wgsl");
-    let compute =
-        |label, layout: &_, shader: &_, entry| super::queue_compute(&pipeline_cache, label, layout, shader, entry);
+    let compute = |label, layout: &_, shader: &_, entry| {
+        crate::render::view::queue_compute(&pipeline_cache, label, layout, shader, entry)
+    };
     commands.insert_resource(ConvolutionPipelines {
         reset_near: compute("fin_convolution_reset_near", &maps_layout, &maps_shader, "reset_near"),
         find_near: compute("fin_convolution_find_near", &maps_layout, &maps_shader, "find_near"),
@@ -185,7 +193,7 @@ struct ConvolutionGpu {
     built_from: Option<u64>,
 }
 
-fn on_convolution(frames: &FinFrames) -> impl Iterator<Item = &crate::extract::FinLightFrame> {
+fn on_convolution(frames: &FinFrames) -> impl Iterator<Item = &crate::frame::FinLightFrame> {
     frames.on_coverage(false).filter(|f| f.data.settings.method == FinMethod::Convolution)
 }
 
@@ -217,7 +225,7 @@ fn prepare_convolution(
 /// One frame's basis buffers and uniform, made again when its frame changed.
 fn prepare_light(
     f: &FinFrameData,
-    maps: &super::FinMapsGpu,
+    maps: &crate::render::maps::FinMapsGpu,
     gpu: &mut ConvolutionGpu,
     device: &RenderDevice,
     queue: &RenderQueue,
@@ -358,7 +366,7 @@ fn prepare_view_bind_groups(
     let binding = view_uniforms.uniforms.binding();
     for (entity, texture, prepass, view, buffers) in &mut views {
         let (Some(pipelines), Some(view_binding), false, Some((depth, normal))) =
-            (pipelines.as_ref(), binding.clone(), lights.0.is_empty(), super::prepass_inputs(prepass))
+            (pipelines.as_ref(), binding.clone(), lights.0.is_empty(), crate::render::view::prepass_inputs(prepass))
         else {
             commands.entity(entity).remove::<ConvolutionViewBindGroup>();
             continue;
@@ -429,8 +437,8 @@ fn convolution_visibility(
         if !built {
             continue;
         }
-        let view = super::ViewPass { entity, settings, texture, offset: offset.offset };
-        super::run_view_pass(
+        let view = crate::render::view::ViewPass { entity, settings, texture, offset: offset.offset };
+        crate::render::view::run_view_pass(
             &mut ctx,
             &view,
             "fin_convolution_visibility",

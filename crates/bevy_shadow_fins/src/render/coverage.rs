@@ -27,11 +27,16 @@ use bevy::{
     shader::load_shader_library,
 };
 
-use super::{FinViewTexture, ViewsWithVisibility, extract_gpu::ensure, view_transform, workgroups};
+use crate::render::{
+    extraction::ensure,
+    view::{FinViewTexture, ViewsWithVisibility, view_transform, workgroups},
+};
 use crate::{
-    coverage_frame::{FAR_DEPTHS, LIST_WORDS, NEAR_DEPTHS},
-    extract::{FinFrameData, FinFrames},
-    light::FinShadowView,
+    frame::{
+        FinFrameData, FinFrames,
+        coverage::{FAR_DEPTHS, LIST_WORDS, NEAR_DEPTHS},
+    },
+    settings::FinShadowView,
 };
 
 const WORKGROUP: u32 = 64;
@@ -54,7 +59,7 @@ pub(super) fn finish(app: &mut App) {
                 prepare_view_bind_groups.in_set(RenderSystems::PrepareBindGroups),
             ),
         )
-        .add_systems(RenderGraph, render_lists.in_set(super::FinLightPasses))
+        .add_systems(RenderGraph, render_lists.in_set(crate::render::view::FinLightPasses))
         .add_systems(Core3d, coverage_visibility.after(Core3dSystems::Prepass).before(Core3dSystems::MainPass));
 }
 
@@ -84,7 +89,7 @@ fn params_of(f: &FinFrameData) -> Option<CoverageParams> {
         // w: the fins' projection code (a point light's cube face: the light
         // is the sphere's outline seen from each receiver, of radius
         // axis_n.w, and only the face's frustum is shaded).
-        info: [c.dims[0], c.dims[1], c.samples.len() as u32, super::projection_code(f)],
+        info: [c.dims[0], c.dims[1], c.samples.len() as u32, crate::render::params::projection_code(f)],
         axis_u: v4(f.axes[0]),
         axis_v: v4(f.axes[1]),
         axis_n: {
@@ -140,14 +145,15 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
                 uniform_buffer_sized(false, None),
                 storage_buffer_sized(false, None),
                 storage_buffer_sized(false, None),
-                super::gbuffer_entry(),
+                crate::render::view::gbuffer_entry(),
             ),
         ),
     );
     let lists_shader = load_embedded_asset!(asset_server.as_ref(), "shaders/coverage_lists.wgsl");
     let visibility_shader = load_embedded_asset!(asset_server.as_ref(), "shaders/coverage.wgsl");
-    let compute =
-        |label, layout: &_, shader: &_, entry| super::queue_compute(&pipeline_cache, label, layout, shader, entry);
+    let compute = |label, layout: &_, shader: &_, entry| {
+        crate::render::view::queue_compute(&pipeline_cache, label, layout, shader, entry)
+    };
     commands.insert_resource(CoveragePipelines {
         clear: compute("fin_coverage_clear_lists", &lists_layout, &lists_shader, "clear_lists"),
         raster: compute("fin_coverage_raster_lists", &lists_layout, &lists_shader, "raster_lists"),
@@ -161,7 +167,7 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
 
 /// Every coverage-method frame's GPU lists, by main-world light entity and cube face.
 #[derive(Resource, Default)]
-struct CoverageLightsGpu(std::collections::HashMap<crate::extract::FrameKey, CoverageGpu>);
+struct CoverageLightsGpu(std::collections::HashMap<crate::frame::FrameKey, CoverageGpu>);
 
 /// GPU copies of one light's coverage frame.
 #[derive(Default)]
@@ -330,7 +336,7 @@ fn prepare_view_bind_groups(
     pipelines: Option<Res<CoveragePipelines>>,
     pipeline_cache: Res<PipelineCache>,
     view_uniforms: Res<ViewUniforms>,
-    no_gbuffer: Res<super::NoGBuffer>,
+    no_gbuffer: Res<crate::render::view::NoGBuffer>,
     mut views: Query<(Entity, &FinViewTexture, &ViewPrepassTextures, &ExtractedView, Option<&mut CoverageViewBuffers>)>,
 ) {
     let binding = view_uniforms.uniforms.binding();
@@ -340,7 +346,7 @@ fn prepare_view_bind_groups(
             commands.entity(entity).remove::<CoverageViewBindGroup>();
             continue;
         };
-        let Some((depth, normal)) = super::prepass_inputs(prepass) else {
+        let Some((depth, normal)) = crate::render::view::prepass_inputs(prepass) else {
             commands.entity(entity).remove::<CoverageViewBindGroup>();
             continue;
         };
@@ -396,7 +402,7 @@ fn prepare_view_bind_groups(
                         buffer.as_entire_binding(),
                         per_pixel.reference.as_entire_binding(),
                         per_pixel.tally.as_entire_binding(),
-                        super::gbuffer_input(prepass, &no_gbuffer),
+                        crate::render::view::gbuffer_input(prepass, &no_gbuffer),
                     )),
                 );
                 Some((bind_group, gpu.counts.2.clamp(1, 8)))
@@ -446,6 +452,6 @@ fn coverage_visibility(
         }
         span.end(ctx.command_encoder());
         written.0.insert((entity, slot));
-        super::copy_to_targets(&mut ctx, settings, texture, &images, &frames, slot);
+        crate::render::view::copy_to_targets(&mut ctx, settings, texture, &images, &frames, slot);
     }
 }

@@ -22,16 +22,17 @@ use bevy::{
 
 use crate::{
     budget::FinDegradation,
-    extract::{FinFrameData, FinFrameStats, FinFrames, FinLightStats, MAX_FIN_FRAMES, MeshCache},
-    gpu_scene::{GpuCapacity, GpuInstance, GpuScene},
-    light::FinMethod,
+    casters::gpu_scene::{GpuCapacity, GpuInstance, GpuScene},
+    frame::{FinFrameData, FinFrames, MAX_FIN_FRAMES, update::MeshCache},
+    settings::FinMethod,
+    stats::{FinFrameStats, FinLightStats},
 };
 use shadow_fins::light::Aperture;
 
 /// `control` buffer layout (u32 words), as in `extract.wgsl`.
 pub(super) const C_PARAMS: u64 = 16;
 /// The maps' `FinParams`, bytes.
-const PARAMS_BYTES: u64 = size_of::<super::FinParams>() as u64;
+const PARAMS_BYTES: u64 = size_of::<crate::render::params::FinParams>() as u64;
 pub(super) const C_ARGS_CLEAR: u64 = 56;
 pub(super) const C_ARGS_CASTERS: u64 = 59;
 pub(super) const C_ARGS_FINS: u64 = 62;
@@ -54,7 +55,7 @@ const C_REDRAWN: usize = 14;
 /// footprint, deepest vertex, silhouette depths), then `DIRTY_WORDS` per
 /// dirty instance, then the redraw lists.
 const H_DIRTY_COUNT: u64 = 64;
-/// 1: the GPU may extract the moved instances alone ([`FinIncrementalExtraction`](super::FinIncrementalExtraction)).
+/// 1: the GPU may extract the moved instances alone ([`FinIncrementalExtraction`](crate::settings::FinIncrementalExtraction)).
 const H_INCREMENTAL: u64 = 66;
 const H_INSTANCES: u64 = 96;
 const INSTANCE_WORDS: u64 = 8;
@@ -66,13 +67,13 @@ const FULL: u32 = u32::MAX;
 const MAX_REDRAWN_INSTANCES: usize = 256;
 /// Words 0..16 of `control` go back to the main world: counts, generation, layers.
 const STATS_WORDS: u64 = 16;
-const FACE_WORDS: u64 = crate::gpu_scene::FACE_STATE_WORDS;
-const VERTEX_WORDS: u64 = crate::gpu_scene::VERTEX_STATE_WORDS;
+const FACE_WORDS: u64 = crate::gpu_layout::FACE_STATE_WORDS;
+const VERTEX_WORDS: u64 = crate::gpu_layout::VERTEX_STATE_WORDS;
 const WORKGROUP: u32 = 64;
 
-use crate::gpu_scene::CUTOUT_BYTES;
-use crate::gpu_scene::SILHOUETTE_BYTES;
-pub(super) use crate::gpu_scene::{CASTER_BYTES, FIN_BYTES};
+use crate::gpu_layout::CUTOUT_BYTES;
+use crate::gpu_layout::SILHOUETTE_BYTES;
+pub(super) use crate::gpu_layout::{CASTER_BYTES, FIN_BYTES};
 
 /// The posing passes' entry points (`pose.wgsl`), in the order they run.
 const POSE_ENTRY_POINTS: [&str; 5] = ["pose_vertices", "pose_faces", "pose_outline", "pose_normals", "pose_creases"];
@@ -111,7 +112,7 @@ pub(super) fn build(app: &mut App) {
     embedded_asset!(app, "shaders/pose.wgsl");
     app.add_plugins(ExtractResourcePlugin::<FinStatsBuffer>::default())
         .add_systems(Startup, spawn_stats_readback)
-        .add_systems(PostUpdate, read_back_while_waiting.after(crate::extract::FinFramesUpdate));
+        .add_systems(PostUpdate, read_back_while_waiting.after(crate::frame::update::FinFramesUpdate));
 }
 
 /// Marks the entity whose `Readback` brings the extraction's counts back.
@@ -183,13 +184,17 @@ fn on_stats_readback(
         }
     }
     if any {
-        crate::extract::publish_light_stats(&frames.0, &cache, &mut light_stats);
+        crate::frame::update::publish_light_stats(&frames.0, &cache, &mut light_stats);
     }
 }
 
 /// One frame's counts from its read-back slot `w`, or `None` when the slot
 /// belongs to another frame (an older one, another light's, or none yet).
-fn stats_of_readback(f: &FinFrameData, w: &[u32], state: &mut crate::extract::LightState) -> Option<FinFrameStats> {
+fn stats_of_readback(
+    f: &FinFrameData,
+    w: &[u32],
+    state: &mut crate::frame::build::LightState,
+) -> Option<FinFrameStats> {
     let gpu = f.gpu.as_ref()?;
     // Generations are unique over all lights' frames: a slot that another
     // light used last frame cannot pass for this one's.
@@ -230,7 +235,7 @@ fn stats_of_readback(f: &FinFrameData, w: &[u32], state: &mut crate::extract::Li
         degraded: if grown.is_none() { shortfall.or(f.stats.degraded) } else { f.stats.degraded },
         ..f.stats
     };
-    crate::extract::warn_degradation(&mut state.warned, now.degraded);
+    crate::stats::warn_degradation(&mut state.warned, now.degraded);
     Some(now)
 }
 
@@ -291,7 +296,13 @@ impl ExtractPipelines {
         let queue = |shader: &Handle<Shader>, layout: &BindGroupLayoutDescriptor, entries: &[&'static str]| {
             (entries.iter())
                 .map(|entry| {
-                    super::queue_compute(pipeline_cache, format!("fin_extract_{entry}"), layout, shader, entry)
+                    crate::render::view::queue_compute(
+                        pipeline_cache,
+                        format!("fin_extract_{entry}"),
+                        layout,
+                        shader,
+                        entry,
+                    )
                 })
                 .collect()
         };
@@ -396,9 +407,9 @@ fn changed_runs(old: &[u8], new: &[u8], record: usize) -> Vec<std::ops::Range<us
 /// Uploads what changed (the instance records that differ, geometry when its key changed) and
 /// binds the work buffers; `fins` and `casters` are the maps' input buffers.
 /// `maps_kept`: the maps buffer still holds the last update's maps and
-/// [`FinPartialRedraw`](super::FinPartialRedraw) is on (a partial redraw may
+/// [`FinPartialRedraw`](crate::settings::FinPartialRedraw) is on (a partial redraw may
 /// keep them; see the top of `extract.wgsl`); `incremental`: the GPU may then
-/// extract the moved instances alone ([`FinIncrementalExtraction`](super::FinIncrementalExtraction)).
+/// extract the moved instances alone ([`FinIncrementalExtraction`](crate::settings::FinIncrementalExtraction)).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn prepare(
     buffers: &mut ExtractBuffers,
@@ -428,7 +439,7 @@ pub(super) fn prepare(
     };
     let layers = if s.method == FinMethod::MultiLayer { s.layers } else { 1 };
     let v4 = |v: bevy::math::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
-    let super_params = super::params_of(frame);
+    let super_params = crate::render::params::params_of(frame);
     let params = ExtractParams {
         totals: [scene.instances.len() as u32, vertices, faces, edges],
         layering: [s.sub_layers, layers, scene.capacity.layers, resolution],
@@ -634,7 +645,7 @@ pub(super) fn record(
         return false;
     };
     let Some(args) = buffers.indirect.as_ref() else { return false };
-    let threads = |n: u32| super::workgroups(n.div_ceil(WORKGROUP));
+    let threads = |n: u32| crate::render::view::workgroups(n.div_ceil(WORKGROUP));
     let instances = buffers.uploaded_instances.len() / size_of::<GpuInstance>();
     let dirty = if buffers.dirty == FULL { 0 } else { buffers.dirty };
     // Dispatch sizes known here: the scene's instances, the moved ones.
@@ -665,12 +676,12 @@ pub(super) fn record(
     if let Some(pose_bind_group) = buffers.pose_bind_group.as_ref().filter(|_| buffers.pose_pending) {
         let Some(pose) = all_ready(&pipelines.pose_ids, pipeline_cache) else { return false };
         let [jobs, vertices, faces, edges] =
-            crate::gpu_scene::pose_sizes(buffers.uploaded_poses.as_deref().map_or(&[], |p| p.as_slice()));
+            crate::casters::gpu_scene::pose_sizes(buffers.uploaded_poses.as_deref().map_or(&[], |p| p.as_slice()));
         let mut pass =
             encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("fin_posing"), timestamp_writes: None });
         pass.set_bind_group(0, pose_bind_group, &[]);
         // Jobs along y, past 65 535 along z too (`pose.wgsl`'s `job_of`).
-        let (y, z) = super::workgroups(jobs);
+        let (y, z) = crate::render::view::workgroups(jobs);
         for (pipeline, n) in pose.into_iter().zip([vertices, faces, vertices, vertices, edges]) {
             pass.set_pipeline(pipeline);
             pass.dispatch_workgroups(n.div_ceil(WORKGROUP).clamp(1, MAX_POSE_GROUPS), y, z);

@@ -68,7 +68,8 @@ use bevy::{
 };
 use naga_oil::compose::ImportDefinition;
 
-use super::composite::{FinCompositeBindGroup, light_layout};
+use crate::forward_hook::{FinForwardShading, PbrFragment};
+use crate::render::composite::{FinCompositeBindGroup, light_layout};
 
 /// The import path of `shaders/forward_hook.wgsl`.
 const HOOK: &str = "bevy_shadow_fins::forward_hook";
@@ -78,17 +79,6 @@ const PBR_FRAGMENT: &str = "embedded://bevy_pbr/render/pbr_fragment.wgsl";
 
 /// The bind group the hook reads.
 const FIN_GROUP: usize = 4;
-
-/// Whether fin shadows reach forward materials: the device binds at least
-/// five groups and the hook is in Bevy's `pbr_fragment` shader. Read by
-/// `bevy_shadow_maps.rs`: until then forward opaque meshes keep Bevy's maps on.
-#[derive(Resource, Debug, Clone, Copy, PartialEq, Eq)]
-pub struct FinForwardShading(pub bool);
-
-/// Bevy's `pbr_fragment` shader, kept so it can be given the hook's import;
-/// present while the hook is not in it yet (nor given up on).
-#[derive(Resource)]
-pub(crate) struct PbrFragment(Handle<Shader>);
 
 pub(crate) fn build(app: &mut App) {
     bevy::shader::load_shader_library!(app, "shaders/forward_hook.wgsl");
@@ -197,7 +187,7 @@ fn init_fallback(mut commands: Commands, device: Res<RenderDevice>, pipeline_cac
     // Zero lights: the hook finds no slot and leaves Bevy's shading alone.
     let uniform = device.create_buffer_with_data(&BufferInitDescriptor {
         label: Some("fin_forward_fallback_lights"),
-        contents: &vec![0u8; super::composite::COMPOSITE_LIGHTS_BYTES],
+        contents: &vec![0u8; crate::render::composite::COMPOSITE_LIGHTS_BYTES],
         usage: BufferUsages::UNIFORM,
     });
     let bind_group = device.create_bind_group(

@@ -1,6 +1,6 @@
 //! Render world of the plateaus method (`FinMethod::Plateaus`, Haines 2001):
 //! per light frame, the plane, sheets and their grid uploaded when the
-//! frame changed (`plateau_frame.rs` builds them), and per camera the pass
+//! frame changed (`frame/plateaus.rs` builds them), and per camera the pass
 //! (`plateaus.wgsl`) that reads them beside the light's hard shadow map
 //! (drawn by the penumbra-map passes) into the same visibility buffer the
 //! fins write, so compositing is unchanged.
@@ -26,10 +26,14 @@ use bevy::{
     },
 };
 
-use super::{FinLightsGpu, FinViewTexture, ViewsWithVisibility, extract_gpu::ensure, view_transform};
+use crate::render::{
+    extraction::ensure,
+    maps::FinLightsGpu,
+    view::{FinViewTexture, ViewsWithVisibility, view_transform},
+};
 use crate::{
-    extract::{FinFrameData, FinFrames, FrameKey},
-    light::{FinMethod, FinShadowView},
+    frame::{FinFrameData, FinFrames, FrameKey},
+    settings::{FinMethod, FinShadowView},
 };
 
 pub(super) fn build(app: &mut App) {
@@ -79,7 +83,13 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
     );
     let shader = load_embedded_asset!(asset_server.as_ref(), "shaders/plateaus.wgsl");
     commands.insert_resource(PlateauPipelines {
-        visibility: super::queue_compute(&pipeline_cache, "fin_plateaus", &view_layout, &shader, "plateaus_pass"),
+        visibility: crate::render::view::queue_compute(
+            &pipeline_cache,
+            "fin_plateaus",
+            &view_layout,
+            &shader,
+            "plateaus_pass",
+        ),
         view_layout,
     });
 }
@@ -103,7 +113,7 @@ impl PlateauGpu {
     }
 }
 
-fn on_plateaus(frames: &FinFrames) -> impl Iterator<Item = &crate::extract::FinLightFrame> {
+fn on_plateaus(frames: &FinFrames) -> impl Iterator<Item = &crate::frame::FinLightFrame> {
     frames.on_coverage(false).filter(|f| f.data.settings.method == FinMethod::Plateaus)
 }
 
@@ -190,7 +200,7 @@ fn prepare_view_bind_groups(
     let binding = view_uniforms.uniforms.binding();
     for (entity, texture, prepass, view, buffers) in &mut views {
         let (Some(pipelines), Some(view_binding), false, Some((depth, normal))) =
-            (pipelines.as_ref(), binding.clone(), lights.0.is_empty(), super::prepass_inputs(prepass))
+            (pipelines.as_ref(), binding.clone(), lights.0.is_empty(), crate::render::view::prepass_inputs(prepass))
         else {
             commands.entity(entity).remove::<PlateauViewBindGroup>();
             continue;
@@ -251,8 +261,8 @@ fn plateaus_visibility(
         if maps.0.get(&frames.0[slot].key()).is_none_or(|m| m.dirty || m.renders == 0) {
             continue;
         }
-        let view = super::ViewPass { entity, settings, texture, offset: offset.offset };
-        super::run_view_pass(
+        let view = crate::render::view::ViewPass { entity, settings, texture, offset: offset.offset };
+        crate::render::view::run_view_pass(
             &mut ctx,
             &view,
             "fin_plateaus_visibility",

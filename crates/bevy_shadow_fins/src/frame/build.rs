@@ -1,0 +1,472 @@
+//! One light's frame (one cube face's, for a point light): the casters it
+//! sees, fitted to its frame, and the method's data — the GPU extraction's
+//! scene, or the core's CPU extraction, coverage or plateaus — under the
+//! budget and the device's buffer limit.
+
+use crate::{
+    budget::{FinDegradation, allocate_maps},
+    casters::CasterScene,
+    frame::{coverage::coverage_frame, sun_fit},
+    settings::{FinMethod, FinShadowSettings},
+};
+use crate::{
+    casters::{
+        gpu_scene::{GpuCapacity, GpuSceneBuilder},
+        reach::LightSees,
+    },
+    frame::{
+        FinFrameData,
+        in_frame::InFrame,
+        map_casters::{fit_cutouts, gpu_casters, gpu_fin},
+    },
+    gpu_layout::{GpuCaster, GpuFin, MAP_TEXEL_BYTES},
+    stats::{FinExtraction, FinFrameStats, warn_degradation},
+};
+use bevy::prelude::*;
+use shadow_fins::{
+    light::{CubeFace, Light, LightFrame},
+    oracle::{FinShadowModel, MapRegion},
+    scene::{Scene, SceneObject},
+};
+
+/// Per light: what its frame was built from and the GPU extraction's state.
+#[derive(Default)]
+pub(crate) struct LightState {
+    pub(crate) signature: u64,
+    pub(crate) gpu: GpuSceneBuilder,
+    /// GPU buffer sizes, grown when a read-back says a frame overflowed them.
+    pub(crate) capacity: Option<GpuCapacity>,
+    pub(crate) capacity_epoch: u64,
+    /// What the latest GPU read-back said did not fit (kept into new frames).
+    pub(crate) shortfall: Option<FinDegradation>,
+    /// The degradation last warned about.
+    pub(crate) warned: Option<FinDegradation>,
+    /// A sun's map window in its last frame (`sun_fit::sun_window` keeps it
+    /// while it still fits).
+    pub(crate) window: Option<[f32; 4]>,
+    /// What this frame models now (a light's stats combine its frames').
+    pub(crate) stats: FinFrameStats,
+    /// The objects as this light saw them in its last frame.
+    pub(crate) built: Option<LightBuild>,
+}
+
+/// The objects one light's last frame was built from, kept so that the next
+/// frame recomputes only the slots the scene's update changed.
+pub(crate) struct LightBuild {
+    /// The [`CasterScene::version`] they were seen from.
+    pub(crate) scene_version: u64,
+    /// The light's own part of the signature they were seen with.
+    pub(crate) light_part: u64,
+    /// The frame they were culled in, and the one the GPU records were made
+    /// in (a sun fitted to the views moves it; `None`: not on the GPU).
+    pub(crate) seen_frame: LightFrame,
+    pub(crate) gpu_frame: Option<LightFrame>,
+    pub(crate) objects: Vec<SceneObject>,
+}
+
+/// What one light's frame is asked for.
+pub(crate) struct FrameAsked<'a> {
+    pub(crate) light: Light,
+    pub(crate) face: Option<CubeFace>,
+    pub(crate) window: Option<[f32; 4]>,
+    pub(crate) sees: LightSees<'a>,
+    pub(crate) settings: FinShadowSettings,
+    /// The light's own part of its frame's signature (not the casters').
+    pub(crate) light_part: u64,
+}
+
+/// The buffer limits one frame is built under.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct FrameLimits {
+    /// The largest buffer, bytes.
+    pub(crate) max_buffer: u64,
+    /// All map layers together, bytes.
+    pub(crate) map_bytes: u64,
+}
+
+/// One light's frame (one cube face's, for a point light) from the scene's objects.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn light_frame(
+    scene: &CasterScene,
+    asked: FrameAsked,
+    generation: u64,
+    limits: FrameLimits,
+    state: &mut LightState,
+) -> FinFrameData {
+    let FrameAsked { light, face, window, sees, settings, light_part } = asked;
+    let start = std::time::Instant::now();
+    // A light of no size casts no fins: one layer's slab is the exact hard
+    // shadow (the min over layers of slabs is the nearest slab), and the
+    // memory of the other layers goes to resolution instead.
+    let settings = if light.is_zero_size() { FinShadowSettings { layers: 1, ..settings } } else { settings };
+    let (frame, scene_box) = scene.frame_for(&light, face);
+    // The objects as this light sees them: after an in-place update of the
+    // scene, only its dirty slots again, when nothing of the light changed.
+    let mut built = state.built.take().filter(|b| {
+        b.scene_version + 1 == scene.version
+            && b.light_part == light_part
+            && b.seen_frame == frame
+            && b.objects.len() == scene.objects.len()
+    });
+    let dirty = scene.dirty.as_deref().filter(|_| built.is_some());
+    match (&mut built, dirty) {
+        (Some(b), Some(dirty)) => {
+            for &i in dirty {
+                b.objects[i] = scene.seen_by_one(i, &light, &frame, sees);
+            }
+            b.scene_version = scene.version;
+        }
+        _ => {
+            let objects = scene.seen_by(&light, &frame, sees);
+            built = Some(LightBuild {
+                scene_version: scene.version,
+                light_part,
+                seen_frame: frame,
+                gpu_frame: None,
+                objects,
+            });
+        }
+    }
+    let built = state.built.insert(built.expect("set above"));
+    let gpu_frame = built.gpu_frame.take();
+    let objects_of =
+        |state: &LightState| -> Vec<SceneObject> { state.built.as_ref().expect("built above").objects.clone() };
+    let unread_bounds = scene.unread_bounds.clone();
+    // A sun fitted to the views works in a frame placed at its window.
+    let fitted = match (light, window) {
+        (Light::Sun(sun), Some(w)) => sun_fit::window_frame(w, scene_box, &sun).map(|(f, l0)| (f, l0, w)),
+        _ => None,
+    };
+    let (frame, reference_depth) = fitted.map_or((frame, None), |(f, l0, _)| (f, Some(l0)));
+    let map_window = window.map(|w| sun_fit::window_in_frame(w, &frame));
+    let extent = (scene_box.1 - scene_box.0).length();
+    let in_frame = InFrame { light, frame, extent, scene_box, map_window, reference_depth };
+    let penumbra_texels = in_frame.widest_penumbra_texels(settings.map_resolution);
+    if settings.method == FinMethod::Coverage {
+        let objects = &state.built.as_ref().expect("built above").objects;
+        let data = coverage_data(objects, in_frame, settings, generation, start, unread_bounds, limits);
+        warn_degradation(&mut state.warned, data.stats.degraded);
+        return data;
+    }
+    let mut extraction = settings.extraction;
+    // The GPU extracts an alpha-masked caster from its mesh packed with its
+    // outline (`GpuMeshGeometry::pack_outlined`, posed with the mesh when the
+    // GPU poses it); one packed without (its cut-out could not be made at
+    // rest) sends the frame to the CPU extraction (the maps still run on the GPU).
+    let objects = &state.built.as_ref().expect("built above").objects;
+    if objects
+        .iter()
+        .zip(&scene.gpu_meshes)
+        .any(|(o, m)| o.casts_shadows && o.fitting_cutout().is_some() && !m.outlined)
+    {
+        extraction = FinExtraction::Cpu;
+    }
+    let mut gpu_scene = None;
+    let max_buffer = limits.max_buffer;
+    if extraction == FinExtraction::Gpu {
+        let LightState { gpu, capacity, built, .. } = &mut *state;
+        let built = built.as_mut().expect("built above");
+        // Records of unchanged objects are kept only in the frame they were made in.
+        let dirty = dirty.filter(|_| gpu_frame == Some(frame));
+        built.gpu_frame = Some(frame);
+        let max = GpuCapacity::max_for(max_buffer);
+        let scene = gpu.build(
+            &built.objects,
+            &scene.gpu_meshes,
+            &scene.gpu_poses,
+            &frame,
+            scene.objects_box,
+            dirty,
+            capacity,
+            max,
+        );
+        // Buffers sized by the scene itself cannot shrink: past the limit the
+        // core crate extracts on the CPU instead.
+        match scene.input_bytes().into_iter().find(|(_, bytes)| *bytes > max_buffer) {
+            Some((buffer, bytes)) => {
+                warn_once!(
+                    "fin shadows: the GPU extraction's {buffer} ({bytes} bytes) exceeds the buffer limit; extracting on the CPU"
+                );
+                extraction = FinExtraction::Cpu;
+                gpu_scene = Some(Err(FinDegradation::ExtractedOnCpu { buffer, bytes, limit_bytes: max_buffer }));
+            }
+            None => gpu_scene = Some(Ok(scene)),
+        }
+    }
+    // The plateaus' texture reads the scene in this frame; the maps below
+    // are its hard shadow.
+    let plateaus = (settings.method == FinMethod::Plateaus).then(|| {
+        let scene = Scene::new(objects_of(state));
+        let light_space = in_frame.light_space(&scene, unread_bounds.iter().flatten().copied());
+        crate::frame::plateaus::plateau_frame(&scene, &light_space)
+    });
+    let receiver_bound = unread_bounds.into_iter().flatten();
+    let mut data = match (extraction, gpu_scene) {
+        (FinExtraction::Gpu, Some(Ok(scene))) => {
+            // Layers are known to the GPU only (a read-back grows them): the
+            // maps hold what the GPU last wanted, at the best resolution that
+            // fits, and may grow to the most layers that fit at all.
+            let asked = if settings.method == FinMethod::MultiLayer { settings.layers } else { 1 };
+            let most =
+                allocate_maps(settings.map_resolution, asked, MAP_TEXEL_BYTES, limits.map_bytes, penumbra_texels)
+                    .layers;
+            let mut scene = scene;
+            let wanted = scene.capacity.layers.min(most);
+            let alloc =
+                allocate_maps(settings.map_resolution, wanted, MAP_TEXEL_BYTES, limits.map_bytes, penumbra_texels);
+            scene.capacity.layers = alloc.layers;
+            scene.max_capacity.layers = most;
+            scene.map_window = in_frame.map_window;
+            scene.receiver_depth = match in_frame.reference_depth {
+                Some(l0) => l0,
+                None => receiver_bound.map(|p| frame.to_frame(p).z).fold(0.0, f32::max),
+            };
+            scene.fixed_reference_depth = in_frame.reference_depth.is_some();
+            let objects = &state.built.as_ref().expect("built above").objects;
+            let stats = FinFrameStats {
+                casters: objects.iter().filter(|o| o.casts_shadows).count(),
+                triangles: objects.iter().map(|o| o.mesh.triangle_count()).sum(),
+                extract_ms: start.elapsed().as_secs_f32() * 1e3,
+                // No caster face: the GPU runs no pass and there is nothing to read back.
+                up_to_date: scene.totals[1] == 0,
+                degraded: alloc.degradation,
+                map_resolution: alloc.resolution,
+                posed_on_gpu: scene.pose_sizes()[0] as usize,
+                ..default()
+            };
+            FinFrameData {
+                generation,
+                stats,
+                casters: Vec::new(),
+                cutouts: Vec::new(),
+                mask_words: Vec::new(),
+                fins: Vec::new(),
+                region: MapRegion { min: Vec2::ZERO, texel: 1.0, resolution: alloc.resolution },
+                map_layers: alloc.layers,
+                limit_bytes: limits.max_buffer,
+                map_limit_bytes: limits.map_bytes,
+                origin: frame.origin(),
+                axes: frame.axes_f64(),
+                size: frame.size(),
+                aperture: frame.aperture,
+                orthographic: !frame.is_perspective(),
+                reference_depth: 0.0,
+                near: 0.0,
+                scene_extent: scene.extent,
+                settings,
+                gpu: Some(scene),
+                coverage: None,
+                plateaus: None,
+                convolution: None,
+                windowed: false,
+            }
+        }
+        (_, fallback) => {
+            let mut data =
+                cpu_frame(Scene::new(objects_of(state)), in_frame, settings, generation, start, receiver_bound, limits);
+            if let Some(Err(why)) = fallback {
+                // What the CPU path had to cut (maps, dropped casters) shows first.
+                data.stats.degraded = data.stats.degraded.or(Some(why));
+            }
+            data
+        }
+    };
+    if let Some(p) = plateaus {
+        data.stats.silhouettes = p.sheets.len();
+        let longest = p.cell_starts.windows(2).map(|w| w[1].saturating_sub(w[0])).max().unwrap_or(0);
+        if longest > crate::frame::plateaus::MAX_CELL_SHEETS {
+            let why =
+                FinDegradation::LongPlateauCell { sheets: longest, limit: crate::frame::plateaus::MAX_CELL_SHEETS };
+            data.stats.degraded = data.stats.degraded.or(Some(why));
+        }
+        data.plateaus = Some(p);
+    }
+    data.windowed = map_window.is_some();
+    if settings.method == FinMethod::Convolution {
+        // The basis shares the light's map budget with the maps it filters.
+        let resolution = data.region.resolution as u64;
+        let maps = data.map_layers.max(1) as u64 * resolution * resolution * MAP_TEXEL_BYTES;
+        let room = limits.map_bytes.saturating_sub(maps).min(limits.max_buffer);
+        match crate::budget::BasisLayout::new(data.region.resolution, settings.convolution_order, room) {
+            Ok(layout) => {
+                if layout.first > 0 {
+                    let why = FinDegradation::ConvolutionLevels { dropped: layout.first, limit_bytes: room };
+                    data.stats.degraded = data.stats.degraded.or(Some(why));
+                }
+                data.convolution = Some(layout);
+            }
+            Err(bytes) => {
+                let why = FinDegradation::ConvolutionBasis { bytes, limit_bytes: room };
+                data.stats.degraded = data.stats.degraded.or(Some(why));
+            }
+        }
+    }
+    data.stats.map_resolution = data.region.resolution;
+    data.stats.extraction = if data.gpu.is_some() { FinExtraction::Gpu } else { FinExtraction::Cpu };
+    // What the last read-back said the GPU had to drop still holds until a
+    // read-back says otherwise (no flicker between re-extractions).
+    data.stats.degraded = data.stats.degraded.or(state.shortfall);
+    warn_degradation(&mut state.warned, data.stats.degraded);
+    data
+}
+
+/// The coverage method's frame: edges and lists from the core crate.
+pub(crate) fn coverage_data(
+    objects: &[SceneObject],
+    in_frame: InFrame,
+    settings: FinShadowSettings,
+    generation: u64,
+    start: std::time::Instant,
+    unread_bounds: Vec<[Vec3; 8]>,
+    limits: FrameLimits,
+) -> FinFrameData {
+    let scene = Scene::new(objects.to_vec());
+    let (coverage, degraded, potential_silhouettes) = coverage_frame(
+        &scene,
+        in_frame,
+        settings.map_resolution,
+        settings.coverage_samples,
+        unread_bounds.into_iter().flatten(),
+        limits.map_bytes,
+        limits.max_buffer,
+    );
+    let stats = FinFrameStats {
+        casters: scene.objects.iter().filter(|o| o.casts_shadows).count(),
+        triangles: scene.triangle_count(),
+        silhouettes: potential_silhouettes,
+        fins: 0,
+        layers: if coverage.casters.is_empty() { 0 } else { 1 },
+        extract_ms: start.elapsed().as_secs_f32() * 1e3,
+        up_to_date: true,
+        degraded,
+        map_resolution: coverage.region.resolution,
+        extraction: FinExtraction::Cpu,
+        partial_redraw: false,
+        incremental_extraction: false,
+        redrawn_texels: 0,
+        posed_on_gpu: 0,
+    };
+    FinFrameData {
+        generation,
+        stats,
+        casters: Vec::new(),
+        cutouts: Vec::new(),
+        mask_words: Vec::new(),
+        fins: Vec::new(),
+        region: coverage.region,
+        map_layers: 1,
+        limit_bytes: limits.max_buffer,
+        map_limit_bytes: limits.map_bytes,
+        origin: in_frame.frame.origin(),
+        axes: in_frame.frame.axes_f64(),
+        size: in_frame.frame.size(),
+        aperture: in_frame.frame.aperture,
+        orthographic: !in_frame.frame.is_perspective(),
+        reference_depth: 0.0,
+        near: coverage.near,
+        scene_extent: coverage.extent,
+        settings,
+        gpu: None,
+        coverage: Some(coverage),
+        plateaus: None,
+        convolution: None,
+        windowed: false,
+    }
+}
+
+/// The whole extraction on the CPU with the core crate.
+pub(crate) fn cpu_frame(
+    scene: Scene,
+    in_frame: InFrame,
+    settings: FinShadowSettings,
+    generation: u64,
+    start: std::time::Instant,
+    receiver_bound: impl Iterator<Item = Vec3>,
+    limits: FrameLimits,
+) -> FinFrameData {
+    let ls = in_frame.light_space(&scene, receiver_bound);
+    let mut core = settings.core();
+    let mut model = FinShadowModel::new(&scene, &ls, settings.method.into(), core);
+    let penumbra_texels = in_frame.widest_penumbra_texels(settings.map_resolution);
+    let mut alloc = allocate_maps(
+        settings.map_resolution,
+        model.plan.len() as u32,
+        MAP_TEXEL_BYTES,
+        limits.map_bytes,
+        penumbra_texels,
+    );
+    if (alloc.layers as usize) < model.plan.len() {
+        // Fewer layers fit than the plan made: plan again with that many.
+        core.layers = alloc.layers;
+        model = FinShadowModel::new(&scene, &ls, settings.method.into(), core);
+        alloc.layers = alloc.layers.max(model.plan.len() as u32);
+    }
+    let bounds = model.casters.iter().map(|c| c.bounds()).chain(model.fins.iter().map(|f| f.bounds()));
+    let region = in_frame.covering(bounds, alloc.resolution);
+    let mut degraded = alloc.degradation;
+    // What does not fit one buffer is dropped (and said so).
+    let mut capped = |buffer: &'static str, n: usize, bytes: u64| {
+        let keep = (limits.max_buffer / bytes) as usize;
+        if n > keep && degraded.is_none() {
+            degraded = Some(FinDegradation::Capacity {
+                buffer,
+                kept: keep as u32,
+                wanted: n as u32,
+                limit_bytes: limits.max_buffer,
+            });
+        }
+        n.min(keep)
+    };
+    let n_casters = capped("map casters", model.casters.len(), size_of::<GpuCaster>() as u64);
+    let n_fins = capped("fins", model.fins.len(), size_of::<GpuFin>() as u64);
+    let (mut casters_gpu, mut cutouts, mut mask_words) =
+        gpu_casters(&model.casters[..n_casters], Some(&model.caster_layers[..n_casters]), &ls.masks);
+    if let Some(why) = fit_cutouts(&mut casters_gpu, &mut cutouts, &mut mask_words, limits.max_buffer) {
+        degraded = degraded.or(Some(why));
+    }
+    let fins_gpu: Vec<GpuFin> =
+        model.fins.iter().take(n_fins).zip(&model.fin_layers).map(|(f, &l)| gpu_fin(f, l)).collect();
+    let stats = FinFrameStats {
+        casters: scene.objects.iter().filter(|o| o.casts_shadows).count(),
+        triangles: scene.triangle_count(),
+        silhouettes: model.silhouettes.len(),
+        fins: model.fins.len(),
+        // Nothing casts: no layer, no map, and the passes have nothing to do.
+        layers: if model.casters.is_empty() && model.fins.is_empty() { 0 } else { model.plan.len() },
+        extract_ms: start.elapsed().as_secs_f32() * 1e3,
+        up_to_date: true,
+        degraded,
+        map_resolution: region.resolution,
+        extraction: FinExtraction::Cpu,
+        partial_redraw: false,
+        incremental_extraction: false,
+        redrawn_texels: (model.plan.len() as u64) * (region.resolution as u64).pow(2),
+        posed_on_gpu: 0,
+    };
+    FinFrameData {
+        generation,
+        stats,
+        casters: casters_gpu,
+        cutouts,
+        mask_words,
+        fins: fins_gpu,
+        region,
+        map_layers: alloc.layers,
+        limit_bytes: limits.max_buffer,
+        map_limit_bytes: limits.map_bytes,
+        origin: ls.frame.origin(),
+        axes: ls.frame.axes_f64(),
+        size: ls.frame.size(),
+        aperture: ls.frame.aperture,
+        orthographic: !ls.frame.is_perspective(),
+        reference_depth: ls.reference_depth,
+        near: model.near,
+        scene_extent: ls.extent,
+        settings,
+        gpu: None,
+        coverage: None,
+        plateaus: None,
+        convolution: None,
+        windowed: false,
+    }
+}
