@@ -14,7 +14,7 @@
 
 use bevy::{gltf::Gltf, prelude::*};
 
-use crate::scene::LoadedScene;
+use crate::state::LoadedScene;
 
 /// One clip of the loaded glTF.
 #[derive(Debug, Clone)]
@@ -74,7 +74,7 @@ pub(crate) fn build(app: &mut App) {
     app.init_resource::<EditorAnimation>().add_systems(
         Update,
         (
-            drive_animation.after(crate::gltf_scene::finish_gltf_loads),
+            drive_animation.after(crate::state::GltfLoadsFinished),
             // Exclusive (it snapshots the world): only while a sought pose is untraced.
             snapshot_rested_pose.after(drive_animation).run_if(pose_untraced),
         ),
@@ -188,7 +188,7 @@ fn snapshot_rested_pose(world: &mut World) {
         return;
     }
     let Some(loaded) = world.get_resource::<LoadedScene>().cloned() else { return };
-    let root = world.query_filtered::<Entity, With<crate::gltf_scene::EditorSceneRoot>>().iter(world).next();
+    let root = world.query_filtered::<Entity, With<crate::state::EditorSceneRoot>>().iter(world).next();
     let Some(root) = root else { return };
     let snapshot = bevy_shadow_fins::scene_snapshot(world, Some(root));
     world.insert_resource(LoadedScene {

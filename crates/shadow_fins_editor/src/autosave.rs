@@ -15,17 +15,7 @@ use std::{path::PathBuf, time::Instant};
 use bevy::prelude::*;
 use bevy_shadow_fins::FinShadowSettings;
 
-use crate::{EditorOptions, EditorState, LightParams, settings_file::EditorSettings};
-
-/// Where the options say the autosave goes.
-#[derive(Debug, Clone, PartialEq, Eq, Default)]
-pub enum AutosaveOption {
-    /// The per-user default, in interactive runs.
-    #[default]
-    Default,
-    Path(PathBuf),
-    Off,
-}
+use crate::{AutosaveOption, EditorOptions, EditorState, LightParams, settings_file::EditorSettings};
 
 /// The per-user default autosave file.
 fn default_path() -> Option<PathBuf> {
@@ -70,7 +60,7 @@ pub(crate) fn build(app: &mut App) {
 fn autosave_settings(
     mut autosave: ResMut<Autosave>,
     params: Option<Res<LightParams>>,
-    fins: Query<&FinShadowSettings, With<crate::scene::EditorLight>>,
+    fins: Query<&FinShadowSettings, With<crate::state::EditorLight>>,
     mut exits: MessageReader<AppExit>,
     mut state: ResMut<EditorState>,
 ) {

@@ -2,37 +2,12 @@
 //! docs use (`--screenshot PATH --frames N`: render N frames, save the whole
 //! window, panels included, exit).
 
-use std::path::PathBuf;
-
 use bevy::{
     prelude::*,
     render::view::screenshot::{Screenshot, ScreenshotCaptured},
 };
 
-use crate::EditorState;
-
-/// The editor's options.
-#[derive(Resource, Debug, Clone, PartialEq)]
-pub struct EditorOptions {
-    /// A glTF/GLB to open instead of the built-in demo scene.
-    pub scene: Option<PathBuf>,
-    /// A settings file (RON) to load at start.
-    pub settings: Option<PathBuf>,
-    /// Save a screenshot of the window here after `frames` frames (and once the
-    /// fin shadows of the current settings have settled), then exit.
-    pub screenshot: Option<PathBuf>,
-    /// Frames before the screenshot (default 30).
-    pub frames: u32,
-    /// Where settings are autosaved (see `autosave.rs`).
-    pub autosave: crate::autosave::AutosaveOption,
-    /// The buffer shown over the viewport at start (`--view`).
-    pub view: Option<crate::ViewKind>,
-    /// The other paper's method the peer views show at start (`--peer`).
-    pub peer: Option<shadow_fins::peers::PeerMethod>,
-    /// Where the opened glTF's first animation rests at start, seconds
-    /// (`--animation-time`; clamped to the clip's length).
-    pub animation_time: Option<f32>,
-}
+use crate::{EditorOptions, EditorState};
 
 /// A command line that could not be understood.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -57,21 +32,6 @@ pub enum CliError {
     Unknown(String),
 }
 
-impl Default for EditorOptions {
-    fn default() -> Self {
-        Self {
-            scene: None,
-            settings: None,
-            screenshot: None,
-            frames: 30,
-            autosave: Default::default(),
-            view: None,
-            peer: None,
-            animation_time: None,
-        }
-    }
-}
-
 /// Frames the screenshot may take to arrive before the editor gives up.
 const SCREENSHOT_TIMEOUT_FRAMES: u32 = 300;
 
@@ -86,9 +46,9 @@ impl EditorOptions {
                 "--screenshot" => options.screenshot = Some(value("--screenshot")?.into()),
                 "--settings" => options.settings = Some(value("--settings")?.into()),
                 "--autosave" => {
-                    options.autosave = crate::autosave::AutosaveOption::Path(value("--autosave")?.into());
+                    options.autosave = crate::AutosaveOption::Path(value("--autosave")?.into());
                 }
-                "--no-autosave" => options.autosave = crate::autosave::AutosaveOption::Off,
+                "--no-autosave" => options.autosave = crate::AutosaveOption::Off,
                 "--frames" => {
                     let v = value("--frames")?;
                     options.frames = v.parse().ok().filter(|n| *n >= 1).ok_or(CliError::BadFrames(v))?;
@@ -152,14 +112,14 @@ fn take_screenshot_when_due(
     mut commands: Commands,
     options: Res<EditorOptions>,
     state: Res<EditorState>,
-    main_light: Query<&bevy_shadow_fins::FinLightStats, With<crate::scene::EditorLight>>,
+    main_light: Query<&bevy_shadow_fins::FinLightStats, With<crate::state::EditorLight>>,
     frames: Res<bevy_shadow_fins::FinFrames>,
     loading: Query<(), With<crate::gltf_scene::PendingGltf>>,
     peer: Res<crate::peers::PeerJob>,
     (pipelines, animation, loaded): (
         Res<PipelinesReady>,
         Res<crate::animation::EditorAnimation>,
-        Option<Res<crate::scene::LoadedScene>>,
+        Option<Res<crate::state::LoadedScene>>,
     ),
     (mut requested_at, mut peer_shown_for): (Local<Option<u32>>, Local<u32>),
     mut exit: MessageWriter<AppExit>,

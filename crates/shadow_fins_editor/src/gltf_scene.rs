@@ -16,10 +16,11 @@ use shadow_fins::{
     light::Light,
 };
 
+use crate::state::EditorSceneRoot;
 use crate::{
     EditorState,
     orbit::OrbitCamera,
-    scene::{EditorCamera, EditorLight, EditorMesh, LightKind, LightParams, LoadedScene},
+    state::{EditorCamera, EditorLight, EditorMesh, LightKind, LightParams, LoadedScene},
 };
 
 /// The illuminance the default light gives the surface under it, lux: a white
@@ -41,10 +42,6 @@ pub fn readable_lumens(distance: f32) -> f32 {
     let d = if distance.is_finite() && distance > 0.0 { distance } else { 1.0 };
     (4.0 * std::f32::consts::PI * (d * d).max(BEVY_MIN_DISTANCE_SQUARED) * READABLE_LUX).min(f32::MAX / 2.0)
 }
-
-/// The current glTF scene's root entity.
-#[derive(Component)]
-pub(crate) struct EditorSceneRoot;
 
 /// A glTF being loaded (beside the plugin's `GltfSceneLoading`); the
 /// scene it replaces stays until it is spawned.

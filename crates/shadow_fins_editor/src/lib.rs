@@ -27,18 +27,17 @@ mod peers;
 mod picking;
 mod scene;
 mod settings_file;
+mod state;
 mod truth;
 mod ui;
 mod views;
 
 pub use animation::EditorAnimation;
-pub use autosave::AutosaveOption;
-pub use cli::{CliError, EditorOptions};
+pub use cli::CliError;
 pub use gltf_scene::{READABLE_LUX, readable_lumens};
-pub use scene::{EditorMethod, LightParams, SceneSource};
 pub use settings_file::{EditorSettings, SettingsFileError, check_settings_text};
+pub use state::{AutosaveOption, EditorMethod, EditorOptions, LightParams, SceneSource, ViewKind};
 pub use truth::GroundTruthStatus;
-pub use views::ViewKind;
 
 use bevy::{prelude::*, render::diagnostic::RenderDiagnosticsPlugin, window::WindowResolution};
 use bevy_egui::EguiPlugin;

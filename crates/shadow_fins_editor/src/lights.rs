@@ -8,7 +8,10 @@ use bevy::{light::SunDisk, prelude::*};
 use bevy_egui::{EguiContexts, EguiPrimaryContextPass, egui};
 use bevy_shadow_fins::{FinLightStats, FinShadowSettings, FinShadows, MAX_FIN_LIGHTS};
 
-use crate::scene::{EditorLight, LightParams, rect_intensity};
+use crate::{
+    scene::rect_intensity,
+    state::{EditorLight, LightParams},
+};
 
 /// Marks a light the "More lights" window added.
 #[derive(Component)]
@@ -264,10 +267,10 @@ mod tests {
             intensity: 1e6,
             color: [1.0; 3],
             method: Default::default(),
-            kind: crate::scene::LightKind::FinLight,
-            sun_angle: crate::scene::DEFAULT_SUN_ANGLE,
-            illuminance: crate::scene::DEFAULT_ILLUMINANCE,
-            rect_aspect: crate::scene::DEFAULT_RECT_ASPECT,
+            kind: crate::state::LightKind::FinLight,
+            sun_angle: crate::state::DEFAULT_SUN_ANGLE,
+            illuminance: crate::state::DEFAULT_ILLUMINANCE,
+            rect_aspect: crate::state::DEFAULT_RECT_ASPECT,
         }
     }
 
@@ -308,8 +311,8 @@ mod tests {
         let (tiny, _) = new_rect(&LightParams { radius: 0.0, ..params }, 1);
         assert!(tiny.width >= 1e-3 && tiny.height >= 1e-3);
         let (sun, disk, t) = new_sun(&params, 0);
-        assert_eq!(sun.illuminance, crate::scene::DEFAULT_ILLUMINANCE);
-        assert!((disk.angular_size - crate::scene::DEFAULT_SUN_ANGLE).abs() < 1e-7);
+        assert_eq!(sun.illuminance, crate::state::DEFAULT_ILLUMINANCE);
+        assert!((disk.angular_size - crate::state::DEFAULT_SUN_ANGLE).abs() < 1e-7);
         // Tilted from the main light, still shining downwards.
         let down = t.forward().as_vec3();
         assert!(down.y < -0.8 && (down - Vec3::NEG_Y).length() > 0.1, "{down}");

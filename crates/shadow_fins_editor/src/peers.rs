@@ -28,7 +28,7 @@ use shadow_fins::{
 
 use crate::{
     EditorState,
-    scene::{EditorCamera, LightParams, LoadedScene, window_size},
+    state::{EditorCamera, LightParams, LoadedScene, window_size},
     truth::{Grid, GroundTruthJob, Job, core_camera, grid_size, view_key},
 };
 

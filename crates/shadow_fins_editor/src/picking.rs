@@ -12,7 +12,7 @@ use shadow_fins::bvh::Bvh;
 
 use crate::{
     orbit::OrbitCamera,
-    scene::{EditorCamera, LightParams, LoadedScene},
+    state::{EditorCamera, LightParams, LoadedScene},
 };
 
 pub(crate) fn build(app: &mut App) {

@@ -8,7 +8,7 @@ use bevy_shadow_fins::{FinMethod, FinShadowSettings};
 use serde::{Deserialize, Serialize};
 use shadow_fins::{oracle::Overlap, refine::Falloff};
 
-use crate::scene::{EditorMethod, LightKind, LightParams};
+use crate::state::{EditorMethod, LightKind, LightParams};
 
 /// Everything the editor saves.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -56,15 +56,15 @@ pub struct EditorSettings {
 }
 
 fn default_rect_aspect() -> f32 {
-    crate::scene::DEFAULT_RECT_ASPECT
+    crate::state::DEFAULT_RECT_ASPECT
 }
 
 fn default_sun_angle() -> f32 {
-    crate::scene::DEFAULT_SUN_ANGLE
+    crate::state::DEFAULT_SUN_ANGLE
 }
 
 fn default_illuminance() -> f32 {
-    crate::scene::DEFAULT_ILLUMINANCE
+    crate::state::DEFAULT_ILLUMINANCE
 }
 
 fn default_coverage_samples() -> u32 {
@@ -234,9 +234,9 @@ pub fn check_settings_text(text: &str) {
         color: [1.0; 3],
         method: EditorMethod::default(),
         kind: LightKind::FinLight,
-        sun_angle: crate::scene::DEFAULT_SUN_ANGLE,
-        illuminance: crate::scene::DEFAULT_ILLUMINANCE,
-        rect_aspect: crate::scene::DEFAULT_RECT_ASPECT,
+        sun_angle: crate::state::DEFAULT_SUN_ANGLE,
+        illuminance: crate::state::DEFAULT_ILLUMINANCE,
+        rect_aspect: crate::state::DEFAULT_RECT_ASPECT,
     };
     let mut fins = FinShadowSettings::default();
     file.apply(&mut light, &mut fins);
@@ -305,7 +305,7 @@ mod tests {
         assert_ne!(before_rect, saved, "the field must be in the file to be dropped from it");
         let (mut l, mut f) = (light(), FinShadowSettings::default());
         EditorSettings::from_ron(&before_rect, "old.ron").unwrap().apply(&mut l, &mut f);
-        assert_eq!(l.rect_aspect, crate::scene::DEFAULT_RECT_ASPECT);
+        assert_eq!(l.rect_aspect, crate::state::DEFAULT_RECT_ASPECT);
         // Files from before `kind`: `spot` says which; from before `spot`: the FinLight.
         let spot =
             EditorSettings::capture(&LightParams { kind: LightKind::Spot, ..light() }, &FinShadowSettings::default());

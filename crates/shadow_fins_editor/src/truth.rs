@@ -33,8 +33,7 @@ use shadow_fins::{
 
 use crate::{
     EditorState,
-    scene::{EditorCamera, EditorLight, LightParams, LoadedScene, window_size},
-    views::ViewKind,
+    state::{EditorCamera, EditorLight, LightParams, LoadedScene, ViewKind, window_size},
 };
 
 /// Disk samples of the ground truth.

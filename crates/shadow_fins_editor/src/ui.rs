@@ -16,10 +16,11 @@ use shadow_fins::{oracle::Overlap, peers::PeerMethod, refine::Falloff};
 use crate::{
     EditorState,
     peers::PeerJob,
-    scene::{EditorLight, EditorMethod, LightKind, LightParams, LoadScene, LoadedScene, SceneSource},
+    scene::LoadScene,
     settings_file::EditorSettings,
+    state::{EditorLight, EditorMethod, LightKind, LightParams, LoadedScene, SceneSource, ViewKind},
     truth::{AnalysisJob, GroundTruthJob},
-    views::{CurrentError, LatestVisibility, ViewKind, view_pixels},
+    views::{CurrentError, LatestVisibility, view_pixels},
 };
 
 /// The passes whose GPU time the stats show, as diagnostic names.

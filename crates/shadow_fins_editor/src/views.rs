@@ -16,86 +16,11 @@ use bevy::{
 use bevy_shadow_fins::FinShadowView;
 use shadow_fins::metrics::ErrorMetrics;
 
+use crate::state::ViewKind;
 use crate::{
-    scene::{EditorCamera, EditorLight, window_size},
+    state::{EditorCamera, EditorLight, window_size},
     truth::{Analysis, Grid, GroundTruthJob},
 };
-
-/// Which buffer is drawn over the viewport.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum ViewKind {
-    /// The final image.
-    #[default]
-    Final,
-    /// The illuminance (visibility) buffer, GPU.
-    Visibility,
-    /// Each pixel's layer.
-    LayerIndex,
-    /// One layer's slab depth map.
-    SlabDepth,
-    /// One layer's inner penumbra map (lowest inner weight).
-    InnerMap,
-    /// One layer's outer penumbra map (highest outer weight).
-    OuterMap,
-    /// Signed error of the GPU visibility against the ground truth.
-    Error,
-    /// Another paper's method (`peers.rs`, the CPU), its visibility.
-    Peer,
-    /// That method's signed error against the ground truth.
-    PeerError,
-}
-
-impl ViewKind {
-    pub const ALL: [ViewKind; 9] = [
-        ViewKind::Final,
-        ViewKind::Visibility,
-        ViewKind::LayerIndex,
-        ViewKind::SlabDepth,
-        ViewKind::InnerMap,
-        ViewKind::OuterMap,
-        ViewKind::Error,
-        ViewKind::Peer,
-        ViewKind::PeerError,
-    ];
-
-    /// One of the views of another paper's method (`peers.rs`).
-    pub fn is_peer(self) -> bool {
-        matches!(self, ViewKind::Peer | ViewKind::PeerError)
-    }
-
-    /// Its name on the command line (`--view`).
-    pub fn cli_name(self) -> &'static str {
-        match self {
-            ViewKind::Final => "final",
-            ViewKind::Visibility => "visibility",
-            ViewKind::LayerIndex => "layer-index",
-            ViewKind::SlabDepth => "slab-depth",
-            ViewKind::InnerMap => "inner-map",
-            ViewKind::OuterMap => "outer-map",
-            ViewKind::Error => "error",
-            ViewKind::Peer => "peer",
-            ViewKind::PeerError => "peer-error",
-        }
-    }
-
-    pub fn parse(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|v| v.cli_name() == name)
-    }
-
-    pub fn label(self) -> &'static str {
-        match self {
-            ViewKind::Final => "final image",
-            ViewKind::Visibility => "illuminance buffer",
-            ViewKind::LayerIndex => "layer index",
-            ViewKind::SlabDepth => "slab depth map",
-            ViewKind::InnerMap => "inner penumbra map",
-            ViewKind::OuterMap => "outer penumbra map",
-            ViewKind::Error => "error vs ground truth",
-            ViewKind::Peer => "other paper's method (CPU)",
-            ViewKind::PeerError => "its error vs ground truth",
-        }
-    }
-}
 
 /// The latest visibility buffer read back from the GPU (camera pixels).
 #[derive(Resource, Default, Clone)]
