@@ -8,7 +8,8 @@ An edge goes from a file to the file of each module it names through a
 into one of its own child modules (`coverage::prepare` in a mod.rs). The
 crate root (lib.rs) is left out: its re-exports are the public API, not a
 dependency. A parent mod.rs calling a child that calls `super::helper` back
-is a circle too: the helper belongs in a sibling both can use. Prints each
+is a circle too: the helper belongs in a sibling both can use (an inline
+test module's `super::` is its own file: no edge). Prints each
 strongly connected component of two or more files, then the count; `-v`
 also prints every file's edges. Exits 1 when there is a circle.
 """
@@ -58,9 +59,48 @@ def resolve(mod, path):
         t=tuple(base+rest[:i])
         if t in files: best=t
     return best
+def inline_mods_self(src):
+    # Inside an inline `mod tests { … }`, `super::` is the file itself.
+    out=[]; last=0
+    for m in re.finditer(r'(?m)^\s*(?:pub(?:\([^)]*\))? )?mod \w+\s*\{', src):
+        if m.start() < last: continue
+        i=m.end(); depth=1
+        while depth and i < len(src):
+            if src[i]=='{': depth+=1
+            elif src[i]=='}': depth-=1
+            i+=1
+        # One level up is the file itself: `super::x` is `self::x`, `super::super::x` is `super::x`.
+        inner=re.sub(r'\bsuper::((?:super::)*)', lambda s: s.group(1) or 'self::', src[m.end():i])
+        out.append(src[last:m.end()]); out.append(inner); last=i
+    out.append(src[last:])
+    return ''.join(out)
+# `crate::Name` of a name lib.rs re-exports depends on the file that defines it.
+reexports={}
+lib=os.path.join(root, 'lib.rs') if os.path.exists(os.path.join(root, 'lib.rs')) else os.path.join(root, 'main.rs')
+if os.path.exists(lib):
+    lsrc=strip(open(lib).read())
+    for m in re.finditer(r'\bpub\s+use\s+((?:crate::|self::)?\w+(?:::\w+)*)(::\{)?', lsrc):
+        head=[x for x in m.group(1).split('::') if x not in ('crate','self')]
+        if m.group(2):
+            i=m.end();depth=1
+            while depth:
+                if lsrc[i]=='{':depth+=1
+                elif lsrc[i]=='}':depth-=1
+                i+=1
+            items=expand(head, lsrc[m.end():i-1])
+        else: items=[head]
+        for item in items:
+            best=None
+            for k in range(len(item)+1):
+                if tuple(item[:k]) in files and k>0: best=tuple(item[:k])
+            if best: reexports[item[-1]]=best
+def via_root(path):
+    # `crate::Name` (or `crate::{Name}`): the defining file of a root re-export.
+    if len(path)>=2 and path[0]=='crate' and path[1] in reexports: return reexports[path[1]]
+    return None
 edges={}
 for mod, rel in files.items():
-    src=strip(open(os.path.join(root, rel)).read())
+    src=inline_mods_self(strip(open(os.path.join(root, rel)).read()))
     paths=[]
     for m in re.finditer(r'\buse\s+((?:crate|super|self)(?:::\w+)*)(?:::\{)?', src):
         start=m.end()
@@ -72,7 +112,8 @@ for mod, rel in files.items():
                 i+=1
             paths+=expand(m.group(1).split('::'), src[start:i-1])
         else: paths.append(m.group(1).split('::'))
-    for m in re.finditer(r'\b((?:crate|super)(?:::\w+)+)', src):
+    # Whole paths only: `crate::a::{…}` and `crate::a::*` were read as use groups above.
+    for m in re.finditer(r'\b((?:crate|super)(?:::\w+)+)\b(?!::[\w{*])', src):
         paths.append(m.group(1).split('::'))
     # relative paths into this module's children (`coverage::prepare`) and `use child::…`
     kids=[k[-1] for k in files if len(k)==len(mod)+1 and k[:len(mod)]==mod]
@@ -88,7 +129,7 @@ for mod, rel in files.items():
             paths+=expand(['self',k], src[start:i-1])
     tgt=set()
     for p in paths:
-        r=resolve(mod,p)
+        r=via_root(p) or resolve(mod,p)
         if r is not None and r!=mod and not (len(r)<len(mod) and mod[:len(r)]==r and r==()):
             tgt.add(r)
     # a parent module (mod.rs) declares children: using child from parent is fine; child using parent counted

@@ -22,6 +22,8 @@ need_pkg libxi6
 need_pkg libxkbcommon-x11-0
 need_pkg xvfb
 need_pkg xauth
+# The import-circle check of the test suite (scripts/module_cycles.py).
+need_pkg python3
 
 if [ ${#missing[@]} -gt 0 ]; then
   echo "setup: installing ${missing[*]}"
