@@ -1,24 +1,27 @@
 // Coverage with occluder fusion on the GPU: the same rules as the core's
 // `shadow_fins::coverage` through depth lists (`ReferenceCount::Raster`),
-// function for function. Three dispatches per camera:
+// function for function. One dispatch per camera and light
+// (`coverage_lists.wgsl` fills the depth lists before, once per frame):
 //
-//  (raster_lists, in coverage_lists.wgsl, fills the depth lists first)
-//  coverage_reference   per pixel: the receiver from the prepasses; D(c) from
-//                       the depth lists, corrected by the edges and faces
-//                       passed between the texel's ray and the receiver's
-//                       (or a sentinel: nothing to shade, nothing above the
-//                       horizon); clears the pixel's tally
-//  coverage_samples     per pixel and 32-sample word (z): D(s) = D(c) +
-//                       Σ σ χ over the cell's potential silhouette edges, in
-//                       bit-sliced counters; adds the word's visible and
-//                       above-horizon counts to the pixel's tally
-//  coverage_resolve     per pixel: V = visible / above, into the visibility
-//                       texture the fins also write
+//  coverage_visibility  per pixel: the receiver from the prepasses, then two
+//                       walks over its cell's lists (`EdgeIndex::gpu_lists`):
+//                       the reference list corrects D(c), the depth lists'
+//                       count along a texel's ray, by the faces and edges
+//                       passed between that ray and the receiver's; the
+//                       sample list adds each edge's Σ σ χ (C1) to every
+//                       light sample at once, in bit-sliced counters, 8
+//                       words of 32 samples. A sample is visible iff its sum
+//                       equals −D(c) modulo 256, so D(c) need not come first.
+//                       V = visible / above the horizon, into the visibility
+//                       texture the fins also write.
 //
-// Why split: one invocation per word keeps 8 counter words live instead of
-// 64, and no invocation loops longer than the cell's edges (llvmpipe ends a
-// shader after 65535 loop iterations in all; a GPU's watchdog is similar).
-// The per-sample and per-face tests are unrolled for the same reason.
+// Why one pass: an edge's culling (footprint, clip, plane, σ) is most of a
+// listed edge's cost, and most listed edges are culled; done once per pixel
+// instead of once per 32-sample word and again for D(c), the walk costs a
+// fraction (BENCHMARKS.md, issue 39). The per-word and per-face tests are
+// unrolled by hand with literal word indices: llvmpipe ends a shader after
+// 65535 loop iterations in all (a GPU's watchdog is similar), so the only
+// loops are over the cell's lists and the few bounded ones beside them.
 #import bevy_render::view::View
 #import bevy_shadow_fins::coverage_types::{CoverageParams, Edge, CHUNK, MAX_CHUNKS, list_stride, texel_center}
 #import bevy_shadow_fins::fin_view::FinView
@@ -37,21 +40,11 @@
 @group(0) @binding(8) var visibility: texture_storage_2d<r32float, write>;
 @group(0) @binding(9) var<uniform> view: View;
 @group(0) @binding(10) var<uniform> fin_view: FinView;
-// Per pixel: D(c), or LIT / DARK.
-@group(0) @binding(11) var<storage, read_write> reference: array<u32>;
-// Per pixel: visible samples (low 16 bits) and samples above the horizon (high).
-@group(0) @binding(12) var<storage, read_write> tally: array<atomic<u32>>;
 // Bevy's deferred G-buffer (`receiver_normal.wgsl`), zeros without one.
-@group(0) @binding(13) var gbuffer: texture_2d<u32>;
+@group(0) @binding(11) var gbuffer: texture_2d<u32>;
 
-// `reference` sentinels: no receiver here (visibility 1); a receiver no
-// sample is above, or one in front of the near plane (visibility 0).
 // `shadow_fins::coverage::MAX_REFERENCE_COUNT`: the count D(c) saturates here.
 const MAX_REFERENCE: i32 = 127;
-const LIT: u32 = 0xffffffffu;
-const DARK: u32 = 0xfffffffeu;
-// A point light's cube face leaves a receiver in another face's frustum alone.
-const OTHER_FACE: u32 = 0xfffffffdu;
 
 // `FinParams.flags.w`'s code (`render::projection_code`): 0 a disk's or a
 // rectangle's perspective, 1 the sun's orthographic, 2 a point light's cube face.
@@ -216,13 +209,16 @@ fn count_before(t: vec2<u32>, z: f32) -> u32 {
     return total - min(behind, total);
 }
 
-fn cell_of(m: vec2<f32>) -> vec2<u32> {
+// The cell of map point m's two edge lists (`EdgeIndex::gpu_lists`): the
+// sample walk's (xy) and the reference count's (zw); empty outside the grid.
+fn cell_of(m: vec2<f32>) -> vec4<u32> {
     let c = (m - params.grid.xy) * params.grid.zw;
     if (!(c.x >= 0.0 && c.y >= 0.0 && u32(c.x) < params.info.x && u32(c.y) < params.info.y)) {
-        return vec2<u32>(0u, 0u); // an empty range
+        return vec4<u32>(0u);
     }
+    let cells = params.info.x * params.info.y;
     let cell = u32(c.y) * params.info.x + u32(c.x);
-    return vec2<u32>(cell_starts[cell], cell_starts[cell + 1u]);
+    return vec4<u32>(cell_starts[cell], cell_starts[cell + 1u], cell_starts[cells + cell], cell_starts[cells + cell + 1u]);
 }
 
 fn vertex_hash(v: vec3<f32>) -> u32 {
@@ -262,7 +258,7 @@ fn face_crossing(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, start: vec3<f32>, sto
     return Crossing(true, (fa >= 0.0) == (light_side >= 0.0), vec2<u32>(ha + hb + hc, ha ^ hb ^ hc));
 }
 
-// Faces already counted by `faces_passed` (a face is shared by its edges);
+// Faces already counted by `faces_crossed` (a face is shared by its edges);
 // at most 32, as the core's `MAX_SEEN_FACES`. Keys are a 64-bit hash of the
 // corners (the core compares the corners' bits: a collision is the only way
 // the two can differ).
@@ -288,79 +284,11 @@ fn count_crossing(seen: ptr<function, Seen>, x: Crossing) -> i32 {
     return select(-1, 1, x.leaves);
 }
 
-// `CoverageModel::faces_passed`: faces of the cell's edges the move from
-// `start` to `stop` passes through, each once, ±1 as it leaves or enters the
-// face's light side (faces in the core's order: an edge's first, then second).
-fn faces_passed(range: vec2<u32>, start: vec3<f32>, stop: vec3<f32>) -> i32 {
-    var seen: Seen;
-    seen.n = 0u;
-    var change = 0;
-    for (var k = range.x; k < range.y; k++) {
-        let e = edges[cell_items[k]];
-        let a = e.a.xyz;
-        let b = e.b.xyz;
-        change += count_crossing(&seen, face_crossing(a, b, e.third_a.xyz, start, stop));
-        if (faces(e) == 2u) {
-            change += count_crossing(&seen, face_crossing(a, b, e.third_b.xyz, start, stop));
-        }
-    }
-    return change;
-}
 
 fn at_depth(m: vec2<f32>, z: f32) -> vec3<f32> {
     return select(vec3<f32>(m, z), vec3<f32>(m * z, z), perspective());
 }
 
-// `CoverageModel::raster_reference_count`: D(c) at receiver p.
-fn reference_count(p: vec3<f32>, normal: vec3<f32>, range: vec2<u32>) -> i32 {
-    let m_p = map_point(p);
-    let res = params.counts.x;
-    let corner = floor((m_p - params.lists.xy) / params.lists.z - 0.5);
-    var found = false;
-    var texel = vec2<u32>(0u);
-    var p_t = p;
-    var best = 0.0;
-    for (var k = 0u; k < 4u; k++) {
-        let xy = corner + vec2<f32>(f32(k & 1u), f32(k >> 1u));
-        if (!(xy.x >= 0.0 && xy.y >= 0.0 && xy.x < f32(res) && xy.y < f32(res))) {
-            continue;
-        }
-        let t = vec2<u32>(xy);
-        let candidate = at_depth(texel_center(params, t.x, t.y), p.z);
-        let clearance = dot(normal, candidate - p);
-        if (!found || clearance > best) {
-            found = true;
-            best = clearance;
-            texel = t;
-            p_t = candidate;
-        }
-    }
-    if (!found) {
-        return 0;
-    }
-    var count = i32(count_before(texel, p.z)) + faces_passed(range, p_t, p);
-    let near = params.light.y;
-    for (var k = range.x; k < range.y; k++) {
-        let e = edges[cell_items[k]];
-        let c = clipped(e, near, p.z);
-        if (!c.ok) {
-            continue;
-        }
-        let n = select(cross(c.b - c.a, vec3<f32>(0.0, 0.0, 1.0)), cross(c.a, c.b), perspective());
-        let was = dot(n, p_t - c.a) >= 0.0;
-        let now = dot(n, p - c.a) >= 0.0;
-        if (was == now) {
-            continue;
-        }
-        let m = select(cross(p - p_t, vec3<f32>(0.0, 0.0, 1.0)), cross(p_t, p), perspective());
-        if ((dot(m, c.a - p_t) >= 0.0) == (dot(m, c.b - p_t) >= 0.0)) {
-            continue;
-        }
-        let sigma = face_sides(e, n, c.a);
-        count += select(-sigma, sigma, now);
-    }
-    return max(count, 0);
-}
 
 fn view_to_frame(p: vec3<f32>) -> vec3<f32> {
     return fin_view.column_x.xyz * p.x + fin_view.column_y.xyz * p.y + fin_view.column_z.xyz * p.z
@@ -510,109 +438,218 @@ fn receiver_at(id: vec2<u32>) -> Receiver {
     return r;
 }
 
-fn pixel_index(id: vec2<u32>) -> u32 {
-    return id.y * textureDimensions(visibility).x + id.x;
+// `CoverageModel::faces_passed`, one edge at a time: its faces the move from
+// `start` to `stop` passes through, each once over the whole walk, ±1 as it
+// leaves or enters the face's light side (an edge's first face, then second,
+// in the cell's order, as the core).
+fn faces_crossed(seen: ptr<function, Seen>, e: Edge, start: vec3<f32>, stop: vec3<f32>) -> i32 {
+    let a = e.a.xyz;
+    let b = e.b.xyz;
+    var change = count_crossing(seen, face_crossing(a, b, e.third_a.xyz, start, stop));
+    if (faces(e) == 2u) {
+        change += count_crossing(seen, face_crossing(a, b, e.third_b.xyz, start, stop));
+    }
+    return change;
 }
 
-@compute @workgroup_size(8, 8, 1)
-fn coverage_reference(@builtin(global_invocation_id) id: vec3<u32>) {
-    let size = textureDimensions(visibility);
-    if (id.x >= size.x || id.y >= size.y) {
-        return;
+// `CoverageModel::raster_reference_count`'s edge term for one clipped edge
+// `c` of `e`: ±σ when the move from the texel's ray point `p_t` to the
+// receiver `p` crosses the edge's plane with the light's centre.
+fn edge_crossed(e: Edge, c: Clipped, p_t: vec3<f32>, p: vec3<f32>) -> i32 {
+    let n = select(cross(c.b - c.a, vec3<f32>(0.0, 0.0, 1.0)), cross(c.a, c.b), perspective());
+    let was = dot(n, p_t - c.a) >= 0.0;
+    let now = dot(n, p - c.a) >= 0.0;
+    if (was == now) {
+        return 0;
     }
-    let at = pixel_index(id.xy);
-    atomicStore(&tally[at], 0u);
-    let r = receiver_at(id.xy);
-    if (r.kind == 3u) {
-        reference[at] = OTHER_FACE;
-        return;
+    let m = select(cross(p - p_t, vec3<f32>(0.0, 0.0, 1.0)), cross(p_t, p), perspective());
+    if ((dot(m, c.a - p_t) >= 0.0) == (dot(m, c.b - p_t) >= 0.0)) {
+        return 0;
     }
-    if (r.kind != 2u) {
-        reference[at] = select(DARK, LIT, r.kind == 0u);
-        return;
+    let sigma = face_sides(e, n, c.a);
+    return select(-sigma, sigma, now);
+}
+
+// The depth-list texel whose centre ray stands for receiver p: of the four
+// around it, the one most above p's surface (`raster_reference_count`), at
+// p's depth.
+struct ReferenceTexel {
+    found: bool,
+    texel: vec2<u32>,
+    p_t: vec3<f32>,
+}
+
+fn reference_texel(p: vec3<f32>, normal: vec3<f32>) -> ReferenceTexel {
+    let m_p = map_point(p);
+    let res = params.counts.x;
+    let corner = floor((m_p - params.lists.xy) / params.lists.z - 0.5);
+    var r = ReferenceTexel(false, vec2<u32>(0u), p);
+    var best = 0.0;
+    for (var k = 0u; k < 4u; k++) {
+        let xy = corner + vec2<f32>(f32(k & 1u), f32(k >> 1u));
+        if (!(xy.x >= 0.0 && xy.y >= 0.0 && xy.x < f32(res) && xy.y < f32(res))) {
+            continue;
+        }
+        let t = vec2<u32>(xy);
+        let candidate = at_depth(texel_center(params, t.x, t.y), p.z);
+        let clearance = dot(normal, candidate - p);
+        if (!r.found || clearance > best) {
+            r = ReferenceTexel(true, t, candidate);
+            best = clearance;
+        }
     }
-    var above = 0u;
-    for (var w = 0u; w < sample_words(); w++) {
-        above |= word_above(w, r.p, r.normal);
-    }
+    return r;
+}
+
+// Adds an edge's wedge to one word's counters, if any of its samples is
+// above the horizon and moved.
+fn add_wedge(planes: ptr<function, array<u32, 8>>, word: u32, above: u32, w: Wedge) {
     if (above == 0u) {
-        reference[at] = DARK;
         return;
     }
-    let range = cell_of(map_point(r.p));
-    reference[at] = u32(min(reference_count(r.p, r.normal, range), MAX_REFERENCE));
+    let mask = word_moved(word, w.edge_line, w.r_side, w.line_a, w.line_b);
+    if (mask != 0u) {
+        add_masked(planes, mask, w.step);
+    }
+}
+
+// The lines that decide which samples an edge moves (see `quad_moved`) and by how much.
+struct Wedge {
+    edge_line: vec3<f32>,
+    r_side: bool,
+    line_a: vec3<f32>,
+    line_b: vec3<f32>,
+    step: i32,
+}
+
+// The samples of one word whose count is `wanted` modulo 256 (all eight
+// planes equal its bits), among those above the horizon.
+fn at_count(planes: ptr<function, array<u32, 8>>, wanted: u32, above: u32) -> u32 {
+    var differs = 0u;
+    differs |= (*planes)[0] ^ select(0u, 0xffffffffu, (wanted & 1u) != 0u);
+    differs |= (*planes)[1] ^ select(0u, 0xffffffffu, (wanted & 2u) != 0u);
+    differs |= (*planes)[2] ^ select(0u, 0xffffffffu, (wanted & 4u) != 0u);
+    differs |= (*planes)[3] ^ select(0u, 0xffffffffu, (wanted & 8u) != 0u);
+    differs |= (*planes)[4] ^ select(0u, 0xffffffffu, (wanted & 16u) != 0u);
+    differs |= (*planes)[5] ^ select(0u, 0xffffffffu, (wanted & 32u) != 0u);
+    differs |= (*planes)[6] ^ select(0u, 0xffffffffu, (wanted & 64u) != 0u);
+    differs |= (*planes)[7] ^ select(0u, 0xffffffffu, (wanted & 128u) != 0u);
+    return ~differs & above;
 }
 
 @compute @workgroup_size(8, 8, 1)
-fn coverage_samples(@builtin(global_invocation_id) id: vec3<u32>) {
+fn coverage_visibility(@builtin(global_invocation_id) id: vec3<u32>) {
     let size = textureDimensions(visibility);
-    let word = id.z;
-    if (id.x >= size.x || id.y >= size.y || word >= sample_words()) {
-        return;
+    let in_image = id.x < size.x && id.y < size.y;
+    // `shading`: a receiver with samples above its horizon, to walk for.
+    var shading = false;
+    var r = Receiver(0u, vec3<f32>(0.0), vec3<f32>(0.0));
+    if (in_image) {
+        r = receiver_at(id.xy);
+        // kind 3, another cube face's receiver: that face's pass writes the pixel.
+        if (r.kind == 0u || r.kind == 1u) {
+            textureStore(visibility, vec2<i32>(id.xy), vec4<f32>(select(0.0, 1.0, r.kind == 0u), 0.0, 0.0, 1.0));
+        }
+        shading = r.kind == 2u;
     }
-    let at = pixel_index(id.xy);
-    let d_c = reference[at];
-    if (d_c >= OTHER_FACE) {
-        return;
-    }
-    let r = receiver_at(id.xy);
     let p = r.p;
-    let above = word_above(word, p, r.normal);
-    if (above == 0u) {
-        return;
+    let words = sample_words();
+    // Per word, the samples above the horizon (words past N have none).
+    let above0 = select(0u, word_above(0u, p, r.normal), shading && words > 0u);
+    let above1 = select(0u, word_above(1u, p, r.normal), shading && words > 1u);
+    let above2 = select(0u, word_above(2u, p, r.normal), shading && words > 2u);
+    let above3 = select(0u, word_above(3u, p, r.normal), shading && words > 3u);
+    let above4 = select(0u, word_above(4u, p, r.normal), shading && words > 4u);
+    let above5 = select(0u, word_above(5u, p, r.normal), shading && words > 5u);
+    let above6 = select(0u, word_above(6u, p, r.normal), shading && words > 6u);
+    let above7 = select(0u, word_above(7u, p, r.normal), shading && words > 7u);
+    if (shading && (above0 | above1 | above2 | above3 | above4 | above5 | above6 | above7) == 0u) {
+        textureStore(visibility, vec2<i32>(id.xy), vec4<f32>(0.0, 0.0, 0.0, 1.0));
+        shading = false;
     }
-    // Every sample starts at D(c): plane i holds bit i of the count.
-    var planes: array<u32, 8>;
-    for (var i = 0u; i < 8u; i++) {
-        planes[i] = select(0u, 0xffffffffu, ((d_c >> i) & 1u) != 0u);
+    var reference = ReferenceTexel(false, vec2<u32>(0u), p);
+    if (shading) {
+        reference = reference_texel(p, r.normal);
     }
-    let range = cell_of(map_point(p));
-    let u_r = sample_vector(p, vec2<f32>(0.0));
+    var seen: Seen;
+    seen.n = 0u;
+    // D(c) − count_before: faces and edges passed from the texel's ray to p.
+    var passed = 0;
+    // Per word, Σ σ χ of each sample modulo 256 in bit planes (plane i: bit i).
+    var planes0: array<u32, 8>;
+    var planes1: array<u32, 8>;
+    var planes2: array<u32, 8>;
+    var planes3: array<u32, 8>;
+    var planes4: array<u32, 8>;
+    var planes5: array<u32, 8>;
+    var planes6: array<u32, 8>;
+    var planes7: array<u32, 8>;
     let near = params.light.y;
-    for (var k = range.x; k < range.y; k++) {
-        let e = edges[cell_items[k]];
-        if (!may_reach(e, p)) {
-            continue;
-        }
-        let cl = clipped(e, near, p.z);
-        if (!cl.ok) {
-            continue;
-        }
-        let da = cl.a - p;
-        let db = cl.b - p;
-        let plane_n = cross(da, db);
-        let sigma = face_sides(e, plane_n, p);
-        if (sigma == 0) {
-            continue;
-        }
-        let edge_line = line_of(plane_n, p);
-        let r_side = positive(edge_line, vec2<f32>(0.0));
-        let mask = word_moved(word, edge_line, r_side, line_of(cross(da, u_r), p), line_of(cross(db, u_r), p));
-        if (mask != 0u) {
-            add_masked(&planes, mask, select(sigma, -sigma, r_side));
+    let m_p = map_point(p);
+    var lists = vec4<u32>(0u);
+    if (shading) {
+        lists = cell_of(m_p);
+    }
+    // The reference count's walk, per pixel: the edges whose faces come
+    // within the move's reach (`EdgeIndex::reference_cell`).
+    if (reference.found) {
+        for (var k = lists.z; k < lists.w; k++) {
+            let e = edges[cell_items[k]];
+            passed += faces_crossed(&seen, e, reference.p_t, p);
+            let cl = clipped(e, near, p.z);
+            if (cl.ok) {
+                passed += edge_crossed(e, cl, reference.p_t, p);
+            }
         }
     }
-    let any = planes[0] | planes[1] | planes[2] | planes[3] | planes[4] | planes[5] | planes[6] | planes[7];
-    atomicAdd(&tally[at], countOneBits(~any & above) | (countOneBits(above) << 16u));
-}
-
-@compute @workgroup_size(8, 8, 1)
-fn coverage_resolve(@builtin(global_invocation_id) id: vec3<u32>) {
-    let size = textureDimensions(visibility);
-    if (id.x >= size.x || id.y >= size.y) {
+    let u_r = sample_vector(p, vec2<f32>(0.0));
+    // The sample walk: the edges that may be a silhouette within the
+    // receiver's footprint (`EdgeIndex::cell`).
+    if (shading) {
+                for (var j = lists.x; j < lists.y; j++) {
+                    let e = edges[cell_items[j]];
+                    if (!may_reach(e, p)) {
+                        continue;
+                    }
+                    let cl = clipped(e, near, p.z);
+                    if (!cl.ok) {
+                        continue;
+                    }
+                    let da = cl.a - p;
+                    let db = cl.b - p;
+                    let plane_n = cross(da, db);
+                    let sigma = face_sides(e, plane_n, p);
+                    if (sigma == 0) {
+                        continue;
+                    }
+                    let edge_line = line_of(plane_n, p);
+                    let r_side = positive(edge_line, vec2<f32>(0.0));
+                    let w = Wedge(edge_line, r_side, line_of(cross(da, u_r), p), line_of(cross(db, u_r), p), select(sigma, -sigma, r_side));
+                    add_wedge(&planes0, 0u, above0, w);
+                    add_wedge(&planes1, 1u, above1, w);
+                    add_wedge(&planes2, 2u, above2, w);
+                    add_wedge(&planes3, 3u, above3, w);
+                    add_wedge(&planes4, 4u, above4, w);
+                    add_wedge(&planes5, 5u, above5, w);
+                    add_wedge(&planes6, 6u, above6, w);
+                    add_wedge(&planes7, 7u, above7, w);
+                }
+    }
+    if (!shading) {
         return;
     }
-    let at = pixel_index(id.xy);
-    let d_c = reference[at];
-    if (d_c == OTHER_FACE) {
-        return;
+    var d_c = 0;
+    if (reference.found) {
+        d_c = min(max(i32(count_before(reference.texel, p.z)) + passed, 0), MAX_REFERENCE);
     }
-    let t = atomicLoad(&tally[at]);
-    var v = f32(t & 0xffffu) / f32(max(t >> 16u, 1u));
-    if (d_c == LIT) {
-        v = 1.0;
-    } else if (d_c == DARK) {
-        v = 0.0;
-    }
-    textureStore(visibility, vec2<i32>(id.xy), vec4<f32>(v, 0.0, 0.0, 1.0));
+    // D(s) = D(c) + Σ σ χ = 0 ⟺ Σ σ χ ≡ −D(c) (mod 256): |Σ| and D(c) stay
+    // below 128, as the counters' range assumes (`add_masked`).
+    let wanted = u32(256 - d_c) & 255u;
+    let visible = countOneBits(at_count(&planes0, wanted, above0)) + countOneBits(at_count(&planes1, wanted, above1))
+        + countOneBits(at_count(&planes2, wanted, above2)) + countOneBits(at_count(&planes3, wanted, above3))
+        + countOneBits(at_count(&planes4, wanted, above4)) + countOneBits(at_count(&planes5, wanted, above5))
+        + countOneBits(at_count(&planes6, wanted, above6)) + countOneBits(at_count(&planes7, wanted, above7));
+    let total = countOneBits(above0) + countOneBits(above1) + countOneBits(above2) + countOneBits(above3)
+        + countOneBits(above4) + countOneBits(above5) + countOneBits(above6) + countOneBits(above7);
+    textureStore(visibility, vec2<i32>(id.xy), vec4<f32>(f32(visible) / f32(max(total, 1u)), 0.0, 0.0, 1.0));
 }

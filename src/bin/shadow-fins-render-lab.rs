@@ -173,6 +173,9 @@ struct MeasureArgs {
     /// Light radii swept (world units; default: the scene's own).
     #[arg(long)]
     radius: Option<String>,
+    /// Light samples swept for the coverage method (1..=256; the baseline is 256).
+    #[arg(long, default_value = "256")]
+    coverage_samples: String,
     /// The baseline's layer count.
     #[arg(long, default_value_t = 16)]
     base_layers: u32,
@@ -381,6 +384,10 @@ fn run_measure(args: MeasureArgs) -> Result<(), LabError> {
         s.parse::<u32>().ok().filter(|r| (16..=4096).contains(r))
     })
     .map_err(usage)?;
+    let coverage_samples = parse_list("coverage-samples", &args.coverage_samples, |s| {
+        s.parse::<u32>().ok().filter(|n| (1..=256).contains(n))
+    })
+    .map_err(usage)?;
     let radii = match &args.radius {
         Some(list) => Some(
             parse_list("radius", list, |s| s.parse::<f32>().ok().filter(|r| r.is_finite() && *r >= 0.0))
@@ -416,6 +423,7 @@ fn run_measure(args: MeasureArgs) -> Result<(), LabError> {
                 falloffs: falloffs.clone(),
                 map_resolutions: maps.clone(),
                 radii: radii.clone().unwrap_or_else(|| vec![base_radius]),
+                coverage_samples: coverage_samples.clone(),
                 base_layers: args.base_layers,
                 base_map_resolution: args.base_map_resolution,
                 base_radius,

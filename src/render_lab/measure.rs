@@ -310,6 +310,7 @@ fn fin_settings(c: &Config) -> FinShadowSettings {
         refinement: c.refinement.unwrap_or(defaults.refinement),
         falloff: c.falloff.unwrap_or(defaults.falloff),
         map_resolution: c.map_resolution,
+        coverage_samples: c.samples.unwrap_or(defaults.coverage_samples),
         ..defaults
     }
 }

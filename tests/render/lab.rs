@@ -29,6 +29,7 @@ fn measure_ranks_fins_above_bevy_hard_shadows_and_reads_bevy_visibility_from_col
         falloffs: vec![Falloff::DiskSegment],
         map_resolutions: vec![256],
         radii: vec![input.light.radius],
+        coverage_samples: vec![256],
         base_layers: 16,
         base_map_resolution: 256,
         base_radius: input.light.radius,

@@ -152,19 +152,21 @@
 //!
 //! [`FinMethod::Coverage`] replaces stages 1–3 by exact coverage with occluder
 //! fusion (`shadow_fins::coverage`): on the CPU, when something moved, the
-//! potential silhouette edges of the light's disk, binned by penumbra
-//! footprint into light-space cells (`frame/coverage.rs`); on the GPU
+//! potential silhouette edges of the light's disk, binned into light-space
+//! cells by penumbra footprint and culled where no receiver of the cell can
+//! see them as a silhouette, plus a short per-cell list for the reference
+//! count (`frame/coverage.rs`, `shadow_fins::coverage::index`); on the GPU
 //! (`shaders/coverage_lists.wgsl`) per-texel depth lists of every caster (24
-//! near, 6 far depths, the total), then per camera pixel
-//! (`shaders/coverage.wgsl`) the reference count from those lists, the
+//! near, 6 far depths, the total), then per camera pixel one dispatch
+//! (`shaders/coverage.wgsl`): the reference count from those lists and the
 //! per-sample count changes of the cell's edges over up to 256 light samples
-//! in 32-sample words, and the visible share — three dispatches, each
-//! invocation's loops short (llvmpipe stops a shader after 65535 loop
-//! iterations; GPU watchdogs stop long ones). The same visibility buffer and
-//! compositing follow. It is within 0.001 MAE of its CPU oracle and meets MAE
-//! ≤ 0.01 against ground truth where fins cannot (assets of many overlapping
-//! parts), at a cost that grows with the edges per pixel (2–81× the fins'
-//! frame on lavapipe, `BENCHMARKS.md`): fins stay the default.
+//! in 32-sample words, in one walk over each list (llvmpipe stops a shader
+//! after 65535 loop iterations; GPU watchdogs stop long ones). The same
+//! visibility buffer and compositing follow. It is within 0.001 MAE of its
+//! CPU oracle and meets MAE ≤ 0.01 against ground truth where fins cannot
+//! (assets of many overlapping parts), at a cost that grows with the edges
+//! per pixel (2.5–37× the fins' frame on lavapipe, `BENCHMARKS.md`): fins
+//! stay the default.
 //!
 //! [`FinMethod::Convolution`] (Annen et al. 2008, the filtering peer) keeps
 //! stages 1–2 of the hard shadow map and replaces 3: after the map passes

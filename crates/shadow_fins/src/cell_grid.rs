@@ -28,34 +28,49 @@ impl CellGrid {
     /// Bins item `id` of `bounds` (`None`: not binned) into `dims` cells over
     /// `min..min + size`.
     pub fn build(min: Vec2, size: Vec2, dims: [usize; 2], bounds: &[Option<(Vec2, Vec2)>]) -> Self {
-        let range = |lo: Vec2, hi: Vec2| cell_range(min, size, dims, lo, hi);
-        let mut counts = vec![0u32; dims[0] * dims[1] + 1];
-        for (lo, hi) in bounds.iter().flatten() {
-            let (x0, x1, y0, y1) = range(*lo, *hi);
-            for y in y0..=y1 {
-                for x in x0..=x1 {
-                    counts[y * dims[0] + x + 1] += 1;
-                }
-            }
-        }
-        for i in 1..counts.len() {
-            counts[i] += counts[i - 1];
-        }
-        let starts = counts.clone();
-        let mut fill = counts;
-        let mut items = vec![0u32; *starts.last().unwrap_or(&0) as usize];
+        Self::build_where(min, size, dims, bounds, |_, _, _| true)
+    }
+
+    /// [`Self::build`], keeping item `id` in a cell its bounds touch only
+    /// where `keep(id, cell_min, cell_max)` says so (a finer test than the
+    /// bounds: the coverage method's footprint capsule and silhouette cull).
+    /// Each cell lists its items in increasing id order.
+    pub fn build_where(
+        min: Vec2,
+        size: Vec2,
+        dims: [usize; 2],
+        bounds: &[Option<(Vec2, Vec2)>],
+        keep: impl Fn(u32, Vec2, Vec2) -> bool,
+    ) -> Self {
+        let inv_cell = Vec2::new(dims[0] as f32, dims[1] as f32) / size;
+        let cell_size = size / Vec2::new(dims[0] as f32, dims[1] as f32);
+        // (cell, id), pushed in id order: a stable counting sort keeps it per cell.
+        let mut pairs: Vec<(u32, u32)> = vec![];
         for (id, b) in bounds.iter().enumerate() {
             let Some((lo, hi)) = b else { continue };
-            let (x0, x1, y0, y1) = range(*lo, *hi);
+            let (x0, x1, y0, y1) = cell_range(min, size, dims, *lo, *hi);
             for y in y0..=y1 {
                 for x in x0..=x1 {
-                    let c = y * dims[0] + x;
-                    items[fill[c] as usize] = id as u32;
-                    fill[c] += 1;
+                    let cell_min = min + Vec2::new(x as f32, y as f32) * cell_size;
+                    if keep(id as u32, cell_min, cell_min + cell_size) {
+                        pairs.push(((y * dims[0] + x) as u32, id as u32));
+                    }
                 }
             }
         }
-        let inv_cell = Vec2::new(dims[0] as f32, dims[1] as f32) / size;
+        let mut starts = vec![0u32; dims[0] * dims[1] + 1];
+        for &(cell, _) in &pairs {
+            starts[cell as usize + 1] += 1;
+        }
+        for i in 1..starts.len() {
+            starts[i] += starts[i - 1];
+        }
+        let mut fill = starts.clone();
+        let mut items = vec![0u32; pairs.len()];
+        for &(cell, id) in &pairs {
+            items[fill[cell as usize] as usize] = id;
+            fill[cell as usize] += 1;
+        }
         Self { min, inv_cell, dims, starts, items }
     }
 

@@ -32,14 +32,17 @@ pub struct Evaluation {
 }
 
 /// Per-receiver work of the coverage method over the receivers evaluated:
-/// the edges listed in the receiver's cell, and those that reached the
-/// sample loop (potential silhouettes of the receiver, in front of it).
+/// the edges listed in the receiver's cell, those its culling kept (within
+/// its footprint, in front of it), and those that reached the sample loop
+/// (silhouettes of the receiver).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WorkPercentiles {
     pub cell_edges: [u32; 2],
+    pub reaching_edges: [u32; 2],
     pub counted_edges: [u32; 2],
     /// Means, for the cost of a whole frame.
     pub mean_cell_edges: f64,
+    pub mean_reaching_edges: f64,
     pub mean_counted_edges: f64,
 }
 
@@ -57,8 +60,16 @@ impl WorkPercentiles {
             ([at(0.5), at(0.99)], mean)
         };
         let (cell_edges, mean_cell_edges) = spread(|w| w.cell_edges);
+        let (reaching_edges, mean_reaching_edges) = spread(|w| w.reaching_edges);
         let (counted_edges, mean_counted_edges) = spread(|w| w.counted_edges);
-        Some(Self { cell_edges, counted_edges, mean_cell_edges, mean_counted_edges })
+        Some(Self {
+            cell_edges,
+            reaching_edges,
+            counted_edges,
+            mean_cell_edges,
+            mean_reaching_edges,
+            mean_counted_edges,
+        })
     }
 }
 

@@ -89,6 +89,9 @@ impl Technique {
     }
 }
 
+/// The coverage method's light samples at the baseline (the plugin's default).
+pub const BASE_COVERAGE_SAMPLES: u32 = 256;
+
 /// One configuration, with what its technique ignores set to `None`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Config {
@@ -101,6 +104,8 @@ pub struct Config {
     pub map_resolution: u32,
     /// Light radius, world units.
     pub radius: f32,
+    /// The coverage method's light samples per receiver (`None` for the others).
+    pub samples: Option<u32>,
     /// The baseline of its technique (it goes into the image strip).
     pub baseline: bool,
 }
@@ -125,8 +130,14 @@ impl Config {
                 _ => map_resolution.clamp(16, 4096),
             },
             radius,
+            samples: (technique == Technique::Coverage).then_some(BASE_COVERAGE_SAMPLES),
             baseline: false,
         }
+    }
+
+    /// The coverage method with `samples` light samples (clamped to the plugin's 1..=256).
+    fn with_samples(self, samples: u32) -> Self {
+        Self { samples: self.samples.map(|_| samples.clamp(1, 256)), ..self }
     }
 
     /// A short label: the technique and what differs from `base`.
@@ -140,6 +151,9 @@ impl Config {
         }
         if let Some(f) = self.falloff.filter(|f| *f != Falloff::DiskSegment) {
             s += &format!(" {}", f.name());
+        }
+        if let Some(n) = self.samples.filter(|n| *n != BASE_COVERAGE_SAMPLES) {
+            s += &format!(" {n}s");
         }
         s
     }
@@ -158,6 +172,8 @@ pub struct Axes {
     pub falloffs: Vec<Falloff>,
     pub map_resolutions: Vec<u32>,
     pub radii: Vec<f32>,
+    /// Light samples swept for the coverage method.
+    pub coverage_samples: Vec<u32>,
     /// The baseline every one-at-a-time sweep starts from.
     pub base_layers: u32,
     pub base_map_resolution: u32,
@@ -192,7 +208,9 @@ impl Axes {
                         for &l in &self.layers {
                             for &refine in &self.refinement {
                                 for &f in &self.falloffs {
-                                    push(Config::new(t, l, refine, f, m, r));
+                                    for &n in &self.coverage_samples {
+                                        push(Config::new(t, l, refine, f, m, r).with_samples(n));
+                                    }
                                 }
                             }
                         }
@@ -219,6 +237,11 @@ impl Axes {
         }) {
             for &m in &self.map_resolutions {
                 push(Config::new(t, bl, true, base_falloff, m, br));
+            }
+        }
+        if self.techniques.contains(&Technique::Coverage) {
+            for &n in &self.coverage_samples {
+                push(Config::new(Technique::Coverage, bl, true, base_falloff, bm, br).with_samples(n));
             }
         }
         for &t in &self.techniques {
@@ -251,6 +274,7 @@ mod tests {
             falloffs: Falloff::ALL.to_vec(),
             map_resolutions: vec![256, 512, 1024, 2048],
             radii: vec![0.5],
+            coverage_samples: vec![16, 256, 300],
             base_layers: 16,
             base_map_resolution: 1024,
             base_radius: 0.5,
@@ -289,6 +313,20 @@ mod tests {
         assert_eq!(pcss, 4, "PCSS at each map resolution");
         // Settings a technique ignores are not varied for it.
         assert_eq!(configs.iter().filter(|c| c.technique == Technique::Fins(Method::Hard)).count(), 1);
+        assert!(configs.iter().filter(|c| c.technique != Technique::Coverage).all(|c| c.samples.is_none()));
+    }
+
+    #[test]
+    fn coverage_is_swept_over_its_sample_counts_and_labelled_by_them() {
+        let configs = axes().configs(false);
+        let coverage: Vec<&Config> = configs.iter().filter(|c| c.technique == Technique::Coverage).collect();
+        // 16 and 256 samples (300 clamps to 256, the baseline), + 3 other map sizes.
+        let counts: Vec<Option<u32>> = coverage.iter().map(|c| c.samples).collect();
+        assert_eq!(counts.iter().filter(|n| **n == Some(16)).count(), 1);
+        assert_eq!(coverage.len(), 2 + 3);
+        assert!(coverage.iter().all(|c| c.samples.is_some_and(|n| n == 16 || n == 256)));
+        let labels: Vec<String> = coverage.iter().map(|c| c.label()).collect();
+        assert!(labels.contains(&"coverage 16s".to_string()) && labels.contains(&"coverage".to_string()), "{labels:?}");
     }
 
     #[test]

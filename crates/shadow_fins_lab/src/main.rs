@@ -244,7 +244,7 @@ fn run(command: Command) -> Result<(), LabError> {
                 "| scene | coverage MAE | p99 | umbra over | outer-fins ÷ coverage MAE | MAE ≤ 0.01 | p99 ≤ 0.08 | umbra over ≤ 0.1% | ≥ 3× outer-fins |\n|---|---|---|---|---|---|---|---|---|\n",
             );
             let mut cost = String::from(
-                "| scene | potential silhouettes | edges per pixel's cell p50 / p99 | edges counted per pixel p50 / p99 (mean) | coverage prepare + evaluate ms | fins 16L prepare + evaluate ms |\n|---|---|---|---|---|---|\n",
+                "| scene | potential silhouettes | edges per pixel's cell p50 / p99 (mean) | within its footprint p50 / p99 (mean) | edges counted per pixel p50 / p99 (mean) | coverage prepare + evaluate ms | fins 16L prepare + evaluate ms |\n|---|---|---|---|---|---|---|\n",
             );
             let mut targets = String::from(
                 "| scene | hard MAE | outer-fins MAE | fins 16L paper MAE | fins 16L MAE | beats hard & outer (paper / ours) | umbra over (paper / ours) |\n|---|---|---|---|---|---|---|\n",
@@ -313,11 +313,15 @@ fn run(command: Command) -> Result<(), LabError> {
                         let fins_ms =
                             row(&format!("fins {}L", settings.layers)).map_or(f64::NAN, |r| r.evaluation.total_ms());
                         cost += &format!(
-                            "| {} | {} | {} / {} | {} / {} ({:.1}) | {:.1} | {:.1} |\n",
+                            "| {} | {} | {} / {} ({:.1}) | {} / {} ({:.1}) | {} / {} ({:.1}) | {:.1} | {:.1} |\n",
                             id.name(),
                             cov.evaluation.silhouettes,
                             w.cell_edges[0],
                             w.cell_edges[1],
+                            w.mean_cell_edges,
+                            w.reaching_edges[0],
+                            w.reaching_edges[1],
+                            w.mean_reaching_edges,
                             w.counted_edges[0],
                             w.counted_edges[1],
                             w.mean_counted_edges,

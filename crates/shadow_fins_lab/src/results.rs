@@ -317,6 +317,7 @@ mod tests {
             refinement: vec![true],
             falloffs: vec![Falloff::DiskSegment],
             map_resolutions: vec![1024],
+            coverage_samples: vec![256],
             radii: vec![0.5],
             base_layers: 16,
             base_map_resolution: 1024,

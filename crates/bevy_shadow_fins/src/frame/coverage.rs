@@ -30,8 +30,8 @@ pub(crate) const LIST_WORDS: u64 = (NEAR_DEPTHS + FAR_DEPTHS + 1) as u64;
 /// GPU's watchdog; llvmpipe stops a shader after 65535 loop iterations).
 pub(crate) const LIST_BLOCK_TEXELS: u32 = 4096;
 
-/// Edges one coverage cell may list before the frame reports it: the
-/// reference pass walks a cell about twice (faces, then edges), and llvmpipe
+/// Edges one coverage cell's list may hold before the frame reports it: a
+/// pixel walks its cell's sample list and its reference list, and llvmpipe
 /// stops an invocation after 65535 loop iterations in all.
 pub(crate) const LONG_CELL_EDGES: u32 = 16_384;
 
@@ -59,6 +59,8 @@ pub(crate) struct GpuCoverageEdge {
 #[derive(Debug)]
 pub(crate) struct CoverageFrame {
     pub edges: Vec<GpuCoverageEdge>,
+    /// Both of each cell's lists (`EdgeIndex::gpu_lists`): `2 · cells + 1`
+    /// starts, the sample lists' first, then the reference lists'.
     pub cell_starts: Vec<u32>,
     pub cell_items: Vec<u32>,
     /// Grid origin (xy) and cells per map unit (zw); cells in x and y.
@@ -129,9 +131,10 @@ pub(crate) fn coverage_frame(
     let triangles = reference::map_triangles(&ls, near);
     let region = in_frame.covering(triangles.iter().map(|t| t.bounds()), alloc.resolution.clamp(1, 8192));
     let edges = potential_silhouette_edges(scene, &ls, near);
-    let index = EdgeIndex::new(&edges, &ls.frame, ls.reference_depth, 1.5 * region.texel);
+    // The raster reference count moves up to a texel and a half from the receiver.
+    let index = EdgeIndex::coverage(&edges, &ls.frame, ls.reference_depth, Some(1.5 * region.texel));
     let (min, inv_cell, dims) = index.grid();
-    let (starts, items) = index.lists();
+    let (starts, items) = index.gpu_lists();
     let mut keep = |what: &'static str, n: usize, bytes: u64| {
         let fit = (max_buffer / bytes) as usize;
         if n > fit && degraded.is_none() {

@@ -1,8 +1,9 @@
 //! Render world of the coverage method: the depth lists (`coverage_lists.wgsl`,
-//! once per frame, only when the frame changed) and, per camera, the
-//! visibility passes (`coverage.wgsl`: reference count, samples by 32-sample
-//! word, resolve) writing the same visibility buffer the fins write, so
-//! compositing is unchanged.
+//! once per frame, only when the frame changed) and, per camera and light,
+//! one visibility pass (`coverage.wgsl`: one walk over each pixel's edges
+//! that corrects the reference count and moves every sample's count at once)
+//! writing the same visibility buffer the fins write, so compositing is
+//! unchanged.
 
 use bevy::{
     asset::{embedded_asset, load_embedded_asset},
@@ -106,9 +107,7 @@ struct CoveragePipelines {
     view_layout: BindGroupLayoutDescriptor,
     clear: CachedComputePipelineId,
     raster: CachedComputePipelineId,
-    reference: CachedComputePipelineId,
-    samples: CachedComputePipelineId,
-    resolve: CachedComputePipelineId,
+    visibility: CachedComputePipelineId,
 }
 
 fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, asset_server: Res<AssetServer>) {
@@ -143,8 +142,6 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
                 texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
                 uniform_buffer::<ViewUniform>(true),
                 uniform_buffer_sized(false, None),
-                storage_buffer_sized(false, None),
-                storage_buffer_sized(false, None),
                 crate::render::view::gbuffer_entry(),
             ),
         ),
@@ -157,9 +154,7 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
     commands.insert_resource(CoveragePipelines {
         clear: compute("fin_coverage_clear_lists", &lists_layout, &lists_shader, "clear_lists"),
         raster: compute("fin_coverage_raster_lists", &lists_layout, &lists_shader, "raster_lists"),
-        reference: compute("fin_coverage_reference", &view_layout, &visibility_shader, "coverage_reference"),
-        samples: compute("fin_coverage_samples", &view_layout, &visibility_shader, "coverage_samples"),
-        resolve: compute("fin_coverage_resolve", &view_layout, &visibility_shader, "coverage_resolve"),
+        visibility: compute("fin_coverage_visibility", &view_layout, &visibility_shader, "coverage_visibility"),
         lists_layout,
         view_layout,
     });
@@ -186,8 +181,8 @@ struct CoverageGpu {
     cutouts: Option<Buffer>,
     mask_words: Option<Buffer>,
     lists_bind_group: Option<BindGroup>,
-    /// (raster work items, texels, 32-sample words)
-    counts: (u32, u32, u32),
+    /// (raster work items, texels)
+    counts: (u32, u32),
 }
 
 impl CoverageGpu {
@@ -265,7 +260,7 @@ fn prepare_light(
             g.mask_words.as_ref().unwrap().as_entire_binding(),
         )),
     ));
-    g.counts = (c.raster_work.len() as u32, texels as u32, c.samples.len().div_ceil(32) as u32);
+    g.counts = (c.raster_work.len() as u32, texels as u32);
     g.generation = f.generation;
     g.dirty = true;
 }
@@ -285,7 +280,7 @@ fn render_lists(
     };
     for gpu in lights.0.values_mut().filter(|g| g.dirty) {
         let Some(bind_group) = gpu.lists_bind_group.clone() else { continue };
-        let (work, texels, _) = gpu.counts;
+        let (work, texels) = gpu.counts;
         let diagnostics = ctx.diagnostic_recorder();
         let diagnostics = diagnostics.as_deref();
         let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/coverage_lists");
@@ -309,20 +304,15 @@ fn render_lists(
     }
 }
 
-/// Per camera and light slot: the coverage visibility passes' bind group
-/// (`None` for lights on a fin method, or that cannot run this frame) and
-/// the light's 32-sample word count.
+/// Per camera and light slot: the coverage visibility pass's bind group
+/// (`None` for lights on a fin method, or that cannot run this frame).
 #[derive(Component)]
-pub struct CoverageViewBindGroup(Vec<Option<(BindGroup, u32)>>);
+pub struct CoverageViewBindGroup(Vec<Option<BindGroup>>);
 
-/// Per camera: D(c) and the sample tally per pixel, kept while the size
-/// holds (the lights' passes run one after the other and share them), and
-/// each light slot's view → light-frame transform.
-#[derive(Component)]
+/// Per camera: each light slot's view → light-frame transform, kept between
+/// frames.
+#[derive(Component, Default)]
 pub struct CoverageViewBuffers {
-    pixels: u64,
-    reference: Buffer,
-    tally: Buffer,
     transforms: Vec<Buffer>,
 }
 
@@ -350,31 +340,8 @@ fn prepare_view_bind_groups(
             commands.entity(entity).remove::<CoverageViewBindGroup>();
             continue;
         };
-        let size = texture.texture.texture.size();
-        let pixels = size.width as u64 * size.height as u64;
-        let mut per_pixel = match buffers {
-            Some(mut b) if b.pixels == pixels => CoverageViewBuffers {
-                pixels,
-                reference: b.reference.clone(),
-                tally: b.tally.clone(),
-                transforms: std::mem::take(&mut b.transforms),
-            },
-            _ => {
-                let buffer = |label: &str| {
-                    device.create_buffer(&BufferDescriptor {
-                        label: Some(label),
-                        size: (pixels * 4).max(16),
-                        usage: BufferUsages::STORAGE,
-                        mapped_at_creation: false,
-                    })
-                };
-                CoverageViewBuffers {
-                    pixels,
-                    reference: buffer("fin_coverage_reference"),
-                    tally: buffer("fin_coverage_tally"),
-                    transforms: vec![],
-                }
-            }
+        let mut kept = CoverageViewBuffers {
+            transforms: buffers.map(|mut b| std::mem::take(&mut b.transforms)).unwrap_or_default(),
         };
         let groups = frames
             .0
@@ -384,7 +351,7 @@ fn prepare_view_bind_groups(
                 let gpu = lights.0.get(&frame.key()).filter(|g| g.ready())?;
                 let layer = texture.layers.get(frame.layer)?;
                 let f = &frame.data;
-                let buffer = view_transform(&device, &queue, f, &view.world_from_view, &mut per_pixel.transforms, slot);
+                let buffer = view_transform(&device, &queue, f, &view.world_from_view, &mut kept.transforms, slot);
                 let bind_group = device.create_bind_group(
                     "fin_coverage_view_bind_group",
                     &pipeline_cache.get_bind_group_layout(&pipelines.view_layout),
@@ -400,15 +367,13 @@ fn prepare_view_bind_groups(
                         layer,
                         view_binding.clone(),
                         buffer.as_entire_binding(),
-                        per_pixel.reference.as_entire_binding(),
-                        per_pixel.tally.as_entire_binding(),
                         crate::render::view::gbuffer_input(prepass, &no_gbuffer),
                     )),
                 );
-                Some((bind_group, gpu.counts.2.clamp(1, 8)))
+                Some(bind_group)
             })
             .collect();
-        commands.entity(entity).insert((CoverageViewBindGroup(groups), per_pixel));
+        commands.entity(entity).insert((CoverageViewBindGroup(groups), kept));
     }
 }
 
@@ -423,16 +388,10 @@ fn coverage_visibility(
 ) {
     let (entity, settings, texture, bind_groups, offset) = view.into_inner();
     let Some(pipelines) = pipelines else { return };
-    let (Some(reference), Some(samples), Some(resolve)) = (
-        pipeline_cache.get_compute_pipeline(pipelines.reference),
-        pipeline_cache.get_compute_pipeline(pipelines.samples),
-        pipeline_cache.get_compute_pipeline(pipelines.resolve),
-    ) else {
-        return;
-    };
+    let Some(pipeline) = pipeline_cache.get_compute_pipeline(pipelines.visibility) else { return };
     let size = texture.texture.texture.size();
     for (slot, group) in bind_groups.0.iter().enumerate() {
-        let Some((bind_group, words)) = group else { continue };
+        let Some(bind_group) = group else { continue };
         let diagnostics = ctx.diagnostic_recorder();
         let diagnostics = diagnostics.as_deref();
         let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/visibility");
@@ -443,11 +402,7 @@ fn coverage_visibility(
             });
             pass.set_bind_group(0, bind_group, &[offset.offset]);
             let (x, y) = (size.width.div_ceil(8), size.height.div_ceil(8));
-            pass.set_pipeline(reference);
-            pass.dispatch_workgroups(x, y, 1);
-            pass.set_pipeline(samples);
-            pass.dispatch_workgroups(x, y, *words);
-            pass.set_pipeline(resolve);
+            pass.set_pipeline(pipeline);
             pass.dispatch_workgroups(x, y, 1);
         }
         span.end(ctx.command_encoder());

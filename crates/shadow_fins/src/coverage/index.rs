@@ -1,11 +1,27 @@
-//! The tiled edge list (C4 in [`super`]): a uniform grid over light-map
-//! space whose cells list the potential silhouette edges whose penumbra
-//! footprint touches them. An edge at depth `z` reaches a receiver at depth
-//! `z_p ≤ L0` only within map distance `R(1/z − 1/z_p) ≤ R(1/z − 1/L0)` of
-//! its own map projection (disk light), or `tanθ (z_p − z) ≤ tanθ (L0 − z)`
-//! (sun); the edge is binned with that radius, and [`EdgeIndex::may_reach`]
-//! applies the receiver's exact bound. The cells coarsen until the lists
-//! hold at most [`MAX_ENTRIES`].
+//! The tiled edge lists (C4 in [`super`]): a uniform grid over light-map
+//! space whose cells list, for the receivers whose map point falls in them,
+//! the potential silhouette edges that can move a light sample's count.
+//!
+//! - **Footprint.** An edge at depth `z` reaches a receiver at depth
+//!   `z_p ≤ L0` only within map distance `R(1/z − 1/z_p) ≤ R(1/z − 1/L0)` of
+//!   its own map projection (disk light), or `tanθ (z_p − z) ≤ tanθ (L0 − z)`
+//!   (sun); a cell lists the edge only if that capsule around its map segment
+//!   touches the cell, and [`EdgeIndex::may_reach`] applies the receiver's
+//!   exact bound.
+//! - **Silhouette from the cell** ([`EdgeIndex::coverage`]). The edge's σ
+//!   (C2) is `0` wherever the receiver lies on opposite sides of its two
+//!   faces' planes; each side is an affine function of the receiver, so if
+//!   the eight corners of the cell's receiver region (its map rectangle
+//!   between the edge's depth and `L0`) all lie on opposite sides, so does
+//!   every receiver of the cell, and the edge — most of a smooth closed
+//!   mesh's potential silhouettes under a large light — is left out.
+//! - **Reference list.** The raster reference count (C1's `D(c)` through the
+//!   depth lists) corrects along a move of at most a texel and a half at the
+//!   receiver; only faces and edges whose map projection comes that close
+//!   can be passed, so it walks a second, much shorter list: the edges whose
+//!   faces' map bounds, widened by that margin, touch the cell.
+//!
+//! The cells coarsen until the footprint boxes hold at most [`MAX_ENTRIES`].
 
 use glam::{Vec2, Vec3};
 
@@ -20,10 +36,17 @@ const MAP_LIMIT: f32 = 64.0;
 /// The most cell entries the grid keeps (4M: 16 MiB of edge ids).
 pub const MAX_ENTRIES: usize = 4 << 20;
 
-/// Per cell, the edges whose footprint touches it (CSR).
+/// A cell's rectangle is widened by this share of a cell before the finer
+/// tests, for the f32 rounding of the cell a receiver is looked up in.
+const CELL_SLACK: f32 = 1e-3;
+
+/// Per cell, the edges that can matter to its receivers (CSR): the sample
+/// walk's, and the raster reference count's.
 #[derive(Debug, Clone)]
 pub struct EdgeIndex {
-    grid: CellGrid,
+    samples: CellGrid,
+    /// Empty (no entries) unless built with a reference margin.
+    reference: CellGrid,
     /// Per edge: its map-space segment (clipped endpoints' projections).
     segments: Vec<(Vec2, Vec2)>,
 }
@@ -53,21 +76,121 @@ fn segment_distance(q: Vec2, a: Vec2, b: Vec2) -> f32 {
     (a + ab * t - q).length()
 }
 
+/// Distance from the rectangle `lo..hi` to the segment `a b` (0 where they meet).
+fn rect_segment_distance(lo: Vec2, hi: Vec2, a: Vec2, b: Vec2) -> f32 {
+    let inside = |p: Vec2| p.cmpge(lo).all() && p.cmple(hi).all();
+    if inside(a) || inside(b) {
+        return 0.0;
+    }
+    let corners = [lo, Vec2::new(hi.x, lo.y), hi, Vec2::new(lo.x, hi.y)];
+    let cross = |u: Vec2, v: Vec2| u.x * v.y - u.y * v.x;
+    let mut best = f32::INFINITY;
+    for k in 0..4 {
+        let (c, d) = (corners[k], corners[(k + 1) % 4]);
+        // A proper crossing of a side: the segment passes through the rectangle.
+        let (s1, s2) = (cross(d - c, a - c), cross(d - c, b - c));
+        let (s3, s4) = (cross(b - a, c - a), cross(b - a, d - a));
+        if (s1 > 0.0) != (s2 > 0.0) && (s3 > 0.0) != (s4 > 0.0) {
+            return 0.0;
+        }
+        best = best.min(segment_distance(c, a, b)).min(segment_distance(a, c, d)).min(segment_distance(b, c, d));
+    }
+    best
+}
+
+/// The receivers a cell's edges are culled for: the map rectangle `lo..hi`
+/// between depths `z0` and `z1`, as its eight corners in the light frame
+/// (a frustum's slice under a perspective light, a box under the sun).
+fn region_corners(perspective: bool, lo: Vec2, hi: Vec2, z0: f32, z1: f32) -> [Vec3; 8] {
+    let m = [lo, Vec2::new(hi.x, lo.y), hi, Vec2::new(lo.x, hi.y)];
+    let at = |m: Vec2, z: f32| if perspective { (m * z).extend(z) } else { m.extend(z) };
+    std::array::from_fn(|k| at(m[k % 4], if k < 4 { z0 } else { z1 }))
+}
+
+/// The nearest depth at which a receiver `distance` map units from an edge
+/// at depth `z` can have it within reach (`EdgeIndex::may_reach`, inverted
+/// with its tolerance and a little more): `R(1/z − 1/z_p) ≥ d` (disk) or
+/// `tanθ (z_p − z) ≥ d` (sun); `None` where no depth can.
+fn nearest_reached_depth(projection: Projection, z: f32, distance: f32) -> Option<f32> {
+    let d = (distance - 1e-12).max(0.0) / (1.0 + 1e-4) * (1.0 - 1e-3);
+    match projection {
+        Projection::Perspective { radius } if radius > 0.0 && d > 0.0 => {
+            let inverse = 1.0 / z - d / radius;
+            (inverse > 0.0).then(|| z.max(1.0 / inverse * (1.0 - 1e-4)))
+        }
+        Projection::Orthographic { tan_angle } if tan_angle > 0.0 && d > 0.0 => {
+            let depth = z + d / tan_angle;
+            Some(z.max(depth - 1e-4 * (depth - z)))
+        }
+        _ => Some(z),
+    }
+}
+
+/// Whether edge `e` has σ = 0 (C2) for every receiver among `corners`'
+/// convex hull. σ sums, per face `(a, b, t)`, the sign of
+/// `det(a − p, b − p, t − p) = −(p − a)·((b − a) × (t − a))`: the side of the
+/// face's plane `p` lies on. Two faces cancel where `p` is on opposite sides
+/// of their planes; both sides are affine in `p`, so the corners decide. A
+/// margin keeps out receivers the GPU's f32 determinant could put on the
+/// other side (its rounding: `ε` times the vectors' lengths and coordinates).
+fn never_a_silhouette(e: &CoverageEdge, corners: &[Vec3; 8]) -> bool {
+    if e.faces != 2 {
+        return false;
+    }
+    let reach = corners.iter().fold(0.0f32, |r, c| r.max((*c - e.a).length())) + (e.b - e.a).length();
+    let scale = corners.iter().fold(e.a.length().max(e.b.length()), |s, c| s.max(c.length())).max(reach);
+    let side = |t: Vec3| {
+        let n = (e.b - e.a).cross(t - e.a);
+        let margin = 1e-5 * scale * reach * (reach + (t - e.a).length());
+        let values = corners.map(|c| (c - e.a).dot(n));
+        if values.iter().all(|v| *v > margin) {
+            1
+        } else if values.iter().all(|v| *v < -margin) {
+            -1
+        } else {
+            0
+        }
+    };
+    let (s1, s2) = (side(e.third[0]), side(e.third[1]));
+    s1 != 0 && s1 == -s2
+}
+
 impl EdgeIndex {
-    /// Bins `edges` by footprint, each widened by `margin` map units (the
-    /// raster reference count corrects over up to a texel).
-    pub fn new(edges: &[CoverageEdge], frame: &LightFrame, reference_depth: f32, margin: f32) -> Self {
+    /// Bins `edges` by footprint alone (every cell lists each edge whose
+    /// footprint capsule touches it): for the penumbra-wedges peer, whose
+    /// edges are outlines, not σ-counted silhouettes.
+    pub fn new(edges: &[CoverageEdge], frame: &LightFrame, reference_depth: f32) -> Self {
+        Self::build(edges, frame, reference_depth, false, None)
+    }
+
+    /// The coverage method's lists: by footprint and silhouette from the
+    /// cell, and with `reference_margin` (map units) the raster reference
+    /// count's list of edges whose faces come within it of the cell.
+    pub fn coverage(
+        edges: &[CoverageEdge],
+        frame: &LightFrame,
+        reference_depth: f32,
+        reference_margin: Option<f32>,
+    ) -> Self {
+        Self::build(edges, frame, reference_depth, true, reference_margin)
+    }
+
+    fn build(
+        edges: &[CoverageEdge],
+        frame: &LightFrame,
+        reference_depth: f32,
+        cull_silhouettes: bool,
+        reference_margin: Option<f32>,
+    ) -> Self {
         let feet: Vec<Option<(Vec2, Vec2, f32)>> = edges.iter().map(|e| footprint(e, frame, reference_depth)).collect();
         let limit = frame.map_limit(MAP_LIMIT);
         let clamp = |v: Vec2| v.clamp(Vec2::splat(-limit), Vec2::splat(limit));
+        let finite =
+            |f: &Option<(Vec2, Vec2, f32)>| f.filter(|(a, b, r)| a.is_finite() && b.is_finite() && r.is_finite());
         let bounds: Vec<Option<(Vec2, Vec2)>> = feet
             .iter()
-            .map(|f| f.filter(|(a, b, r)| a.is_finite() && b.is_finite() && r.is_finite()))
-            .map(|f| {
-                f.map(|(a, b, r)| {
-                    (clamp(a.min(b) - Vec2::splat(r + margin)), clamp(a.max(b) + Vec2::splat(r + margin)))
-                })
-            })
+            .map(finite)
+            .map(|f| f.map(|(a, b, r)| (clamp(a.min(b) - Vec2::splat(r)), clamp(a.max(b) + Vec2::splat(r)))))
             .collect();
         let (mut min, mut max) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
         for (lo, hi) in bounds.iter().flatten() {
@@ -97,14 +220,68 @@ impl EdgeIndex {
             }
             dims = [(dims[0] / 2).max(1), (dims[1] / 2).max(1)];
         }
-        let grid = CellGrid::build(min, size, dims, &bounds);
+        let slack = size / Vec2::new(dims[0] as f32, dims[1] as f32) * CELL_SLACK;
+        // Receivers lie no deeper than L0; a hair deeper for their lift.
+        let z_far = reference_depth + 1e-3 * reference_depth.abs().max(1e-30);
+        let z_near = if frame.is_perspective() { reference_depth * 1e-5 } else { f32::NEG_INFINITY };
+        let samples = CellGrid::build_where(min, size, dims, &bounds, |id, lo, hi| {
+            let (lo, hi) = (lo - slack, hi + slack);
+            let Some((a, b, r)) = finite(&feet[id as usize]) else { return false };
+            // `may_reach`'s bound, with its tolerance, at the cell's nearest point.
+            let distance = rect_segment_distance(lo, hi, a, b);
+            if distance > r * (1.0 + 1e-3) + 1e-12 {
+                return false;
+            }
+            let e = &edges[id as usize];
+            if !cull_silhouettes {
+                return true;
+            }
+            // Only receivers deep enough to have the edge within reach count.
+            // `may_reach` takes an edge at least a millionth of the receiver's
+            // depth from the light (receivers lie behind the near plane).
+            let z_edge = if frame.is_perspective() { e.min_depth().max(z_near * 1e-6) } else { e.min_depth() };
+            let Some(z0) = nearest_reached_depth(frame.projection, z_edge, distance) else { return false };
+            let z0 = z0.max(z_near);
+            if !(z0 < z_far) {
+                return false;
+            }
+            !never_a_silhouette(e, &region_corners(frame.is_perspective(), lo, hi, z0, z_far))
+        });
+        let reference = match reference_margin {
+            Some(margin) => {
+                let reference_bounds: Vec<Option<(Vec2, Vec2)>> = edges
+                    .iter()
+                    .map(|e| {
+                        let points = [e.a, e.b, e.third[0], e.third[1]];
+                        let points = &points[..2 + e.faces as usize];
+                        // A face reaching the light plane projects without bound.
+                        if frame.is_perspective() && points.iter().any(|p| !(p.z > z_near)) {
+                            return Some((min, max));
+                        }
+                        let (lo, hi) = points.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), p| {
+                            let m = frame.map(*p);
+                            (lo.min(m), hi.max(m))
+                        });
+                        (lo.is_finite() && hi.is_finite())
+                            .then(|| (clamp(lo - Vec2::splat(margin)), clamp(hi + Vec2::splat(margin))))
+                    })
+                    .collect();
+                CellGrid::build(min, size, dims, &reference_bounds)
+            }
+            None => CellGrid::build(min, size, dims, &vec![None; edges.len()]),
+        };
         let segments = feet.iter().map(|f| f.map_or((Vec2::NAN, Vec2::NAN), |(a, b, _)| (a, b))).collect();
-        Self { grid, segments }
+        Self { samples, reference, segments }
     }
 
-    /// The edges binned in the cell of map point `q` (none outside the grid).
+    /// The edges the sample walk visits for a receiver at map point `q` (none outside the grid).
     pub fn cell(&self, q: Vec2) -> &[u32] {
-        self.grid.cell(q)
+        self.samples.cell(q)
+    }
+
+    /// The edges the raster reference count corrects with at map point `q`.
+    pub fn reference_cell(&self, q: Vec2) -> &[u32] {
+        self.reference.cell(q)
     }
 
     /// Whether edge `id` (`e`) can cross the cone from the receiver `p`
@@ -129,21 +306,137 @@ impl EdgeIndex {
 
     /// The grid's origin, cells per map unit and size in cells (for a GPU copy).
     pub fn grid(&self) -> (Vec2, Vec2, [usize; 2]) {
-        self.grid.grid()
+        self.samples.grid()
     }
 
-    /// The CSR arrays: where each cell's edges start in `items`, and the edge ids.
-    pub fn lists(&self) -> (&[u32], &[u32]) {
-        self.grid.lists()
+    /// Both lists as one CSR for a GPU copy: `starts` has `2 · cells + 1`
+    /// entries, cell `c`'s sample edges are `items[starts[c]..starts[c + 1]]`
+    /// and its reference edges `items[starts[cells + c]..starts[cells + c + 1]]`.
+    pub fn gpu_lists(&self) -> (Vec<u32>, Vec<u32>) {
+        let (s_starts, s_items) = self.samples.lists();
+        let (r_starts, r_items) = self.reference.lists();
+        let offset = s_items.len() as u32;
+        let starts = s_starts.iter().copied().chain(r_starts[1..].iter().map(|s| s + offset)).collect();
+        (starts, [s_items, r_items].concat())
     }
 
-    /// Total cell entries (the index's size).
+    /// Total cell entries of both lists (the index's size).
     pub fn entries(&self) -> usize {
-        self.grid.lists().1.len()
+        self.samples.lists().1.len() + self.reference.lists().1.len()
     }
 
     /// The map segment of edge `id`.
     pub fn segment(&self, id: u32) -> (Vec2, Vec2) {
         self.segments[id as usize]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn a_rectangle_and_a_segment_are_apart_by_their_nearest_points() {
+        let (lo, hi) = (Vec2::ZERO, Vec2::ONE);
+        // Through the middle, ends outside: they meet.
+        assert_eq!(rect_segment_distance(lo, hi, Vec2::new(-1.0, 0.5), Vec2::new(2.0, 0.5)), 0.0);
+        // Beside the right side.
+        assert!((rect_segment_distance(lo, hi, Vec2::new(3.0, -5.0), Vec2::new(3.0, 5.0)) - 2.0).abs() < 1e-6);
+        // Diagonal past a corner: the corner is the nearest point.
+        let d = rect_segment_distance(lo, hi, Vec2::new(2.0, 1.0), Vec2::new(1.0, 2.0));
+        assert!((d - 0.5f32.sqrt()).abs() < 1e-6, "{d}");
+    }
+
+    /// A roof ridge along x at depth 1, its faces sloping away from the
+    /// light (deeper): seen from below it is a crease, from beside it a
+    /// silhouette.
+    fn ridge() -> CoverageEdge {
+        CoverageEdge {
+            a: Vec3::new(-1.0, 0.0, 1.0),
+            b: Vec3::new(1.0, 0.0, 1.0),
+            third: [Vec3::new(0.0, 1.0, 1.2), Vec3::new(0.0, -1.0, 1.2)],
+            faces: 2,
+        }
+    }
+
+    #[test]
+    fn a_ridge_is_culled_for_receivers_below_it_and_kept_for_those_beside_it() {
+        let below = region_corners(true, Vec2::splat(-0.05), Vec2::splat(0.05), 2.0, 3.0);
+        assert!(never_a_silhouette(&ridge(), &below));
+        // Beside it at about its depth: the plane through p and the ridge
+        // is near z = 1, both faces below it.
+        let beside = region_corners(true, Vec2::new(1.0, 3.0), Vec2::new(1.1, 3.1), 1.0, 1.2);
+        assert!(!never_a_silhouette(&ridge(), &beside));
+        // A boundary edge (one face) counts ±1 from everywhere.
+        assert!(!never_a_silhouette(&CoverageEdge { faces: 1, ..ridge() }, &below));
+    }
+
+    #[test]
+    fn receivers_far_from_an_edge_reach_it_only_deep_enough() {
+        let disk = Projection::Perspective { radius: 0.5 };
+        // At map distance 0 every depth behind the edge can.
+        assert_eq!(nearest_reached_depth(disk, 1.0, 0.0), Some(1.0));
+        // R (1/1 − 1/z) ≥ 0.25 → z ≥ 2.
+        let z = nearest_reached_depth(disk, 1.0, 0.25).unwrap();
+        assert!(z < 2.0 && z > 1.99, "{z}");
+        // Beyond R / z no depth can.
+        assert_eq!(nearest_reached_depth(disk, 1.0, 0.6), None);
+        let sun = Projection::Orthographic { tan_angle: 0.1 };
+        let z = nearest_reached_depth(sun, 1.0, 0.05).unwrap();
+        assert!(z < 1.5 && z > 1.49, "{z}");
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 512, ..ProptestConfig::default() })]
+
+        /// The rectangle–segment distance is the smallest distance from the
+        /// segment to any point of the rectangle (sampled densely).
+        #[test]
+        fn rect_segment_distance_bounds_every_point_of_the_rectangle(
+            ax in -3.0f32..3.0, ay in -3.0f32..3.0, bx in -3.0f32..3.0, by in -3.0f32..3.0,
+        ) {
+            let (lo, hi) = (Vec2::new(-0.5, -0.25), Vec2::new(0.75, 0.5));
+            let (a, b) = (Vec2::new(ax, ay), Vec2::new(bx, by));
+            let d = rect_segment_distance(lo, hi, a, b);
+            let mut nearest = f32::INFINITY;
+            for i in 0..=40 {
+                for j in 0..=40 {
+                    let q = lo + (hi - lo) * Vec2::new(i as f32 / 40.0, j as f32 / 40.0);
+                    nearest = nearest.min(segment_distance(q, a, b));
+                }
+            }
+            prop_assert!(d <= nearest + 1e-5, "{d} > {nearest}");
+            prop_assert!(nearest - d <= 0.05, "{d} far below {nearest}");
+        }
+
+        /// An edge culled for a region has σ = 0 (its two faces' third
+        /// vertices on opposite sides of the plane through p and the edge) at
+        /// every receiver p inside it.
+        #[test]
+        fn an_edge_culled_for_a_region_is_a_silhouette_from_none_of_its_points(
+            a in prop::array::uniform3(-1.0f32..1.0), b in prop::array::uniform3(-1.0f32..1.0),
+            t0 in prop::array::uniform3(-1.0f32..1.0), t1 in prop::array::uniform3(-1.0f32..1.0),
+            cx in -1.0f32..1.0, cy in -1.0f32..1.0, w in 0.01f32..0.5, z0 in 1.0f32..2.0, dz in 0.1f32..2.0,
+            u in prop::array::uniform3(0.0f32..1.0),
+        ) {
+            let shift = Vec3::new(0.0, 0.0, 0.5);
+            let e = CoverageEdge {
+                a: Vec3::from(a) * 0.3 + shift,
+                b: Vec3::from(b) * 0.3 + shift,
+                third: [Vec3::from(t0) * 0.3 + shift, Vec3::from(t1) * 0.3 + shift],
+                faces: 2,
+            };
+            let (lo, hi) = (Vec2::new(cx, cy), Vec2::new(cx + w, cy + w));
+            let corners = region_corners(true, lo, hi, z0, z0 + dz);
+            if never_a_silhouette(&e, &corners) {
+                let z = z0 + dz * u[2];
+                let m = lo + (hi - lo) * Vec2::new(u[0], u[1]);
+                let p = (m * z).extend(z);
+                let n = (e.a - p).cross(e.b - p);
+                let sides = e.third.map(|t| n.dot(t - p) >= 0.0);
+                prop_assert!(sides[0] != sides[1], "σ ≠ 0 at {p:?}");
+            }
+        }
     }
 }

@@ -36,8 +36,11 @@
 //! - **(C4)** an edge at depth `z` can reach a receiver at depth `z_p` only
 //!   within map distance `R(1/z − 1/z_p)` of it (the cross-section of the cone
 //!   from the receiver to the disk); the edges are binned by that footprint
-//!   into a map-space grid ([`index`]), so a receiver visits the edges of its
-//!   cell only — the tiled edge list a GPU walks per pixel.
+//!   into a map-space grid ([`index`]), each cell keeping only the edges
+//!   that are a silhouette (C2) from some receiver it can hold, so a
+//!   receiver visits the edges of its cell only — the tiled edge list a GPU
+//!   walks per pixel; the raster reference count walks a second, short list
+//!   of the edges whose faces come within its move of the cell.
 //!
 //! Every test is a sign of a 3×3 determinant of light-frame vectors (a plane
 //! through `p`), so no division by a depth and no projection to infinity: an
@@ -98,11 +101,15 @@ pub const MAX_REFERENCE_COUNT: i32 = 127;
 /// dense mesh.
 pub const MAX_SEEN_FACES: usize = 32;
 
-/// What one receiver cost: edges of its cell, and those that reached the
-/// sample loop (silhouettes seen from it, in front of it).
+/// What one receiver cost: edges of its cell, those within its footprint
+/// bound and in front of it (the culling's survivors), and those that
+/// reached the sample loop (silhouettes seen from it); and the edges the
+/// raster reference count walked.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct CoverageWork {
     pub cell_edges: u32,
+    pub reference_edges: u32,
+    pub reaching_edges: u32,
     pub counted_edges: u32,
 }
 
@@ -179,8 +186,9 @@ impl<'a> CoverageModel<'a> {
                 Some(DepthLists::new(light_space, near, resolution, depths))
             }
         };
-        let margin = depth_lists.as_ref().map_or(0.0, |d| 1.5 * d.region.texel);
-        let index = EdgeIndex::new(&edges, &light_space.frame, light_space.reference_depth, margin);
+        // The raster reference count moves up to a texel and a half from the receiver.
+        let margin = depth_lists.as_ref().map(|d| 1.5 * d.region.texel);
+        let index = EdgeIndex::coverage(&edges, &light_space.frame, light_space.reference_depth, margin);
         Self {
             light_space,
             settings,
@@ -251,7 +259,10 @@ impl<'a> CoverageModel<'a> {
                 let count = self.count_to_light(shape, p, u_r, eps);
                 (REFERENCE, count as i32)
             }
-            Some(lists) => (Vec2::ZERO, self.raster_reference_count(lists, p, receiver.normal)),
+            Some(lists) => {
+                work.reference_edges = self.index.reference_cell(ls.frame.map(p)).len() as u32;
+                (Vec2::ZERO, self.raster_reference_count(lists, p, receiver.normal))
+            }
         };
         let u_r = Self::sample_vector(shape, p, reference);
         let mut depth = vec![reference_count; self.samples.len()];
@@ -263,6 +274,7 @@ impl<'a> CoverageModel<'a> {
             }
             // The part of the edge between the near plane and the receiver.
             let Some((a, b)) = e.clipped(self.near, p.z) else { continue };
+            work.reaching_edges += 1;
             let (da, db) = (a - p, b - p);
             let normal = da.cross(db);
             // (C2): the faces' sides of the plane through p and the edge.
@@ -362,7 +374,7 @@ impl<'a> CoverageModel<'a> {
         else {
             return 0;
         };
-        let cell = self.index.cell(m_p);
+        let cell = self.index.reference_cell(m_p);
         [(texel, p_t)]
             .iter()
             .map(|&(texel, p_t)| {

@@ -329,7 +329,7 @@ impl WedgeModel {
                 }
             }
         }
-        let index = EdgeIndex::new(&edges, &light_space.frame, light_space.reference_depth, 0.0);
+        let index = EdgeIndex::new(&edges, &light_space.frame, light_space.reference_depth);
         Self {
             edges,
             edge_patch,
