@@ -376,8 +376,12 @@ fn quad_above(i: u32, p: vec3<f32>, normal: vec3<f32>) -> u32 {
     return bits_of(d >= vec4<f32>(0.0));
 }
 
-// The samples of word `word` above the horizon (padding lanes never are).
+// The samples of word `word` above the horizon (padding lanes never are,
+// nor any lane of a word past the light's N samples).
 fn word_above(word: u32, p: vec3<f32>, normal: vec3<f32>) -> u32 {
+    if (word >= sample_words()) {
+        return 0u;
+    }
     let q = word * 8u;
     let bits = quad_above(q, p, normal) | (quad_above(q + 1u, p, normal) << 4u)
         | (quad_above(q + 2u, p, normal) << 8u) | (quad_above(q + 3u, p, normal) << 12u)
@@ -540,59 +544,42 @@ fn at_count(planes: ptr<function, array<u32, 8>>, wanted: u32, above: u32) -> u3
 @compute @workgroup_size(8, 8, 1)
 fn coverage_visibility(@builtin(global_invocation_id) id: vec3<u32>) {
     let size = textureDimensions(visibility);
-    let in_image = id.x < size.x && id.y < size.y;
-    // `shading`: a receiver with samples above its horizon, to walk for.
-    var shading = false;
-    var r = Receiver(0u, vec3<f32>(0.0), vec3<f32>(0.0));
-    if (in_image) {
-        r = receiver_at(id.xy);
-        // kind 3, another cube face's receiver: that face's pass writes the pixel.
-        if (r.kind == 0u || r.kind == 1u) {
-            textureStore(visibility, vec2<i32>(id.xy), vec4<f32>(select(0.0, 1.0, r.kind == 0u), 0.0, 0.0, 1.0));
-        }
-        shading = r.kind == 2u;
+    if (id.x >= size.x || id.y >= size.y) {
+        return;
+    }
+    let r = receiver_at(id.xy);
+    // Another cube face's receiver: that face's pass writes the pixel.
+    if (r.kind == 3u) {
+        return;
+    }
+    if (r.kind != 2u) {
+        textureStore(visibility, vec2<i32>(id.xy), vec4<f32>(select(0.0, 1.0, r.kind == 0u), 0.0, 0.0, 1.0));
+        return;
     }
     let p = r.p;
-    let words = sample_words();
-    // Per word, the samples above the horizon (words past N have none).
-    let above0 = select(0u, word_above(0u, p, r.normal), shading && words > 0u);
-    let above1 = select(0u, word_above(1u, p, r.normal), shading && words > 1u);
-    let above2 = select(0u, word_above(2u, p, r.normal), shading && words > 2u);
-    let above3 = select(0u, word_above(3u, p, r.normal), shading && words > 3u);
-    let above4 = select(0u, word_above(4u, p, r.normal), shading && words > 4u);
-    let above5 = select(0u, word_above(5u, p, r.normal), shading && words > 5u);
-    let above6 = select(0u, word_above(6u, p, r.normal), shading && words > 6u);
-    let above7 = select(0u, word_above(7u, p, r.normal), shading && words > 7u);
-    if (shading && (above0 | above1 | above2 | above3 | above4 | above5 | above6 | above7) == 0u) {
+    // Per word, the samples above the horizon.
+    let above0 = word_above(0u, p, r.normal);
+    let above1 = word_above(1u, p, r.normal);
+    let above2 = word_above(2u, p, r.normal);
+    let above3 = word_above(3u, p, r.normal);
+    let above4 = word_above(4u, p, r.normal);
+    let above5 = word_above(5u, p, r.normal);
+    let above6 = word_above(6u, p, r.normal);
+    let above7 = word_above(7u, p, r.normal);
+    if ((above0 | above1 | above2 | above3 | above4 | above5 | above6 | above7) == 0u) {
         textureStore(visibility, vec2<i32>(id.xy), vec4<f32>(0.0, 0.0, 0.0, 1.0));
-        shading = false;
+        return;
     }
-    var reference = ReferenceTexel(false, vec2<u32>(0u), p);
-    if (shading) {
-        reference = reference_texel(p, r.normal);
-    }
-    var seen: Seen;
-    seen.n = 0u;
-    // D(c) − count_before: faces and edges passed from the texel's ray to p.
-    var passed = 0;
-    // Per word, Σ σ χ of each sample modulo 256 in bit planes (plane i: bit i).
-    var planes0: array<u32, 8>;
-    var planes1: array<u32, 8>;
-    var planes2: array<u32, 8>;
-    var planes3: array<u32, 8>;
-    var planes4: array<u32, 8>;
-    var planes5: array<u32, 8>;
-    var planes6: array<u32, 8>;
-    var planes7: array<u32, 8>;
     let near = params.light.y;
-    let m_p = map_point(p);
-    var lists = vec4<u32>(0u);
-    if (shading) {
-        lists = cell_of(m_p);
-    }
-    // The reference count's walk, per pixel: the edges whose faces come
-    // within the move's reach (`EdgeIndex::reference_cell`).
+    let lists = cell_of(map_point(p));
+    // The reference count's walk: the edges whose faces come within the
+    // move's reach (`EdgeIndex::reference_cell`). `passed`: D(c) −
+    // count_before, the faces and edges passed from the texel's ray to p.
+    let reference = reference_texel(p, r.normal);
+    var passed = 0;
     if (reference.found) {
+        var seen: Seen;
+        seen.n = 0u;
         for (var k = lists.z; k < lists.w; k++) {
             let e = edges[cell_items[k]];
             passed += faces_crossed(&seen, e, reference.p_t, p);
@@ -602,41 +589,45 @@ fn coverage_visibility(@builtin(global_invocation_id) id: vec3<u32>) {
             }
         }
     }
-    let u_r = sample_vector(p, vec2<f32>(0.0));
     // The sample walk: the edges that may be a silhouette within the
-    // receiver's footprint (`EdgeIndex::cell`).
-    if (shading) {
-                for (var j = lists.x; j < lists.y; j++) {
-                    let e = edges[cell_items[j]];
-                    if (!may_reach(e, p)) {
-                        continue;
-                    }
-                    let cl = clipped(e, near, p.z);
-                    if (!cl.ok) {
-                        continue;
-                    }
-                    let da = cl.a - p;
-                    let db = cl.b - p;
-                    let plane_n = cross(da, db);
-                    let sigma = face_sides(e, plane_n, p);
-                    if (sigma == 0) {
-                        continue;
-                    }
-                    let edge_line = line_of(plane_n, p);
-                    let r_side = positive(edge_line, vec2<f32>(0.0));
-                    let w = Wedge(edge_line, r_side, line_of(cross(da, u_r), p), line_of(cross(db, u_r), p), select(sigma, -sigma, r_side));
-                    add_wedge(&planes0, 0u, above0, w);
-                    add_wedge(&planes1, 1u, above1, w);
-                    add_wedge(&planes2, 2u, above2, w);
-                    add_wedge(&planes3, 3u, above3, w);
-                    add_wedge(&planes4, 4u, above4, w);
-                    add_wedge(&planes5, 5u, above5, w);
-                    add_wedge(&planes6, 6u, above6, w);
-                    add_wedge(&planes7, 7u, above7, w);
-                }
-    }
-    if (!shading) {
-        return;
+    // receiver's footprint (`EdgeIndex::cell`). Per word, Σ σ χ of each
+    // sample modulo 256 in bit planes (plane i: bit i).
+    var planes0: array<u32, 8>;
+    var planes1: array<u32, 8>;
+    var planes2: array<u32, 8>;
+    var planes3: array<u32, 8>;
+    var planes4: array<u32, 8>;
+    var planes5: array<u32, 8>;
+    var planes6: array<u32, 8>;
+    var planes7: array<u32, 8>;
+    let u_r = sample_vector(p, vec2<f32>(0.0));
+    for (var k = lists.x; k < lists.y; k++) {
+        let e = edges[cell_items[k]];
+        if (!may_reach(e, p)) {
+            continue;
+        }
+        let cl = clipped(e, near, p.z);
+        if (!cl.ok) {
+            continue;
+        }
+        let da = cl.a - p;
+        let db = cl.b - p;
+        let plane_n = cross(da, db);
+        let sigma = face_sides(e, plane_n, p);
+        if (sigma == 0) {
+            continue;
+        }
+        let edge_line = line_of(plane_n, p);
+        let r_side = positive(edge_line, vec2<f32>(0.0));
+        let w = Wedge(edge_line, r_side, line_of(cross(da, u_r), p), line_of(cross(db, u_r), p), select(sigma, -sigma, r_side));
+        add_wedge(&planes0, 0u, above0, w);
+        add_wedge(&planes1, 1u, above1, w);
+        add_wedge(&planes2, 2u, above2, w);
+        add_wedge(&planes3, 3u, above3, w);
+        add_wedge(&planes4, 4u, above4, w);
+        add_wedge(&planes5, 5u, above5, w);
+        add_wedge(&planes6, 6u, above6, w);
+        add_wedge(&planes7, 7u, above7, w);
     }
     var d_c = 0;
     if (reference.found) {

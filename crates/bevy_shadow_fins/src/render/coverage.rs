@@ -311,7 +311,7 @@ pub struct CoverageViewBindGroup(Vec<Option<BindGroup>>);
 
 /// Per camera: each light slot's view → light-frame transform, kept between
 /// frames.
-#[derive(Component, Default)]
+#[derive(Component)]
 pub struct CoverageViewBuffers {
     transforms: Vec<Buffer>,
 }

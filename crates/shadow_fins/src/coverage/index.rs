@@ -183,13 +183,13 @@ impl EdgeIndex {
         reference_margin: Option<f32>,
     ) -> Self {
         let feet: Vec<Option<(Vec2, Vec2, f32)>> = edges.iter().map(|e| footprint(e, frame, reference_depth)).collect();
+        // Only finite footprints are binned.
+        let binned: Vec<Option<(Vec2, Vec2, f32)>> =
+            feet.iter().map(|f| f.filter(|(a, b, r)| a.is_finite() && b.is_finite() && r.is_finite())).collect();
         let limit = frame.map_limit(MAP_LIMIT);
         let clamp = |v: Vec2| v.clamp(Vec2::splat(-limit), Vec2::splat(limit));
-        let finite =
-            |f: &Option<(Vec2, Vec2, f32)>| f.filter(|(a, b, r)| a.is_finite() && b.is_finite() && r.is_finite());
-        let bounds: Vec<Option<(Vec2, Vec2)>> = feet
+        let bounds: Vec<Option<(Vec2, Vec2)>> = binned
             .iter()
-            .map(finite)
             .map(|f| f.map(|(a, b, r)| (clamp(a.min(b) - Vec2::splat(r)), clamp(a.max(b) + Vec2::splat(r)))))
             .collect();
         let (mut min, mut max) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
@@ -226,16 +226,16 @@ impl EdgeIndex {
         let z_near = if frame.is_perspective() { reference_depth * 1e-5 } else { f32::NEG_INFINITY };
         let samples = CellGrid::build_where(min, size, dims, &bounds, |id, lo, hi| {
             let (lo, hi) = (lo - slack, hi + slack);
-            let Some((a, b, r)) = finite(&feet[id as usize]) else { return false };
+            let Some((a, b, r)) = binned[id as usize] else { return false };
             // `may_reach`'s bound, with its tolerance, at the cell's nearest point.
             let distance = rect_segment_distance(lo, hi, a, b);
             if distance > r * (1.0 + 1e-3) + 1e-12 {
                 return false;
             }
-            let e = &edges[id as usize];
             if !cull_silhouettes {
                 return true;
             }
+            let e = &edges[id as usize];
             // Only receivers deep enough to have the edge within reach count.
             // `may_reach` takes an edge at least a millionth of the receiver's
             // depth from the light (receivers lie behind the near plane).
@@ -268,7 +268,7 @@ impl EdgeIndex {
                     .collect();
                 CellGrid::build(min, size, dims, &reference_bounds)
             }
-            None => CellGrid::build(min, size, dims, &vec![None; edges.len()]),
+            None => CellGrid::build(min, size, dims, &[]),
         };
         let segments = feet.iter().map(|f| f.map_or((Vec2::NAN, Vec2::NAN), |(a, b, _)| (a, b))).collect();
         Self { samples, reference, segments }

@@ -103,12 +103,10 @@ pub const MAX_SEEN_FACES: usize = 32;
 
 /// What one receiver cost: edges of its cell, those within its footprint
 /// bound and in front of it (the culling's survivors), and those that
-/// reached the sample loop (silhouettes seen from it); and the edges the
-/// raster reference count walked.
+/// reached the sample loop (silhouettes seen from it).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct CoverageWork {
     pub cell_edges: u32,
-    pub reference_edges: u32,
     pub reaching_edges: u32,
     pub counted_edges: u32,
 }
@@ -259,10 +257,7 @@ impl<'a> CoverageModel<'a> {
                 let count = self.count_to_light(shape, p, u_r, eps);
                 (REFERENCE, count as i32)
             }
-            Some(lists) => {
-                work.reference_edges = self.index.reference_cell(ls.frame.map(p)).len() as u32;
-                (Vec2::ZERO, self.raster_reference_count(lists, p, receiver.normal))
-            }
+            Some(lists) => (Vec2::ZERO, self.raster_reference_count(lists, p, receiver.normal)),
         };
         let u_r = Self::sample_vector(shape, p, reference);
         let mut depth = vec![reference_count; self.samples.len()];
@@ -339,7 +334,7 @@ impl<'a> CoverageModel<'a> {
     /// The move runs at the receiver's depth, so its end can pass through a
     /// face — where an object stands on the receiver's surface — and a face
     /// passed through toggles whether it lies between the light and the
-    /// moving point with no edge crossed. So the faces of the cell's edges are
+    /// moving point with no edge crossed. So the faces of the reference list's edges are
     /// tested against the move too (each once): a face crossed counts `−1`
     /// when the move leaves its light side, `+1` when it enters it. The
     /// receiver's own surface is kept out of the way by taking, of the four
@@ -409,7 +404,7 @@ impl<'a> CoverageModel<'a> {
 
     /// The change in how many faces lie between the light's centre and a
     /// point moving from `from` to `to` through the faces it passes: the
-    /// faces of the cell's edges, each tested once.
+    /// faces of the reference list's edges (`EdgeIndex::reference_cell`), each tested once.
     fn faces_passed(&self, cell: &[u32], from: Vec3, to: Vec3) -> i32 {
         let frame = &self.light_space.frame;
         // The light's side of a face: towards the centre (disk) or up the sun.
