@@ -192,8 +192,33 @@ impl EdgeIndex {
             .iter()
             .map(|f| f.map(|(a, b, r)| (clamp(a.min(b) - Vec2::splat(r)), clamp(a.max(b) + Vec2::splat(r)))))
             .collect();
+        let z_near = if frame.is_perspective() { reference_depth * 1e-5 } else { f32::NEG_INFINITY };
+        // The reference list's bounds: each edge's faces' map box widened by
+        // the margin; `None` inside for a face reaching the light plane,
+        // which projects without bound (listed in every cell).
+        let reference_bounds: Option<Vec<Option<Option<(Vec2, Vec2)>>>> = reference_margin.map(|margin| {
+            edges
+                .iter()
+                .map(|e| {
+                    let points = [e.a, e.b, e.third[0], e.third[1]];
+                    let points = &points[..2 + e.faces as usize];
+                    if frame.is_perspective() && points.iter().any(|p| !(p.z > z_near)) {
+                        return Some(None);
+                    }
+                    let (lo, hi) = points.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), p| {
+                        let m = frame.map(*p);
+                        (lo.min(m), hi.max(m))
+                    });
+                    (lo.is_finite() && hi.is_finite())
+                        .then(|| Some((clamp(lo - Vec2::splat(margin)), clamp(hi + Vec2::splat(margin)))))
+                })
+                .collect()
+        });
+        // The grid spans both lists' boxes: a receiver just outside every
+        // footprint can still need a reference correction.
         let (mut min, mut max) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
-        for (lo, hi) in bounds.iter().flatten() {
+        let bounded = reference_bounds.iter().flatten().flatten().flatten();
+        for (lo, hi) in bounds.iter().flatten().chain(bounded) {
             min = min.min(*lo);
             max = max.max(*hi);
         }
@@ -223,7 +248,6 @@ impl EdgeIndex {
         let slack = size / Vec2::new(dims[0] as f32, dims[1] as f32) * CELL_SLACK;
         // Receivers lie no deeper than L0; a hair deeper for their lift.
         let z_far = reference_depth + 1e-3 * reference_depth.abs().max(1e-30);
-        let z_near = if frame.is_perspective() { reference_depth * 1e-5 } else { f32::NEG_INFINITY };
         let samples = CellGrid::build_where(min, size, dims, &bounds, |id, lo, hi| {
             let (lo, hi) = (lo - slack, hi + slack);
             let Some((a, b, r)) = binned[id as usize] else { return false };
@@ -247,29 +271,9 @@ impl EdgeIndex {
             }
             !never_a_silhouette(e, &region_corners(frame.is_perspective(), lo, hi, z0, z_far))
         });
-        let reference = match reference_margin {
-            Some(margin) => {
-                let reference_bounds: Vec<Option<(Vec2, Vec2)>> = edges
-                    .iter()
-                    .map(|e| {
-                        let points = [e.a, e.b, e.third[0], e.third[1]];
-                        let points = &points[..2 + e.faces as usize];
-                        // A face reaching the light plane projects without bound.
-                        if frame.is_perspective() && points.iter().any(|p| !(p.z > z_near)) {
-                            return Some((min, max));
-                        }
-                        let (lo, hi) = points.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), p| {
-                            let m = frame.map(*p);
-                            (lo.min(m), hi.max(m))
-                        });
-                        (lo.is_finite() && hi.is_finite())
-                            .then(|| (clamp(lo - Vec2::splat(margin)), clamp(hi + Vec2::splat(margin))))
-                    })
-                    .collect();
-                CellGrid::build(min, size, dims, &reference_bounds)
-            }
-            None => CellGrid::build(min, size, dims, &[]),
-        };
+        let reference_bounds: Vec<Option<(Vec2, Vec2)>> =
+            reference_bounds.unwrap_or_default().into_iter().map(|b| b.map(|b| b.unwrap_or((min, max)))).collect();
+        let reference = CellGrid::build(min, size, dims, &reference_bounds);
         let segments = feet.iter().map(|f| f.map_or((Vec2::NAN, Vec2::NAN), |(a, b, _)| (a, b))).collect();
         Self { samples, reference, segments }
     }
@@ -370,6 +374,28 @@ mod tests {
         assert!(!never_a_silhouette(&ridge(), &beside));
         // A boundary edge (one face) counts ±1 from everywhere.
         assert!(!never_a_silhouette(&CoverageEdge { faces: 1, ..ridge() }, &below));
+    }
+
+    #[test]
+    fn a_receiver_beside_every_footprint_still_gets_its_reference_edges() {
+        // A boundary edge at the receivers' depth reaches nothing (footprint
+        // radius 0, a segment on y = 0), but its face spans map y 0..0.25:
+        // a receiver at y = 0.1 is outside every footprint yet may pass the
+        // face within the raster reference count's move.
+        let frame = LightFrame::disk(&crate::light::DiskLight::new(Vec3::ZERO, Vec3::Z, 0.1).unwrap());
+        let edge = CoverageEdge {
+            a: Vec3::new(-1.0, 0.0, 2.0),
+            b: Vec3::new(1.0, 0.0, 2.0),
+            third: [Vec3::new(0.0, 0.5, 2.0), Vec3::ZERO],
+            faces: 1,
+        };
+        let q = frame.map(Vec3::new(0.0, 0.2, 2.0));
+        let index = EdgeIndex::coverage(&[edge], &frame, 2.0, Some(0.01));
+        // Outside the edge's footprint box (radius 0 about y = 0) …
+        assert_eq!(footprint(&edge, &frame, 2.0).map(|f| f.2), Some(0.0));
+        assert!(q.y > 0.05);
+        // … yet inside the grid, with the edge in its reference list.
+        assert_eq!(index.reference_cell(q), &[0]);
     }
 
     #[test]
