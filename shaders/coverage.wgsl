@@ -3,11 +3,12 @@
 // function for function. One dispatch per camera and light
 // (`coverage_lists.wgsl` fills the depth lists before, once per frame):
 //
-//  coverage_visibility  per pixel: the receiver from the prepasses, then two
-//                       walks over its cell's lists (`EdgeIndex::gpu_lists`):
-//                       the reference list corrects D(c), the depth lists'
-//                       count along a texel's ray, by the faces and edges
-//                       passed between that ray and the receiver's; the
+//  coverage_visibility  per pixel: the receiver from the prepasses, then
+//                       walks over its cell's three lists
+//                       (`EdgeIndex::gpu_lists`): the reference faces and
+//                       edges correct D(c), the depth lists' count along a
+//                       texel's ray, by those passed between that ray and
+//                       the receiver's; the
 //                       sample list adds each edge's Σ σ χ (C1) to every
 //                       light sample at once, in bit-sliced counters, 8
 //                       words of 32 samples. A sample is visible iff its sum
@@ -23,7 +24,7 @@
 // 65535 loop iterations in all (a GPU's watchdog is similar), so the only
 // loops are over the cell's lists and the few bounded ones beside them.
 #import bevy_render::view::View
-#import bevy_shadow_fins::coverage_types::{CoverageParams, Edge, CHUNK, MAX_CHUNKS, list_stride, texel_center}
+#import bevy_shadow_fins::coverage_types::{CoverageParams, Edge, Face, CHUNK, MAX_CHUNKS, list_stride, texel_center}
 #import bevy_shadow_fins::fin_view::FinView
 #import bevy_shadow_fins::receiver_normal::{clamped_to, receiver_normal}
 #import bevy_shadow_fins::fin_types::in_face
@@ -42,6 +43,8 @@
 @group(0) @binding(10) var<uniform> fin_view: FinView;
 // Bevy's deferred G-buffer (`receiver_normal.wgsl`), zeros without one.
 @group(0) @binding(11) var gbuffer: texture_2d<u32>;
+// Each face of the edges once (`EdgeIndex::faces`): the reference faces' list indexes it.
+@group(0) @binding(12) var<storage, read> listed_faces: array<Face>;
 
 // `shadow_fins::coverage::MAX_REFERENCE_COUNT`: the count D(c) saturates here.
 const MAX_REFERENCE: i32 = 127;
@@ -209,79 +212,45 @@ fn count_before(t: vec2<u32>, z: f32) -> u32 {
     return total - min(behind, total);
 }
 
-// The cell of map point m's two edge lists (`EdgeIndex::gpu_lists`): the
-// sample walk's (xy) and the reference count's (zw); empty outside the grid.
-fn cell_of(m: vec2<f32>) -> vec4<u32> {
+// The cell of map point m's three lists (`EdgeIndex::gpu_lists`), as
+// [start, end) ranges into `cell_items`; empty outside the grid.
+struct CellLists {
+    samples: vec2<u32>,
+    reference_edges: vec2<u32>,
+    reference_faces: vec2<u32>,
+}
+
+fn cell_of(m: vec2<f32>) -> CellLists {
     let c = (m - params.grid.xy) * params.grid.zw;
     if (!(c.x >= 0.0 && c.y >= 0.0 && u32(c.x) < params.info.x && u32(c.y) < params.info.y)) {
-        return vec4<u32>(0u);
+        return CellLists(vec2<u32>(0u), vec2<u32>(0u), vec2<u32>(0u));
     }
     let cells = params.info.x * params.info.y;
     let cell = u32(c.y) * params.info.x + u32(c.x);
-    return vec4<u32>(cell_starts[cell], cell_starts[cell + 1u], cell_starts[cells + cell], cell_starts[cells + cell + 1u]);
+    let edges_at = cells + cell;
+    let faces_at = 2u * cells + cell;
+    return CellLists(vec2<u32>(cell_starts[cell], cell_starts[cell + 1u]),
+        vec2<u32>(cell_starts[edges_at], cell_starts[edges_at + 1u]),
+        vec2<u32>(cell_starts[faces_at], cell_starts[faces_at + 1u]));
 }
 
-fn vertex_hash(v: vec3<f32>) -> u32 {
-    let b = bitcast<vec3<u32>>(v);
-    var h = b.x * 0x9e3779b1u;
-    h = (h ^ b.y) * 0x85ebca77u;
-    h = (h ^ b.z) * 0xc2b2ae3du;
-    return h ^ (h >> 15u);
-}
-
-// Whether the move from `start` to `stop` passes through face (a, b, c):
-// (.x = 1 if it does, .y = 1 if it leaves the face's light side) and the
-// face's order-free key (by a hash of its corners).
-struct Crossing {
-    crossed: bool,
-    leaves: bool,
-    key: vec2<u32>,
-}
-
-fn face_crossing(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, start: vec3<f32>, stop: vec3<f32>) -> Crossing {
-    let none = Crossing(false, false, vec2<u32>(0u));
+// ±1 as the move from `start` to `stop` passes through face (a, b, c),
+// leaving (+1) or entering (−1) its light side; 0 where it misses it
+// (`CoverageModel::faces_passed`, for one face).
+fn face_crossed(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, start: vec3<f32>, stop: vec3<f32>) -> i32 {
     let n = cross(b - a, c - a);
     let fa = dot(n, start - a);
     let fb = dot(n, stop - a);
     if ((fa >= 0.0) == (fb >= 0.0)) {
-        return none;
+        return 0;
     }
     let x = start + (stop - start) * (fa / (fa - fb));
     if (!(dot(n, cross(b - a, x - a)) >= 0.0 && dot(n, cross(c - b, x - b)) >= 0.0
         && dot(n, cross(a - c, x - c)) >= 0.0)) {
-        return none;
-    }
-    let ha = vertex_hash(a);
-    let hb = vertex_hash(b);
-    let hc = vertex_hash(c);
-    let light_side = select(-n.z, dot(n, -a), perspective());
-    return Crossing(true, (fa >= 0.0) == (light_side >= 0.0), vec2<u32>(ha + hb + hc, ha ^ hb ^ hc));
-}
-
-// Faces already counted by `faces_crossed` (a face is shared by its edges);
-// at most 32, as the core's `MAX_SEEN_FACES`. Keys are a 64-bit hash of the
-// corners (the core compares the corners' bits: a collision is the only way
-// the two can differ).
-struct Seen {
-    keys: array<vec2<u32>, 32>,
-    n: u32,
-}
-
-// ±1 for a crossing not seen before, and records it.
-fn count_crossing(seen: ptr<function, Seen>, x: Crossing) -> i32 {
-    if (!x.crossed) {
         return 0;
     }
-    for (var s = 0u; s < (*seen).n; s++) {
-        if (all((*seen).keys[s] == x.key)) {
-            return 0;
-        }
-    }
-    if ((*seen).n < 32u) {
-        (*seen).keys[(*seen).n] = x.key;
-        (*seen).n += 1u;
-    }
-    return select(-1, 1, x.leaves);
+    let light_side = select(-n.z, dot(n, -a), perspective());
+    return select(-1, 1, (fa >= 0.0) == (light_side >= 0.0));
 }
 
 
@@ -442,20 +411,6 @@ fn receiver_at(id: vec2<u32>) -> Receiver {
     return r;
 }
 
-// `CoverageModel::faces_passed`, one edge at a time: its faces the move from
-// `start` to `stop` passes through, each once over the whole walk, ±1 as it
-// leaves or enters the face's light side (an edge's first face, then second,
-// in the cell's order, as the core).
-fn faces_crossed(seen: ptr<function, Seen>, e: Edge, start: vec3<f32>, stop: vec3<f32>) -> i32 {
-    let a = e.a.xyz;
-    let b = e.b.xyz;
-    var change = count_crossing(seen, face_crossing(a, b, e.third_a.xyz, start, stop));
-    if (faces(e) == 2u) {
-        change += count_crossing(seen, face_crossing(a, b, e.third_b.xyz, start, stop));
-    }
-    return change;
-}
-
 // `CoverageModel::raster_reference_count`'s edge term for one clipped edge
 // `c` of `e`: ±σ when the move from the texel's ray point `p_t` to the
 // receiver `p` crosses the edge's plane with the light's centre.
@@ -572,17 +527,18 @@ fn coverage_visibility(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let near = params.light.y;
     let lists = cell_of(map_point(p));
-    // The reference count's walk: the edges whose faces come within the
-    // move's reach (`EdgeIndex::reference_cell`). `passed`: D(c) −
-    // count_before, the faces and edges passed from the texel's ray to p.
+    // The reference count's walks (`EdgeIndex::reference_faces`, then
+    // `reference_edges`): the faces and edges within the move's reach.
+    // `passed`: D(c) − count_before, those passed from the texel's ray to p.
     let reference = reference_texel(p, r.normal);
     var passed = 0;
     if (reference.found) {
-        var seen: Seen;
-        seen.n = 0u;
-        for (var k = lists.z; k < lists.w; k++) {
+        for (var k = lists.reference_faces.x; k < lists.reference_faces.y; k++) {
+            let f = listed_faces[cell_items[k]];
+            passed += face_crossed(f.a.xyz, f.b.xyz, f.c.xyz, reference.p_t, p);
+        }
+        for (var k = lists.reference_edges.x; k < lists.reference_edges.y; k++) {
             let e = edges[cell_items[k]];
-            passed += faces_crossed(&seen, e, reference.p_t, p);
             let cl = clipped(e, near, p.z);
             if (cl.ok) {
                 passed += edge_crossed(e, cl, reference.p_t, p);
@@ -601,7 +557,7 @@ fn coverage_visibility(@builtin(global_invocation_id) id: vec3<u32>) {
     var planes6: array<u32, 8>;
     var planes7: array<u32, 8>;
     let u_r = sample_vector(p, vec2<f32>(0.0));
-    for (var k = lists.x; k < lists.y; k++) {
+    for (var k = lists.samples.x; k < lists.samples.y; k++) {
         let e = edges[cell_items[k]];
         if (!may_reach(e, p)) {
             continue;

@@ -19,6 +19,13 @@ struct CoverageParams {
 }
 
 
+// A face the raster reference count tests its move against (`GpuCoverageFace`).
+struct Face {
+    a: vec4<f32>,
+    b: vec4<f32>,
+    c: vec4<f32>,
+}
+
 // A potential silhouette edge (`GpuCoverageEdge`): ends (a.w = faces), the
 // third vertex of each face, the map segment of its near-clipped ends.
 struct Edge {

@@ -30,9 +30,10 @@ pub(crate) const LIST_WORDS: u64 = (NEAR_DEPTHS + FAR_DEPTHS + 1) as u64;
 /// GPU's watchdog; llvmpipe stops a shader after 65535 loop iterations).
 pub(crate) const LIST_BLOCK_TEXELS: u32 = 4096;
 
-/// Edges one coverage cell's list may hold before the frame reports it: a
-/// pixel walks its cell's sample list and its reference list, and llvmpipe
-/// stops an invocation after 65535 loop iterations in all.
+/// Entries one coverage cell's list may hold before the frame reports it: a
+/// pixel walks its cell's sample list and its two reference lists (edges,
+/// faces), and llvmpipe stops an invocation after 65535 loop iterations in
+/// all (3 × 16 384 stays below).
 pub(crate) const LONG_CELL_EDGES: u32 = 16_384;
 
 /// The longest cell of `starts` (cell `i` is `starts[i]..starts[i + 1]`), as
@@ -55,12 +56,24 @@ pub(crate) struct GpuCoverageEdge {
     pub segment: [f32; 4],
 }
 
+/// One face the raster reference count tests its move against (`Face` in
+/// `coverage_types.wgsl`): corners `a`, `b`, `c` (`EdgeIndex::faces`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct GpuCoverageFace {
+    pub a: [f32; 4],
+    pub b: [f32; 4],
+    pub c: [f32; 4],
+}
+
 /// Everything the coverage passes need for one frame.
 #[derive(Debug)]
 pub(crate) struct CoverageFrame {
     pub edges: Vec<GpuCoverageEdge>,
-    /// Both of each cell's lists (`EdgeIndex::gpu_lists`): `2 · cells + 1`
-    /// starts, the sample lists' first, then the reference lists'.
+    pub faces: Vec<GpuCoverageFace>,
+    /// Each cell's three lists (`EdgeIndex::gpu_lists`): `3 · cells + 1`
+    /// starts, the sample lists' first, then the reference edges', then the
+    /// reference faces' (ids into `faces`).
     pub cell_starts: Vec<u32>,
     pub cell_items: Vec<u32>,
     /// Grid origin (xy) and cells per map unit (zw); cells in x and y.
@@ -150,7 +163,12 @@ pub(crate) fn coverage_frame(
     let n_casters = keep("map casters", triangles.len(), size_of::<GpuCaster>() as u64);
     let n_items = keep("edge lists", items.len(), 4);
     let n_edges = keep("potential silhouette edges", edges.len(), size_of::<GpuCoverageEdge>() as u64);
+    let n_faces = keep("reference faces", index.faces().len(), size_of::<GpuCoverageFace>() as u64);
     let v4 = |v: Vec3, w: f32| [v.x, v.y, v.z, w];
+    let gpu_faces = index.faces()[..n_faces]
+        .iter()
+        .map(|[a, b, c]| GpuCoverageFace { a: v4(*a, 0.0), b: v4(*b, 0.0), c: v4(*c, 0.0) })
+        .collect();
     let gpu_edges = edges
         .iter()
         .enumerate()
@@ -166,12 +184,15 @@ pub(crate) fn coverage_frame(
             }
         })
         .collect();
-    // The cell lists without the edges that did not fit, and no longer than fits.
+    // The cell lists without the edges and faces that did not fit, and no
+    // longer than fits (the last lists, the reference faces', go first).
+    let cells = dims[0] * dims[1];
     let (mut cell_starts, mut cell_items) = (Vec::with_capacity(starts.len()), Vec::with_capacity(n_items));
     cell_starts.push(0u32);
-    for w in starts.windows(2) {
+    for (list, w) in starts.windows(2).enumerate() {
+        let kept = if list < 2 * cells { n_edges } else { n_faces };
         for &i in &items[w[0] as usize..w[1] as usize] {
-            if (i as usize) < n_edges && cell_items.len() < n_items {
+            if (i as usize) < kept && cell_items.len() < n_items {
                 cell_items.push(i);
             }
         }
@@ -196,6 +217,7 @@ pub(crate) fn coverage_frame(
     }
     let frame = CoverageFrame {
         edges: gpu_edges,
+        faces: gpu_faces,
         cell_starts,
         cell_items,
         grid: [min.x, min.y, inv_cell.x, inv_cell.y],

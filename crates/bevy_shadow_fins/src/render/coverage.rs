@@ -143,6 +143,7 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
                 uniform_buffer::<ViewUniform>(true),
                 uniform_buffer_sized(false, None),
                 crate::render::view::gbuffer_entry(),
+                storage_buffer_read_only_sized(false, None),
             ),
         ),
     );
@@ -174,6 +175,7 @@ struct CoverageGpu {
     lists: Option<Buffer>,
     casters: Option<Buffer>,
     edges: Option<Buffer>,
+    faces: Option<Buffer>,
     starts: Option<Buffer>,
     items: Option<Buffer>,
     samples: Option<Buffer>,
@@ -241,6 +243,7 @@ fn prepare_light(
     };
     upload(&mut g.casters, "fin_coverage_casters", bytemuck::cast_slice(&c.casters));
     upload(&mut g.edges, "fin_coverage_edges", bytemuck::cast_slice(&c.edges));
+    upload(&mut g.faces, "fin_coverage_faces", bytemuck::cast_slice(&c.faces));
     upload(&mut g.starts, "fin_coverage_cell_starts", bytemuck::cast_slice(&c.cell_starts));
     upload(&mut g.items, "fin_coverage_cell_items", bytemuck::cast_slice(&c.cell_items));
     upload(&mut g.samples, "fin_coverage_samples", bytemuck::cast_slice(&c.sample_planes()));
@@ -368,6 +371,7 @@ fn prepare_view_bind_groups(
                         view_binding.clone(),
                         buffer.as_entire_binding(),
                         crate::render::view::gbuffer_input(prepass, &no_gbuffer),
+                        gpu.faces.as_ref().unwrap().as_entire_binding(),
                     )),
                 );
                 Some(bind_group)

@@ -15,11 +15,16 @@
 //!   between the edge's depth and `L0`) all lie on opposite sides, so does
 //!   every receiver of the cell, and the edge — most of a smooth closed
 //!   mesh's potential silhouettes under a large light — is left out.
-//! - **Reference list.** The raster reference count (C1's `D(c)` through the
-//!   depth lists) corrects along a move of at most a texel and a half at the
-//!   receiver; only faces and edges whose map projection comes that close
-//!   can be passed, so it walks a second, much shorter list: the edges whose
-//!   faces' map bounds, widened by that margin, touch the cell.
+//! - **Reference lists.** The raster reference count (C1's `D(c)` through
+//!   the depth lists) corrects along a move of at most a texel and a half at
+//!   the receiver; only faces and edges whose map projection comes that close
+//!   can be passed, so it walks two short lists: the edges whose map segment
+//!   comes within that margin of the cell, and the faces (each once, however
+//!   many of its edges are listed) whose map box, widened by it, touches the
+//!   cell. One list of edges standing for their faces, as before, loaded a
+//!   ground plane's one big face once per boundary edge in every cell: that
+//!   walk was most of the method's cost on a simple scene (BENCHMARKS.md,
+//!   issue 39).
 //!
 //! The cells coarsen until the footprint boxes hold at most [`MAX_ENTRIES`].
 
@@ -41,14 +46,35 @@ pub const MAX_ENTRIES: usize = 4 << 20;
 const CELL_SLACK: f32 = 1e-3;
 
 /// Per cell, the edges that can matter to its receivers (CSR): the sample
-/// walk's, and the raster reference count's.
+/// walk's, and the raster reference count's edges and faces.
 #[derive(Debug, Clone)]
 pub struct EdgeIndex {
     samples: CellGrid,
-    /// Empty (no entries) unless built with a reference margin.
-    reference: CellGrid,
+    /// The reference count's edges; empty unless built with a reference margin.
+    reference_edges: CellGrid,
+    /// The reference count's faces (ids into `faces`); empty likewise.
+    reference_faces: CellGrid,
+    /// Each face of the edges once, as its first edge has it: `(a, b, third)`.
+    faces: Vec<[Vec3; 3]>,
     /// Per edge: its map-space segment (clipped endpoints' projections).
     segments: Vec<(Vec2, Vec2)>,
+}
+
+/// The faces of `edges`, each once (two edges share a face when its three
+/// corners are the same bits), in the order their first edge lists them.
+fn unique_faces(edges: &[CoverageEdge]) -> Vec<[Vec3; 3]> {
+    let mut seen = std::collections::HashSet::new();
+    let mut faces = Vec::new();
+    for e in edges {
+        for &t in &e.third[..e.faces as usize] {
+            let mut key = [e.a, e.b, t].map(|p| p.to_array().map(f32::to_bits));
+            key.sort_unstable();
+            if seen.insert(key) {
+                faces.push([e.a, e.b, t]);
+            }
+        }
+    }
+    faces
 }
 
 /// An edge's map segment and footprint radius, or `None` when it lies wholly
@@ -165,7 +191,8 @@ impl EdgeIndex {
 
     /// The coverage method's lists: by footprint and silhouette from the
     /// cell, and with `reference_margin` (map units) the raster reference
-    /// count's list of edges whose faces come within it of the cell.
+    /// count's two: the faces whose map box, and the edges whose map
+    /// segment, come within it of the cell.
     pub fn coverage(
         edges: &[CoverageEdge],
         frame: &LightFrame,
@@ -193,32 +220,34 @@ impl EdgeIndex {
             .map(|f| f.map(|(a, b, r)| (clamp(a.min(b) - Vec2::splat(r)), clamp(a.max(b) + Vec2::splat(r)))))
             .collect();
         let z_near = if frame.is_perspective() { reference_depth * 1e-5 } else { f32::NEG_INFINITY };
-        // The reference list's bounds: each edge's faces' map box widened by
-        // the margin; `None` inside for a face reaching the light plane,
-        // which projects without bound (listed in every cell).
-        let reference_bounds: Option<Vec<Option<Option<(Vec2, Vec2)>>>> = reference_margin.map(|margin| {
-            edges
-                .iter()
-                .map(|e| {
-                    let points = [e.a, e.b, e.third[0], e.third[1]];
-                    let points = &points[..2 + e.faces as usize];
-                    if frame.is_perspective() && points.iter().any(|p| !(p.z > z_near)) {
-                        return Some(None);
-                    }
-                    let (lo, hi) = points.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), p| {
-                        let m = frame.map(*p);
-                        (lo.min(m), hi.max(m))
-                    });
-                    (lo.is_finite() && hi.is_finite())
-                        .then(|| Some((clamp(lo - Vec2::splat(margin)), clamp(hi + Vec2::splat(margin)))))
-                })
-                .collect()
-        });
+        // The reference lists' bounds, widened by the margin: a face's map
+        // box, an edge's map segment's; `None` inside for one reaching the
+        // light plane, which projects without bound (listed in every cell).
+        let faces = if reference_margin.is_some() { unique_faces(edges) } else { Vec::new() };
+        let map_box = |points: &[Vec3], margin: f32| -> Option<Option<(Vec2, Vec2)>> {
+            if frame.is_perspective() && points.iter().any(|p| !(p.z > z_near)) {
+                return Some(None);
+            }
+            let (lo, hi) = points.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), p| {
+                let m = frame.map(*p);
+                (lo.min(m), hi.max(m))
+            });
+            (lo.is_finite() && hi.is_finite())
+                .then(|| Some((clamp(lo - Vec2::splat(margin)), clamp(hi + Vec2::splat(margin)))))
+        };
+        let margin = reference_margin.unwrap_or(0.0);
+        let face_bounds: Vec<Option<Option<(Vec2, Vec2)>>> = faces.iter().map(|f| map_box(f, margin)).collect();
+        let edge_bounds: Vec<Option<Option<(Vec2, Vec2)>>> = match reference_margin {
+            Some(margin) => edges.iter().map(|e| map_box(&[e.a, e.b], margin)).collect(),
+            None => Vec::new(),
+        };
         // The grid spans both lists' boxes: a receiver just outside every
         // footprint can still need a reference correction.
         let (mut min, mut max) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
-        let bounded = reference_bounds.iter().flatten().flatten().flatten();
-        for (lo, hi) in bounds.iter().flatten().chain(bounded) {
+        // (An edge's band need not lie in its faces' boxes: a face reaching
+        // the light plane has none.)
+        let reference_boxes = face_bounds.iter().chain(&edge_bounds).flatten().flatten();
+        for (lo, hi) in bounds.iter().flatten().chain(reference_boxes) {
             min = min.min(*lo);
             max = max.max(*hi);
         }
@@ -271,11 +300,22 @@ impl EdgeIndex {
             }
             !never_a_silhouette(e, &region_corners(frame.is_perspective(), lo, hi, z0, z_far))
         });
-        let reference_bounds: Vec<Option<(Vec2, Vec2)>> =
-            reference_bounds.unwrap_or_default().into_iter().map(|b| b.map(|b| b.unwrap_or((min, max)))).collect();
-        let reference = CellGrid::build(min, size, dims, &reference_bounds);
+        let every_cell = |b: Vec<Option<Option<(Vec2, Vec2)>>>| -> Vec<Option<(Vec2, Vec2)>> {
+            b.into_iter().map(|b| b.map(|b| b.unwrap_or((min, max)))).collect()
+        };
+        let reference_faces = CellGrid::build(min, size, dims, &every_cell(face_bounds));
+        // An edge's move test needs its map segment within the margin of the
+        // receiver (`raster_reference_count`: the move's map segment crosses it).
+        let reach = margin * (1.0 + 1e-3) + 1e-12;
+        let reference_edges = CellGrid::build_where(min, size, dims, &every_cell(edge_bounds), |id, lo, hi| {
+            let e = &edges[id as usize];
+            if frame.is_perspective() && !(e.a.z > z_near && e.b.z > z_near) {
+                return true;
+            }
+            rect_segment_distance(lo - slack, hi + slack, frame.map(e.a), frame.map(e.b)) <= reach
+        });
         let segments = feet.iter().map(|f| f.map_or((Vec2::NAN, Vec2::NAN), |(a, b, _)| (a, b))).collect();
-        Self { samples, reference, segments }
+        Self { samples, reference_edges, reference_faces, faces, segments }
     }
 
     /// The edges the sample walk visits for a receiver at map point `q` (none outside the grid).
@@ -284,8 +324,19 @@ impl EdgeIndex {
     }
 
     /// The edges the raster reference count corrects with at map point `q`.
-    pub fn reference_cell(&self, q: Vec2) -> &[u32] {
-        self.reference.cell(q)
+    pub fn reference_edges(&self, q: Vec2) -> &[u32] {
+        self.reference_edges.cell(q)
+    }
+
+    /// The faces (ids into [`Self::faces`]) the raster reference count tests
+    /// the move against at map point `q`.
+    pub fn reference_faces(&self, q: Vec2) -> &[u32] {
+        self.reference_faces.cell(q)
+    }
+
+    /// Each face of the edges once, `(a, b, third)` as its first edge has it.
+    pub fn faces(&self) -> &[[Vec3; 3]] {
+        &self.faces
     }
 
     /// Whether edge `id` (`e`) can cross the cone from the receiver `p`
@@ -313,20 +364,26 @@ impl EdgeIndex {
         self.samples.grid()
     }
 
-    /// Both lists as one CSR for a GPU copy: `starts` has `2 · cells + 1`
-    /// entries, cell `c`'s sample edges are `items[starts[c]..starts[c + 1]]`
-    /// and its reference edges `items[starts[cells + c]..starts[cells + c + 1]]`.
+    /// The three lists as one CSR for a GPU copy: `starts` has `3 · cells + 1`
+    /// entries; cell `c`'s sample edges are `items[starts[c]..starts[c + 1]]`,
+    /// its reference edges `items[starts[cells + c]..starts[cells + c + 1]]`
+    /// and its reference faces (ids into [`Self::faces`])
+    /// `items[starts[2 · cells + c]..starts[2 · cells + c + 1]]`.
     pub fn gpu_lists(&self) -> (Vec<u32>, Vec<u32>) {
-        let (s_starts, s_items) = self.samples.lists();
-        let (r_starts, r_items) = self.reference.lists();
-        let offset = s_items.len() as u32;
-        let starts = s_starts.iter().copied().chain(r_starts[1..].iter().map(|s| s + offset)).collect();
-        (starts, [s_items, r_items].concat())
+        let mut starts = vec![0u32];
+        let mut items = Vec::with_capacity(self.entries());
+        for grid in [&self.samples, &self.reference_edges, &self.reference_faces] {
+            let (s, i) = grid.lists();
+            let offset = items.len() as u32;
+            starts.extend(s[1..].iter().map(|s| s + offset));
+            items.extend_from_slice(i);
+        }
+        (starts, items)
     }
 
-    /// Total cell entries of both lists (the index's size).
+    /// Total cell entries of the three lists (the index's size).
     pub fn entries(&self) -> usize {
-        self.samples.lists().1.len() + self.reference.lists().1.len()
+        [&self.samples, &self.reference_edges, &self.reference_faces].iter().map(|g| g.lists().1.len()).sum()
     }
 
     /// The map segment of edge `id`.
@@ -377,7 +434,7 @@ mod tests {
     }
 
     #[test]
-    fn a_receiver_beside_every_footprint_still_gets_its_reference_edges() {
+    fn a_receiver_beside_every_footprint_still_gets_its_reference_faces() {
         // A boundary edge at the receivers' depth reaches nothing (footprint
         // radius 0, a segment on y = 0), but its face spans map y 0..0.25:
         // a receiver at y = 0.1 is outside every footprint yet may pass the
@@ -394,8 +451,21 @@ mod tests {
         // Outside the edge's footprint box (radius 0 about y = 0) …
         assert_eq!(footprint(&edge, &frame, 2.0).map(|f| f.2), Some(0.0));
         assert!(q.y > 0.05);
-        // … yet inside the grid, with the edge in its reference list.
-        assert_eq!(index.reference_cell(q), &[0]);
+        // … yet inside the grid, with the edge's face in its reference list.
+        assert_eq!(index.reference_faces(q), &[0]);
+        assert_eq!(index.faces(), &[[edge.a, edge.b, edge.third[0]]]);
+    }
+
+    #[test]
+    fn a_face_shared_by_edges_is_listed_once_whatever_its_corners_order() {
+        let (a, b, c, d) =
+            (Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0), Vec3::Z * 2.0);
+        let edge = |a, b, t0, t1, faces| CoverageEdge { a, b, third: [t0, t1], faces };
+        // Triangle abc's three boundary edges, each naming it in another
+        // order, then edge bc shared with a second face bcd.
+        let edges = [edge(a, b, c, Vec3::ZERO, 1), edge(c, a, b, Vec3::ZERO, 1), edge(b, c, a, d, 2)];
+        assert_eq!(unique_faces(&edges), vec![[a, b, c], [b, c, d]]);
+        assert!(unique_faces(&[]).is_empty());
     }
 
     #[test]

@@ -39,8 +39,8 @@
 //!   into a map-space grid ([`index`]), each cell keeping only the edges
 //!   that are a silhouette (C2) from some receiver it can hold, so a
 //!   receiver visits the edges of its cell only — the tiled edge list a GPU
-//!   walks per pixel; the raster reference count walks a second, short list
-//!   of the edges whose faces come within its move of the cell.
+//!   walks per pixel; the raster reference count walks two short lists, the
+//!   faces (each once) and the edges that come within its move of the cell.
 //!
 //! Every test is a sign of a 3×3 determinant of light-frame vectors (a plane
 //! through `p`), so no division by a depth and no projection to infinity: an
@@ -93,13 +93,6 @@ pub const REFERENCE: Vec2 = Vec2::new(1.234e-3, 0.7731e-3);
 /// saturates here on both sides (a receiver behind more than 127 casters
 /// along the centre ray; none in our scenes comes near).
 pub const MAX_REFERENCE_COUNT: i32 = 127;
-
-/// Distinct faces `faces_passed` remembers per correction, as the GPU's fixed
-/// array (`Seen` in `coverage.wgsl`): past it a face shared by two of the
-/// cell's edges counts again, on both sides alike. A move of at most a texel
-/// and a half passing through more than 32 faces is a texel deep inside a
-/// dense mesh.
-pub const MAX_SEEN_FACES: usize = 32;
 
 /// What one receiver cost: edges of its cell, those within its footprint
 /// bound and in front of it (the culling's survivors), and those that
@@ -257,7 +250,7 @@ impl<'a> CoverageModel<'a> {
                 let count = self.count_to_light(shape, p, u_r, eps);
                 (REFERENCE, count as i32)
             }
-            Some(lists) => (Vec2::ZERO, self.raster_reference_count(lists, p, receiver.normal)),
+            Some(lists) => (Vec2::ZERO, self.raster_reference_count(lists, p, receiver.normal, None)),
         };
         let u_r = Self::sample_vector(shape, p, reference);
         let mut depth = vec![reference_count; self.samples.len()];
@@ -306,7 +299,22 @@ impl<'a> CoverageModel<'a> {
         let shape = self.shape_at(p)?;
         let u = Self::sample_vector(shape, p, Vec2::ZERO);
         let exact = self.count_to_light(shape, p, u, eps) as i32;
-        Some((exact, self.raster_reference_count(lists, p, receiver.normal)))
+        Some((exact, self.raster_reference_count(lists, p, receiver.normal, None)))
+    }
+
+    /// The raster reference count at a receiver through the cell's reference
+    /// lists and through every face and edge: equal unless the lists left
+    /// out one the move passes (what the lists are tested against).
+    #[doc(hidden)]
+    pub fn reference_lists_against_all(&self, receiver: Receiver) -> Option<(i32, i32)> {
+        let lists = self.depth_lists.as_ref()?;
+        let eps = surface_epsilon(receiver.position, self.light_space.extent);
+        let p = receiver.position + receiver.normal * eps;
+        self.shape_at(p)?;
+        let faces: Vec<u32> = (0..self.index.faces().len() as u32).collect();
+        let edges: Vec<u32> = (0..self.edges.len() as u32).collect();
+        let all = self.raster_reference_count(lists, p, receiver.normal, Some((&faces, &edges)));
+        Some((self.raster_reference_count(lists, p, receiver.normal, None), all))
     }
 
     /// Faces crossed from the receiver `p` along `u` to the light: up to
@@ -334,9 +342,10 @@ impl<'a> CoverageModel<'a> {
     /// The move runs at the receiver's depth, so its end can pass through a
     /// face — where an object stands on the receiver's surface — and a face
     /// passed through toggles whether it lies between the light and the
-    /// moving point with no edge crossed. So the faces of the reference list's edges are
-    /// tested against the move too (each once): a face crossed counts `−1`
-    /// when the move leaves its light side, `+1` when it enters it. The
+    /// moving point with no edge crossed. So the reference list's faces are
+    /// tested against the move too (each once: `EdgeIndex::reference_faces`):
+    /// a face crossed counts `−1` when the move leaves its light side, `+1`
+    /// when it enters it. The
     /// receiver's own surface is kept out of the way by taking, of the four
     /// texel centres around the receiver, the one whose ray passes furthest in
     /// front of the receiver's tangent plane (a plane through the receiver has
@@ -344,7 +353,9 @@ impl<'a> CoverageModel<'a> {
     /// lift, which cost accuracy at every contact. Exact up to faces with no
     /// potential silhouette edge (the inside of a large flat region) passed
     /// through within a texel of the receiver, and to the lists' length.
-    fn raster_reference_count(&self, lists: &DepthLists, p: Vec3, normal: Vec3) -> i32 {
+    ///
+    /// `walk`: the (faces, edges) to test instead of the cell's reference lists.
+    fn raster_reference_count(&self, lists: &DepthLists, p: Vec3, normal: Vec3, walk: Option<(&[u32], &[u32])>) -> i32 {
         let frame = &self.light_space.frame;
         let region = &lists.region;
         let m_p = frame.map(p);
@@ -369,13 +380,13 @@ impl<'a> CoverageModel<'a> {
         else {
             return 0;
         };
-        let cell = self.index.reference_cell(m_p);
+        let (faces, edges) = walk.unwrap_or((self.index.reference_faces(m_p), self.index.reference_edges(m_p)));
         [(texel, p_t)]
             .iter()
             .map(|&(texel, p_t)| {
                 let mut count = lists.count_before(texel, p.z) as i32;
-                count += self.faces_passed(cell, p_t, p);
-                for &id in cell {
+                count += self.faces_passed(faces, p_t, p);
+                for &id in edges {
                     let e = &self.edges[id as usize];
                     let Some((a, b)) = e.clipped(self.near, p.z) else { continue };
                     // The plane through the centre ray and the edge: through the
@@ -404,42 +415,28 @@ impl<'a> CoverageModel<'a> {
 
     /// The change in how many faces lie between the light's centre and a
     /// point moving from `from` to `to` through the faces it passes: the
-    /// faces of the reference list's edges (`EdgeIndex::reference_cell`), each tested once.
+    /// reference list's faces (`EdgeIndex::reference_faces`, each face once).
     fn faces_passed(&self, cell: &[u32], from: Vec3, to: Vec3) -> i32 {
         let frame = &self.light_space.frame;
         // The light's side of a face: towards the centre (disk) or up the sun.
         let light_side = |n: Vec3, a: Vec3| if frame.is_perspective() { n.dot(-a) } else { -n.z };
-        let mut seen: Vec<[u32; 9]> = Vec::new();
         let mut change = 0;
         for &id in cell {
-            let e = &self.edges[id as usize];
-            for v in &e.third[..e.faces as usize] {
-                let (a, b, c) = (e.a, e.b, *v);
-                let n = (b - a).cross(c - a);
-                let (fa, fb) = (n.dot(from - a), n.dot(to - a));
-                if (fa >= 0.0) == (fb >= 0.0) {
-                    continue;
-                }
-                // Where the move meets the face's plane, inside the triangle?
-                let x = from + (to - from) * (fa / (fa - fb));
-                let inside = |p: Vec3, q: Vec3| n.dot((q - p).cross(x - p)) >= 0.0;
-                if !(inside(a, b) && inside(b, c) && inside(c, a)) {
-                    continue;
-                }
-                let mut key: Vec<[u32; 3]> = [a, b, c].iter().map(|p| p.to_array().map(f32::to_bits)).collect();
-                key.sort_unstable();
-                let key: [u32; 9] = std::array::from_fn(|i| key[i / 3][i % 3]);
-                if seen.contains(&key) {
-                    continue;
-                }
-                if seen.len() < MAX_SEEN_FACES {
-                    seen.push(key);
-                }
-                // Leaving the light's side puts the face between light and point.
-                let s = light_side(n, a);
-                let leaves = (fa >= 0.0) == (s >= 0.0);
-                change += if leaves { 1 } else { -1 };
+            let [a, b, c] = self.index.faces()[id as usize];
+            let n = (b - a).cross(c - a);
+            let (fa, fb) = (n.dot(from - a), n.dot(to - a));
+            if (fa >= 0.0) == (fb >= 0.0) {
+                continue;
             }
+            // Where the move meets the face's plane, inside the triangle?
+            let x = from + (to - from) * (fa / (fa - fb));
+            let inside = |p: Vec3, q: Vec3| n.dot((q - p).cross(x - p)) >= 0.0;
+            if !(inside(a, b) && inside(b, c) && inside(c, a)) {
+                continue;
+            }
+            // Leaving the light's side puts the face between light and point.
+            let leaves = (fa >= 0.0) == (light_side(n, a) >= 0.0);
+            change += if leaves { 1 } else { -1 };
         }
         change
     }
