@@ -657,7 +657,40 @@ impl Session {
                 break;
             }
         }
+        // A pipeline whose shader does not build leaves its pass out (Bevy
+        // logs it once): the picture would show another method's result.
+        if let Some(why) = self.failed_pipelines().first() {
+            return Err(format!("a render pipeline failed to build: {why}"));
+        }
         self.shot()
+    }
+
+    /// The render pipelines whose shader failed to build (a WGSL or import
+    /// error), one line each: label and Bevy's error's first line. A shader
+    /// still loading is not a failure. Bevy keeps every pipeline it was
+    /// asked for, so one such error fails every later `settle`, by design.
+    /// A wgpu validation error at pipeline creation (a binding the layout
+    /// lacks) goes to wgpu's error handler instead and is not seen here.
+    pub fn failed_pipelines(&self) -> Vec<String> {
+        use bevy::render::render_resource::{CachedPipelineState, PipelineCache};
+        use bevy::shader::ShaderCacheError;
+        let Some(render) = self.app.get_sub_app(bevy::render::RenderApp) else { return Vec::new() };
+        let Some(cache) = render.world().get_resource::<PipelineCache>() else { return Vec::new() };
+        cache
+            .pipelines()
+            .filter_map(|p| {
+                let CachedPipelineState::Err(e) = &p.state else { return None };
+                if matches!(e, ShaderCacheError::ShaderNotLoaded(_) | ShaderCacheError::ShaderImportNotYetAvailable) {
+                    return None;
+                }
+                let label = match &p.descriptor {
+                    bevy::material::descriptor::PipelineDescriptor::RenderPipelineDescriptor(d) => d.label.clone(),
+                    bevy::material::descriptor::PipelineDescriptor::ComputePipelineDescriptor(d) => d.label.clone(),
+                };
+                let label = label.unwrap_or_else(|| "unlabelled".into());
+                Some(format!("{label}: {}", bevy_shadow_fins::first_line(&e.to_string())))
+            })
+            .collect()
     }
 
     /// Runs frames until [`Setup::gltf`] is spawned (at once without one);
