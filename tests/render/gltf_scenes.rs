@@ -177,6 +177,69 @@ fn a_bevy_loaded_textured_gltf_with_its_own_spot_light_is_fin_shadowed_as_the_or
     assert!(mean(&lit) > 0.97, "lit pixels got darker: kept {}", mean(&lit));
 }
 
+/// `text` with every `data:image/png` URI replaced by `uri(k)` (k counts them).
+fn replace_png_uris(text: &str, uri: impl Fn(usize) -> String) -> (String, usize) {
+    const PNG: &str = "data:image/png;base64,";
+    let (mut out, mut rest, mut k) = (String::new(), text, 0);
+    while let Some(at) = rest.find(PNG) {
+        let end = at + rest[at..].find('"').expect("a closed string");
+        out.push_str(&rest[..at]);
+        out.push_str(&uri(k));
+        rest = &rest[end..];
+        k += 1;
+    }
+    out.push_str(rest);
+    (out, k)
+}
+
+#[test]
+fn a_gltf_with_jpeg_textures_opens_textured_and_fin_shadowed() {
+    // Bevy's own sample scenes ship JPEG textures: the courtyard with its
+    // PNG textures swapped for JPEG files beside it.
+    let dir = std::env::temp_dir().join(format!("fins-jpeg-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (w, h) = (48, 24);
+    let checker = image::RgbImage::from_fn(w, h, |x, y| {
+        if (x / 8 + y / 8) % 2 == 0 { image::Rgb([210, 200, 180]) } else { image::Rgb([90, 100, 120]) }
+    });
+    let mut jpeg = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 90).encode_image(&checker).unwrap();
+    assert_eq!(&jpeg[..2], &[0xff, 0xd8], "a JPEG file");
+    let text = std::fs::read_to_string(asset("courtyard.gltf")).unwrap();
+    let (text, swapped) = replace_png_uris(&text, |k| format!("texture-{k}.jpg"));
+    assert!(swapped >= 2, "the courtyard has PNG textures to swap");
+    for k in 0..swapped {
+        std::fs::write(dir.join(format!("texture-{k}.jpg")), &jpeg).unwrap();
+    }
+    let path = dir.join("courtyard-jpeg.gltf");
+    std::fs::write(&path, text).unwrap();
+    let (_, mut setup) = gltf_setup("courtyard.gltf");
+    setup.gltf = Some(path);
+    // Its own light and camera, as the PNG-textured file's test.
+    (setup.gltf_lights, setup.gltf_camera, setup.gltf_light_radius) = (true, true, 0.1);
+    (setup.width, setup.height) = (2 * WIDTH, 2 * HEIGHT);
+    let mut session = Session::new(&setup);
+    let shot = session.settle(16);
+    std::fs::remove_dir_all(&dir).ok();
+    let shot = shot.expect("Bevy opens a JPEG-textured glTF");
+    save(&shot, "gltf_courtyard_jpeg");
+    // The materials carry the decoded JPEG (its size), not a placeholder.
+    let world = session.app.world_mut();
+    let textures: Vec<Handle<Image>> = world
+        .query::<&MeshMaterial3d<StandardMaterial>>()
+        .iter(world)
+        .filter_map(|m| world.resource::<Assets<StandardMaterial>>().get(&m.0)?.base_color_texture.clone())
+        .collect();
+    assert!(!textures.is_empty(), "no mesh has the glTF's base-colour texture");
+    let images = world.resource::<Assets<Image>>();
+    for t in &textures {
+        let size = images.get(t).expect("the texture decoded").size();
+        assert_eq!((size.x, size.y), (w, h), "the JPEG's size");
+    }
+    // And the fins shadow it as usual.
+    assert_not_trivial(&shot);
+}
+
 #[test]
 fn a_gltf_bevy_cannot_read_is_an_error_not_a_hang() {
     let broken = std::env::temp_dir().join(format!("fins-broken-{}.gltf", std::process::id()));
@@ -187,6 +250,8 @@ fn a_gltf_bevy_cannot_read_is_an_error_not_a_hang() {
     std::fs::remove_file(&broken).ok();
     let error = result.err().expect("a broken glTF is an error");
     assert!(error.contains("could not load"), "{error}");
+    // One readable line, as the editor's panel shows it: no backtrace.
+    assert!(!error.contains('\n') && !error.to_lowercase().contains("backtrace"), "{error}");
 }
 
 #[test]

@@ -56,15 +56,25 @@ impl GltfSceneLoading {
     /// Bevy's loader's error, once the file or one of its dependencies (an
     /// external texture, a buffer) failed, or why the loaded file has no such
     /// scene.
+    ///
+    /// One line: Bevy's error text appends a backtrace where one was
+    /// captured (`RUST_BACKTRACE`), which is for a developer's log, not a
+    /// panel (see [`first_line`]).
     pub fn failed(&self, assets: &AssetServer) -> Option<String> {
         if let LoadState::Failed(e) = assets.load_state(&self.gltf) {
-            return Some(e.to_string());
+            return Some(first_line(&e.to_string()));
         }
         if let RecursiveDependencyLoadState::Failed(e) = assets.recursive_dependency_load_state(&self.gltf) {
-            return Some(format!("a file it needs: {e}"));
+            return Some(format!("a file it needs: {}", first_line(&e.to_string())));
         }
         self.state.failure.get().cloned()
     }
+}
+
+/// The first non-empty line of an error's text, trimmed: what a status line
+/// shows of a load error whose text goes on with a backtrace.
+pub fn first_line(text: &str) -> String {
+    text.lines().map(str::trim).find(|l| !l.is_empty()).unwrap_or("unknown error").to_string()
 }
 
 /// Spawns scene `scene_index` of the glTF at `path` with Bevy's own loader
@@ -208,6 +218,14 @@ pub fn give_gltf_lights_fin_shadows(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_load_error_is_shown_as_its_first_line_without_the_backtrace() {
+        let text = "Failed to load asset 'x.gltf': invalid image mime type image/webp\n\nStack backtrace:\n   0: bevy_ecs::error";
+        assert_eq!(first_line(text), "Failed to load asset 'x.gltf': invalid image mime type image/webp");
+        assert_eq!(first_line("\n  \n  reason  \n"), "reason");
+        assert_eq!(first_line(""), "unknown error");
+    }
 
     #[test]
     fn a_lights_radius_is_read_from_its_extras_and_nonsense_is_none() {

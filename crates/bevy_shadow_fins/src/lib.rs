@@ -215,7 +215,7 @@ pub use casters::{
 pub use forward_hook::FinForwardShading;
 pub use frame::{FinFrames, FinLightFrame, MAX_FIN_LIGHTS, update::FinCasterScans};
 pub use gltf::{
-    GltfLightsAdopted, GltfSceneLoading, descendants_with, give_gltf_lights_fin_shadows, gltf_light_radius,
+    GltfLightsAdopted, GltfSceneLoading, descendants_with, first_line, give_gltf_lights_fin_shadows, gltf_light_radius,
     gltf_light_radius_or, spawn_gltf_scene,
 };
 pub use receivers::FinReceivers;
