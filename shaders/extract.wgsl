@@ -805,6 +805,14 @@ fn classify_faces(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocatio
 
 // ---------------------------------------------------------------- 3./4. patches
 
+// The root of x's patch, halving the path on the way (each visited face is
+// pointed at its grandparent): the trees stay shallow however the joins
+// came, so the walk is short. Safe lock-free: a parent is never larger than
+// its child (`join`) and a root's word is never touched, so the
+// grandparent read is a smaller face of the same tree (no cycle, no set
+// changed, roots unchanged), and a failed exchange only skips a step. With
+// parents ever smaller a walk takes at most as many steps as faces, and
+// halving keeps it far shorter; the guard is a GPU watchdog's backstop.
 fn find_root(x: u32) -> u32 {
     var r = x;
     for (var guard = 0u; guard < 1000000u; guard++) {
@@ -812,7 +820,13 @@ fn find_root(x: u32) -> u32 {
         if (p == r || p == NONE) {
             break;
         }
-        r = p;
+        let grandparent = atomicLoad(&state[FACE_WORDS * p]);
+        if (grandparent == p || grandparent == NONE) {
+            r = p;
+            break;
+        }
+        _ = atomicCompareExchangeWeak(&state[FACE_WORDS * r], p, grandparent);
+        r = grandparent;
     }
     return r;
 }
