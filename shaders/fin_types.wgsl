@@ -121,7 +121,9 @@ fn penumbra_half_width(params: FinParams, lb: f32, lr: f32) -> f32 {
 fn caster_depth_at(c: Caster, q: vec2<f32>, orthographic: bool) -> f32 {
     let n = vec3<f32>(c.normal[0], c.normal[1], c.normal[2]);
     var z = select(c.offset / dot(n, vec3<f32>(q, 1.0)), (c.offset - n.x * q.x - n.y * q.y) / n.z, orthographic);
-    if (z != z || abs(z) > 3.0e38) {
+    // Not finite, tested by its bits: WGSL lets a compiler assume floats are
+    // never NaN, which may fold `z != z` to false.
+    if ((bitcast<u32>(z) & 0x7fffffffu) >= INF_BITS || abs(z) > 3.0e38) {
         z = c.min_depth;
     }
     z = clamp(z, c.min_depth, c.max_depth);
