@@ -223,24 +223,37 @@ impl EdgeIndex {
         // The reference lists' bounds, widened by the margin: a face's map
         // box, an edge's map segment's; `None` inside for one reaching the
         // light plane, which projects without bound (listed in every cell).
-        let faces = if reference_margin.is_some() { unique_faces(edges) } else { Vec::new() };
-        let map_box = |points: &[Vec3], margin: f32| -> Option<Option<(Vec2, Vec2)>> {
-            if frame.is_perspective() && points.iter().any(|p| !(p.z > z_near)) {
-                return Some(None);
-            }
-            let (lo, hi) = points.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), p| {
-                let m = frame.map(*p);
-                (lo.min(m), hi.max(m))
-            });
-            (lo.is_finite() && hi.is_finite())
-                .then(|| Some((clamp(lo - Vec2::splat(margin)), clamp(hi + Vec2::splat(margin)))))
-        };
         let margin = reference_margin.unwrap_or(0.0);
-        let face_bounds: Vec<Option<Option<(Vec2, Vec2)>>> = faces.iter().map(|f| map_box(f, margin)).collect();
-        let edge_bounds: Vec<Option<Option<(Vec2, Vec2)>>> = match reference_margin {
-            Some(margin) => edges.iter().map(|e| map_box(&[e.a, e.b], margin)).collect(),
+        let beyond_near = |p: &Vec3| !frame.is_perspective() || p.z > z_near;
+        let widened_box = |maps: &[Vec2]| {
+            let (lo, hi) =
+                maps.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), m| (lo.min(*m), hi.max(*m)));
+            (lo.is_finite() && hi.is_finite())
+                .then(|| (clamp(lo - Vec2::splat(margin)), clamp(hi + Vec2::splat(margin))))
+        };
+        let faces = if reference_margin.is_some() { unique_faces(edges) } else { Vec::new() };
+        let face_bounds: Vec<Option<Option<(Vec2, Vec2)>>> =
+            faces
+                .iter()
+                .map(|f| {
+                    if f.iter().all(beyond_near) { widened_box(&f.map(|p| frame.map(p))).map(Some) } else { Some(None) }
+                })
+                .collect();
+        // Each edge's map segment, once (`None`: it reaches the light plane).
+        let edge_segments: Vec<Option<(Vec2, Vec2)>> = match reference_margin {
+            Some(_) => edges
+                .iter()
+                .map(|e| (beyond_near(&e.a) && beyond_near(&e.b)).then(|| (frame.map(e.a), frame.map(e.b))))
+                .collect(),
             None => Vec::new(),
         };
+        let edge_bounds: Vec<Option<Option<(Vec2, Vec2)>>> = edge_segments
+            .iter()
+            .map(|s| match s {
+                Some((a, b)) => widened_box(&[*a, *b]).map(Some),
+                None => Some(None),
+            })
+            .collect();
         // The grid spans both lists' boxes: a receiver just outside every
         // footprint can still need a reference correction.
         let (mut min, mut max) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
@@ -308,11 +321,7 @@ impl EdgeIndex {
         // receiver (`raster_reference_count`: the move's map segment crosses it).
         let reach = margin * (1.0 + 1e-3) + 1e-12;
         let reference_edges = CellGrid::build_where(min, size, dims, &every_cell(edge_bounds), |id, lo, hi| {
-            let e = &edges[id as usize];
-            if frame.is_perspective() && !(e.a.z > z_near && e.b.z > z_near) {
-                return true;
-            }
-            rect_segment_distance(lo - slack, hi + slack, frame.map(e.a), frame.map(e.b)) <= reach
+            edge_segments[id as usize].is_none_or(|(a, b)| rect_segment_distance(lo - slack, hi + slack, a, b) <= reach)
         });
         let segments = feet.iter().map(|f| f.map_or((Vec2::NAN, Vec2::NAN), |(a, b, _)| (a, b))).collect();
         Self { samples, reference_edges, reference_faces, faces, segments }

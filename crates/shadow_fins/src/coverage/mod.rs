@@ -226,8 +226,7 @@ impl<'a> CoverageModel<'a> {
     pub fn visibility_and_work(&self, receiver: Receiver) -> (f32, CoverageWork) {
         let mut work = CoverageWork::default();
         let ls = self.light_space;
-        let eps = surface_epsilon(receiver.position, ls.extent);
-        let p = receiver.position + receiver.normal * eps;
+        let (p, eps) = self.lifted(receiver);
         if !p.is_finite() {
             return (0.0, work);
         }
@@ -288,14 +287,19 @@ impl<'a> CoverageModel<'a> {
         (visible as f32 / total as f32, work)
     }
 
+    /// The receiver lifted off its surface by the core's `surface_epsilon`
+    /// (the point every query starts from), and that lift.
+    fn lifted(&self, receiver: Receiver) -> (Vec3, f32) {
+        let eps = surface_epsilon(receiver.position, self.light_space.extent);
+        (receiver.position + receiver.normal * eps, eps)
+    }
+
     /// `D(c)` both ways at a receiver (exact ray, depth lists): what the
     /// raster reference count is tested against.
     #[doc(hidden)]
     pub fn reference_counts(&self, receiver: Receiver) -> Option<(i32, i32)> {
         let lists = self.depth_lists.as_ref()?;
-        let ls = self.light_space;
-        let eps = surface_epsilon(receiver.position, ls.extent);
-        let p = receiver.position + receiver.normal * eps;
+        let (p, eps) = self.lifted(receiver);
         let shape = self.shape_at(p)?;
         let u = Self::sample_vector(shape, p, Vec2::ZERO);
         let exact = self.count_to_light(shape, p, u, eps) as i32;
@@ -308,8 +312,7 @@ impl<'a> CoverageModel<'a> {
     #[doc(hidden)]
     pub fn reference_lists_against_all(&self, receiver: Receiver) -> Option<(i32, i32)> {
         let lists = self.depth_lists.as_ref()?;
-        let eps = surface_epsilon(receiver.position, self.light_space.extent);
-        let p = receiver.position + receiver.normal * eps;
+        let (p, _) = self.lifted(receiver);
         self.shape_at(p)?;
         let faces: Vec<u32> = (0..self.index.faces().len() as u32).collect();
         let edges: Vec<u32> = (0..self.edges.len() as u32).collect();
@@ -381,36 +384,30 @@ impl<'a> CoverageModel<'a> {
             return 0;
         };
         let (faces, edges) = walk.unwrap_or((self.index.reference_faces(m_p), self.index.reference_edges(m_p)));
-        [(texel, p_t)]
-            .iter()
-            .map(|&(texel, p_t)| {
-                let mut count = lists.count_before(texel, p.z) as i32;
-                count += self.faces_passed(faces, p_t, p);
-                for &id in edges {
-                    let e = &self.edges[id as usize];
-                    let Some((a, b)) = e.clipped(self.near, p.z) else { continue };
-                    // The plane through the centre ray and the edge: through the
-                    // light's centre (disk), or containing its direction (sun).
-                    let n = if frame.is_perspective() { a.cross(b) } else { (b - a).cross(Vec3::Z) };
-                    let side = |x: Vec3| n.dot(x - a) >= 0.0;
-                    let (from, to) = (side(p_t), side(p));
-                    if from == to {
-                        continue;
-                    }
-                    // The edge's ends on either side of the swept plane (the centre
-                    // rays through the move): one plane test for both edges at a
-                    // shared vertex, so a move through it counts once.
-                    let m = if frame.is_perspective() { p_t.cross(p) } else { (p - p_t).cross(Vec3::Z) };
-                    if (m.dot(a - p_t) >= 0.0) == (m.dot(b - p_t) >= 0.0) {
-                        continue;
-                    }
-                    let sigma: i32 = e.third[..e.faces as usize].iter().map(|v| if side(*v) { 1 } else { -1 }).sum();
-                    count += if to { sigma } else { -sigma };
-                }
-                count.clamp(0, MAX_REFERENCE_COUNT)
-            })
-            .min()
-            .unwrap_or(0)
+        let mut count = lists.count_before(texel, p.z) as i32;
+        count += self.faces_passed(faces, p_t, p);
+        for &id in edges {
+            let e = &self.edges[id as usize];
+            let Some((a, b)) = e.clipped(self.near, p.z) else { continue };
+            // The plane through the centre ray and the edge: through the
+            // light's centre (disk), or containing its direction (sun).
+            let n = if frame.is_perspective() { a.cross(b) } else { (b - a).cross(Vec3::Z) };
+            let side = |x: Vec3| n.dot(x - a) >= 0.0;
+            let (from, to) = (side(p_t), side(p));
+            if from == to {
+                continue;
+            }
+            // The edge's ends on either side of the swept plane (the centre
+            // rays through the move): one plane test for both edges at a
+            // shared vertex, so a move through it counts once.
+            let m = if frame.is_perspective() { p_t.cross(p) } else { (p - p_t).cross(Vec3::Z) };
+            if (m.dot(a - p_t) >= 0.0) == (m.dot(b - p_t) >= 0.0) {
+                continue;
+            }
+            let sigma: i32 = e.third[..e.faces as usize].iter().map(|v| if side(*v) { 1 } else { -1 }).sum();
+            count += if to { sigma } else { -sigma };
+        }
+        count.clamp(0, MAX_REFERENCE_COUNT)
     }
 
     /// The change in how many faces lie between the light's centre and a
