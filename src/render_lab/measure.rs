@@ -193,6 +193,7 @@ pub fn measure(
                 non_finite: 0,
                 out_of_range: 0,
                 modelled: None,
+                memory: None,
             };
             // A method on the CPU at the same pixels, timed as prepare + evaluate
             // over `runs` runs; its last values.
@@ -255,6 +256,11 @@ pub fn measure(
                     Technique::Fins(_) | Technique::Coverage | Technique::Convolution | Technique::Plateaus
                 ) {
                     row.modelled = Some((shot.stats.silhouettes, shot.stats.fins, shot.stats.layers));
+                    row.memory = Some((
+                        shot.stats.gpu_bytes,
+                        (!shot.stats.degraded.is_empty())
+                            .then(|| shot.stats.degraded.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(" | ")),
+                    ));
                     row.non_finite = shot.visibility.iter().filter(|v| !v.is_finite()).count();
                     row.out_of_range = shot.visibility.iter().filter(|v| **v < -1e-3 || **v > 1.0 + 1e-3).count();
                     let buffer: Vec<f32> = hits.iter().map(|(i, _)| shot.visibility[*i]).collect();

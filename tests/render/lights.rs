@@ -148,13 +148,15 @@ fn lights_past_the_budget_degrade_with_the_reason_in_their_stats() {
     let stats: Vec<_> = world.query::<&bevy_shadow_fins::FinLightStats>().iter(world).map(|s| s.0).collect();
     assert_eq!(stats.len(), 4);
     for s in &stats {
-        println!("{:?} at {}²: {}", s.layers, s.map_resolution, s.degraded.map_or("-".into(), |d| d.to_string()));
-        let Some(bevy_shadow_fins::FinDegradation::Maps { resolution, layers, limit_bytes, .. }) = s.degraded else {
+        println!("{:?} at {}²: {}", s.layers, s.map_resolution, s.degraded);
+        let Some(bevy_shadow_fins::FinDegradation::Maps { resolution, layers, limit_bytes, .. }) = s.degraded.first()
+        else {
             panic!("no degradation reason: {s:?}");
         };
         assert_eq!(limit_bytes, 2 << 20, "the reason names the light's share");
         let bytes = resolution as u64 * resolution as u64 * layers as u64 * 36;
         assert!(bytes <= 2 << 20, "{layers} layers at {resolution}² exceed the light's share");
+        assert_eq!(s.gpu_bytes, bytes, "the stats count the maps as allocated");
     }
     for v in &shot.light_visibility {
         assert_visibility_not_trivial(v);

@@ -117,7 +117,7 @@ fn a_scene_over_the_buffer_limit_degrades_with_the_reason_in_the_stats() {
         let shot = session.settle(6).expect("render");
         assert!(shot.visibility.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)), "{want}");
         assert_not_trivial(&shot);
-        let degraded = shot.stats.degraded.unwrap_or_else(|| panic!("{want}: the stats say what was cut"));
+        let degraded = shot.stats.degraded.first().unwrap_or_else(|| panic!("{want}: the stats say what was cut"));
         println!("limit {limit}: {degraded}");
         match (want, degraded) {
             ("maps", FinDegradation::Maps { resolution, .. }) => {

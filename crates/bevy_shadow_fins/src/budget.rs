@@ -100,6 +100,81 @@ pub enum FinDegradation {
     LongPlateauCell { sheets: u32, limit: u32 },
 }
 
+/// Every reason a light's frame models less than its settings ask for
+/// ([`FinFrameStats::degraded`](crate::FinFrameStats::degraded)): one of each
+/// kind, in the order found (a frame's own reasons first; a GPU read-back's
+/// shortfalls go before the reasons of the frame they were read from). A
+/// point light's faces share one list.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FinDegradations {
+    reasons: [Option<FinDegradation>; Self::MAX],
+}
+
+impl FinDegradations {
+    /// Reasons kept: one of every kind of [`FinDegradation`] (a new kind
+    /// must raise it, or `kind_is_counted` fails).
+    pub const MAX: usize = 9;
+
+    /// The first reason, if any.
+    pub fn first(&self) -> Option<FinDegradation> {
+        self.reasons[0]
+    }
+
+    /// Every reason, first found first.
+    pub fn iter(&self) -> impl Iterator<Item = FinDegradation> + '_ {
+        self.reasons.iter().map_while(|r| *r)
+    }
+
+    /// Nothing was cut.
+    pub fn is_empty(&self) -> bool {
+        self.reasons[0].is_none()
+    }
+
+    /// With `why` added after the others, unless a reason of its kind is
+    /// already there (the first one found of a kind says the most).
+    pub(crate) fn with(mut self, why: impl Into<Option<FinDegradation>>) -> Self {
+        let Some(why) = why.into() else { return self };
+        let kind = std::mem::discriminant(&why);
+        if self.iter().any(|r| std::mem::discriminant(&r) == kind) {
+            return self;
+        }
+        if let Some(free) = self.reasons.iter_mut().find(|r| r.is_none()) {
+            *free = Some(why);
+        }
+        self
+    }
+
+    /// These reasons, then those of `other` of kinds not here yet.
+    pub(crate) fn and(self, other: Self) -> Self {
+        other.iter().fold(self, Self::with)
+    }
+}
+
+impl From<FinDegradation> for FinDegradations {
+    fn from(why: FinDegradation) -> Self {
+        Self::default().with(why)
+    }
+}
+
+impl From<Option<FinDegradation>> for FinDegradations {
+    fn from(why: Option<FinDegradation>) -> Self {
+        Self::default().with(why)
+    }
+}
+
+/// The reasons in one line, `; ` between them.
+impl std::fmt::Display for FinDegradations {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        for (i, why) in self.iter().enumerate() {
+            if i > 0 {
+                f.write_str("; ")?;
+            }
+            write!(f, "{why}")?;
+        }
+        Ok(())
+    }
+}
+
 /// Bytes for a person: MiB from 1 MiB on (one decimal), KiB below, bytes
 /// under 1 KiB — a test's 12 KiB limit is not "0.0 MiB".
 struct ByteSize(u64);
@@ -337,6 +412,44 @@ mod tests {
         // The order is clamped to 1..=16 (65 channels at most), a 0² map is 1².
         assert_eq!(BasisLayout::new(16, 99, u64::MAX).expect("fits").channels, 65);
         assert_eq!(BasisLayout::new(0, 0, u64::MAX).expect("fits").stored, [(1, 0)]);
+    }
+
+    #[test]
+    fn degradations_keep_one_reason_of_each_kind_in_the_order_found() {
+        let maps = |resolution| FinDegradation::Maps {
+            resolution,
+            wanted_resolution: 1024,
+            layers: 4,
+            wanted_layers: 16,
+            limit_bytes: 128 << 20,
+        };
+        let long = FinDegradation::LongCoverageCell { edges: 9000, limit: 4096 };
+        let all = FinDegradations::from(maps(512)).with(None).with(long).with(maps(256));
+        assert_eq!(all.iter().collect::<Vec<_>>(), vec![maps(512), long]);
+        assert_eq!(all.first(), Some(maps(512)));
+        let too_many = FinDegradation::TooManyLights { max: 16 };
+        let merged = FinDegradations::from(too_many).and(all);
+        assert_eq!(merged.iter().collect::<Vec<_>>(), vec![too_many, maps(512), long]);
+        assert_eq!(merged.to_string().matches("; ").count(), 2, "{merged}");
+        assert!(FinDegradations::default().is_empty() && FinDegradations::from(None).first().is_none());
+    }
+
+    #[test]
+    fn kind_is_counted() {
+        // Exhaustive: a new kind of reason fails to compile here, and the
+        // count below reminds that `FinDegradations::MAX` holds every kind.
+        let index = |d: &FinDegradation| match d {
+            FinDegradation::Maps { .. } => 0,
+            FinDegradation::Capacity { .. } => 1,
+            FinDegradation::ExtractedOnCpu { .. } => 2,
+            FinDegradation::Unsupported(_) => 3,
+            FinDegradation::LongCoverageCell { .. } => 4,
+            FinDegradation::TooManyLights { .. } => 5,
+            FinDegradation::ConvolutionLevels { .. } => 6,
+            FinDegradation::ConvolutionBasis { .. } => 7,
+            FinDegradation::LongPlateauCell { .. } => 8,
+        };
+        assert_eq!(index(&FinDegradation::LongPlateauCell { sheets: 0, limit: 0 }) + 1, FinDegradations::MAX);
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! mesh could not cast ([`FinSceneError`]) or a frame models less than its
 //! settings ask ([`FinFrameStats::degraded`]).
 
-use crate::budget::FinDegradation;
+use crate::budget::{FinDegradation, FinDegradations};
 use bevy::prelude::*;
 
 /// Why a mesh could not be used as a caster (logged once per mesh).
@@ -35,10 +35,20 @@ pub struct FinFrameStats {
     /// The counts describe the current frame (always true on the CPU path).
     pub up_to_date: bool,
     /// Why the frame models less than the settings ask for (a GPU limit or the
-    /// [`FinShadowBudget`](crate::FinShadowBudget)); `None` when nothing was cut.
-    pub degraded: Option<FinDegradation>,
+    /// [`FinShadowBudget`](crate::FinShadowBudget)): every reason, one of
+    /// each kind; empty when nothing was cut.
+    pub degraded: FinDegradations,
     /// The penumbra maps' resolution as allocated.
     pub map_resolution: u32,
+    /// GPU memory the light's shadow data needs, bytes: for the fin methods
+    /// the penumbra maps (every layer allocated, 36 bytes a texel) and the
+    /// convolution method's basis; for the coverage method its depth lists
+    /// (124 bytes a texel) and every record it uploads. Not counted: the fin
+    /// methods' caster and fin records and the extraction's buffers, and the
+    /// headroom a reused buffer keeps (the render world allocates up to half
+    /// as much again, within the buffer limit, and does not shrink a buffer
+    /// that still fits). A point light's faces: their sum.
+    pub gpu_bytes: u64,
     /// Where the fins were extracted: the settings' choice, or the CPU when
     /// the scene's geometry did not fit a GPU buffer (see `degraded`).
     pub extraction: FinExtraction,
@@ -99,8 +109,9 @@ impl FinFrameStats {
             layers: a.layers.max(b.layers),
             extract_ms: a.extract_ms + b.extract_ms,
             up_to_date: a.up_to_date && b.up_to_date,
-            degraded: a.degraded.or(b.degraded),
+            degraded: a.degraded.and(b.degraded),
             map_resolution: a.map_resolution.min(b.map_resolution),
+            gpu_bytes: a.gpu_bytes + b.gpu_bytes,
             extraction: a.extraction,
             partial_redraw: a.partial_redraw && b.partial_redraw,
             incremental_extraction: a.incremental_extraction && b.incremental_extraction,
@@ -119,15 +130,17 @@ pub(crate) fn set_stats(light_stats: &mut Query<&mut FinLightStats>, light: Enti
     }
 }
 
-/// Logs a degradation once per distinct reason (a moving light re-extracts
-/// every frame; the same reason is said once, not sixty times a second).
-pub(crate) fn warn_degradation(warned: &mut Option<FinDegradation>, now: Option<FinDegradation>) {
-    if let Some(why) = now
-        && *warned != now
-    {
-        warn!("fin shadows: {why}");
-        *warned = now;
+/// Logs a light's reasons when a kind of reason appears that was not there
+/// (a moving light re-extracts every frame; the same reasons are said once,
+/// not sixty times a second).
+pub(crate) fn warn_degradation(warned: &mut FinDegradations, now: FinDegradations) {
+    // By kind: a buffer's count that changes as a light moves, or the order
+    // a read-back merges in, is not news.
+    let kind = std::mem::discriminant::<FinDegradation>;
+    if now.iter().any(|r| !warned.iter().any(|w| kind(&w) == kind(&r))) {
+        warn!("fin shadows: {now}");
     }
+    *warned = now;
 }
 
 /// Where fins are extracted and layers assigned: asked for by
@@ -145,4 +158,28 @@ pub enum FinExtraction {
     /// The core crate on the CPU (the paper's split), uploading map-space
     /// casters and fins. The reference the GPU path is tested against.
     Cpu,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_point_lights_faces_sum_their_bytes_and_keep_every_reason() {
+        let maps = FinDegradation::Maps {
+            resolution: 512,
+            wanted_resolution: 1024,
+            layers: 4,
+            wanted_layers: 4,
+            limit_bytes: 128 << 20,
+        };
+        let cut = FinDegradation::Capacity { buffer: "fins", kept: 10, wanted: 20, limit_bytes: 1 << 20 };
+        let face =
+            |bytes, why: Option<FinDegradation>| FinFrameStats { gpu_bytes: bytes, degraded: why.into(), ..default() };
+        let light =
+            FinFrameStats::combined([face(3 << 20, Some(maps)), face(1 << 20, None), face(5, Some(cut))].into_iter())
+                .expect("three faces");
+        assert_eq!(light.gpu_bytes, (4 << 20) + 5);
+        assert_eq!(light.degraded.iter().collect::<Vec<_>>(), vec![maps, cut]);
+    }
 }

@@ -192,10 +192,14 @@ fn lights_window(
             }
             let st = stats.0;
             ui.small(format!(
-                "{} silhouettes, {} fins, {} layers at {}²",
-                st.silhouettes, st.fins, st.layers, st.map_resolution
+                "{} silhouettes, {} fins, {} layers at {}², {} on the GPU",
+                st.silhouettes,
+                st.fins,
+                st.layers,
+                st.map_resolution,
+                crate::ui::mib(st.gpu_bytes)
             ));
-            if let Some(why) = st.degraded {
+            for why in st.degraded.iter() {
                 ui.colored_label(egui::Color32::YELLOW, why.to_string());
             }
         }

@@ -60,9 +60,13 @@ pub struct Row {
     pub out_of_range: usize,
     /// Silhouettes, fins and layers the plugin modelled (fins only).
     pub modelled: Option<(usize, usize, usize)>,
+    /// The plugin's GPU bytes for the light's shadow data
+    /// (`FinFrameStats::gpu_bytes`) and why it modelled less than asked, if
+    /// it did (every reason, ` | ` between them); the plugin's methods only.
+    pub memory: Option<(u64, Option<String>)>,
 }
 
-const HEADER: &str = "scene,triangles,method,label,layers,refinement,falloff,map_resolution,radius,pixels,mae,rmse,p99,umbra_over,leak,frame_ms,frame_p10_ms,frame_p90_ms,frames,non_finite,out_of_range,color_check,silhouettes,fins,used_layers,passes";
+const HEADER: &str = "scene,triangles,method,label,layers,refinement,falloff,map_resolution,radius,pixels,mae,rmse,p99,umbra_over,leak,frame_ms,frame_p10_ms,frame_p90_ms,frames,non_finite,out_of_range,color_check,silhouettes,fins,used_layers,passes,gpu_mib,degraded";
 
 fn opt<T: ToString>(v: Option<T>) -> String {
     v.map(|v| v.to_string()).unwrap_or_default()
@@ -78,7 +82,7 @@ pub fn csv(rows: &[Row]) -> String {
         let passes: Vec<String> = r.passes.iter().map(|(n, t)| format!("{n}={:.4}", t.median)).collect();
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.4},{:.4},{:.4},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.4},{:.4},{:.4},{},{},{},{},{},{},{},{},{},{}",
             r.scene,
             r.triangles,
             c.technique.name(),
@@ -105,6 +109,9 @@ pub fn csv(rows: &[Row]) -> String {
             opt(r.modelled.map(|m| m.1)),
             opt(r.modelled.map(|m| m.2)),
             passes.join(";"),
+            opt(r.memory.as_ref().map(|m| format!("{:.2}", m.0 as f64 / (1u64 << 20) as f64))),
+            // One CSV field: the reason's commas become semicolons.
+            opt(r.memory.as_ref().and_then(|m| m.1.as_ref()).map(|why| why.replace(',', ";"))),
         );
     }
     s
@@ -337,6 +344,7 @@ mod tests {
                 non_finite: 0,
                 out_of_range: 0,
                 modelled: None,
+                memory: None,
             })
             .collect()
     }

@@ -4,7 +4,7 @@
 //! budget and the device's buffer limit.
 
 use crate::{
-    budget::{FinDegradation, allocate_maps},
+    budget::{FinDegradation, FinDegradations, allocate_maps},
     casters::CasterScene,
     frame::{coverage::coverage_frame, sun_fit},
     settings::{FinMethod, FinShadowSettings},
@@ -38,9 +38,9 @@ pub(crate) struct LightState {
     pub(crate) capacity: Option<GpuCapacity>,
     pub(crate) capacity_epoch: u64,
     /// What the latest GPU read-back said did not fit (kept into new frames).
-    pub(crate) shortfall: Option<FinDegradation>,
-    /// The degradation last warned about.
-    pub(crate) warned: Option<FinDegradation>,
+    pub(crate) shortfall: FinDegradations,
+    /// The reasons last warned about.
+    pub(crate) warned: FinDegradations,
     /// A sun's map window in its last frame (`sun_fit::sun_window` keeps it
     /// while it still fits).
     pub(crate) window: Option<[f32; 4]>,
@@ -229,7 +229,7 @@ pub(crate) fn light_frame(
                 extract_ms: start.elapsed().as_secs_f32() * 1e3,
                 // No caster face: the GPU runs no pass and there is nothing to read back.
                 up_to_date: scene.totals[1] == 0,
-                degraded: alloc.degradation,
+                degraded: alloc.degradation.into(),
                 map_resolution: alloc.resolution,
                 posed_on_gpu: scene.pose_sizes()[0] as usize,
                 ..default()
@@ -266,7 +266,7 @@ pub(crate) fn light_frame(
                 cpu_frame(Scene::new(objects_of(state)), in_frame, settings, generation, start, receiver_bound, limits);
             if let Some(Err(why)) = fallback {
                 // What the CPU path had to cut (maps, dropped casters) shows first.
-                data.stats.degraded = data.stats.degraded.or(Some(why));
+                data.stats.degraded = data.stats.degraded.with(why);
             }
             data
         }
@@ -277,7 +277,7 @@ pub(crate) fn light_frame(
         if longest > crate::frame::plateaus::MAX_CELL_SHEETS {
             let why =
                 FinDegradation::LongPlateauCell { sheets: longest, limit: crate::frame::plateaus::MAX_CELL_SHEETS };
-            data.stats.degraded = data.stats.degraded.or(Some(why));
+            data.stats.degraded = data.stats.degraded.with(why);
         }
         data.plateaus = Some(p);
     }
@@ -291,21 +291,23 @@ pub(crate) fn light_frame(
             Ok(layout) => {
                 if layout.first > 0 {
                     let why = FinDegradation::ConvolutionLevels { dropped: layout.first, limit_bytes: room };
-                    data.stats.degraded = data.stats.degraded.or(Some(why));
+                    data.stats.degraded = data.stats.degraded.with(why);
                 }
                 data.convolution = Some(layout);
             }
             Err(bytes) => {
                 let why = FinDegradation::ConvolutionBasis { bytes, limit_bytes: room };
-                data.stats.degraded = data.stats.degraded.or(Some(why));
+                data.stats.degraded = data.stats.degraded.with(why);
             }
         }
     }
     data.stats.map_resolution = data.region.resolution;
+    let maps = data.map_layers.max(1) as u64 * (data.region.resolution as u64).pow(2) * MAP_TEXEL_BYTES;
+    data.stats.gpu_bytes = maps + data.convolution.as_ref().map_or(0, |basis| basis.bytes());
     data.stats.extraction = if data.gpu.is_some() { FinExtraction::Gpu } else { FinExtraction::Cpu };
     // What the last read-back said the GPU had to drop still holds until a
     // read-back says otherwise (no flicker between re-extractions).
-    data.stats.degraded = data.stats.degraded.or(state.shortfall);
+    data.stats.degraded = data.stats.degraded.and(state.shortfall);
     warn_degradation(&mut state.warned, data.stats.degraded);
     data
 }
@@ -340,6 +342,7 @@ pub(crate) fn coverage_data(
         up_to_date: true,
         degraded,
         map_resolution: coverage.region.resolution,
+        gpu_bytes: coverage.gpu_bytes(),
         extraction: FinExtraction::Cpu,
         partial_redraw: false,
         incremental_extraction: false,
@@ -403,12 +406,12 @@ pub(crate) fn cpu_frame(
     }
     let bounds = model.casters.iter().map(|c| c.bounds()).chain(model.fins.iter().map(|f| f.bounds()));
     let region = in_frame.covering(bounds, alloc.resolution);
-    let mut degraded = alloc.degradation;
-    // What does not fit one buffer is dropped (and said so).
+    let mut degraded = FinDegradations::from(alloc.degradation);
+    // What does not fit one buffer is dropped (and said so: the first buffer cut).
     let mut capped = |buffer: &'static str, n: usize, bytes: u64| {
         let keep = (limits.max_buffer / bytes) as usize;
-        if n > keep && degraded.is_none() {
-            degraded = Some(FinDegradation::Capacity {
+        if n > keep {
+            degraded = degraded.with(FinDegradation::Capacity {
                 buffer,
                 kept: keep as u32,
                 wanted: n as u32,
@@ -422,7 +425,7 @@ pub(crate) fn cpu_frame(
     let (mut casters_gpu, mut cutouts, mut mask_words) =
         gpu_casters(&model.casters[..n_casters], Some(&model.caster_layers[..n_casters]), &ls.masks);
     if let Some(why) = fit_cutouts(&mut casters_gpu, &mut cutouts, &mut mask_words, limits.max_buffer) {
-        degraded = degraded.or(Some(why));
+        degraded = degraded.with(why);
     }
     let fins_gpu: Vec<GpuFin> =
         model.fins.iter().take(n_fins).zip(&model.fin_layers).map(|(f, &l)| gpu_fin(f, l)).collect();
@@ -437,6 +440,8 @@ pub(crate) fn cpu_frame(
         up_to_date: true,
         degraded,
         map_resolution: region.resolution,
+        // Set with the convolution basis known (`light_frame`'s end).
+        gpu_bytes: 0,
         extraction: FinExtraction::Cpu,
         partial_redraw: false,
         incremental_extraction: false,

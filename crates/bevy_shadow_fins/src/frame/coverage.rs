@@ -13,7 +13,7 @@ use shadow_fins::{
 };
 
 use crate::{
-    budget::{FinDegradation, allocate_maps},
+    budget::{FinDegradation, FinDegradations, allocate_maps},
     gpu_layout::GpuCaster,
 };
 
@@ -93,6 +93,22 @@ pub(crate) struct CoverageFrame {
 }
 
 impl CoverageFrame {
+    /// GPU bytes of the frame's buffers (`render/coverage.rs` sizes them so):
+    /// the per-texel depth lists, the edge and face records, the cell lists,
+    /// the casters with their cut-outs and masks, and the raster work.
+    pub(crate) fn gpu_bytes(&self) -> u64 {
+        let texels = (self.region.resolution as u64).pow(2);
+        let bytes = |n: usize, each: usize| (n * each) as u64;
+        texels * LIST_WORDS * 4
+            + bytes(self.edges.len(), size_of::<GpuCoverageEdge>())
+            + bytes(self.faces.len(), size_of::<GpuCoverageFace>())
+            + bytes(self.cell_starts.len() + self.cell_items.len() + self.mask_words.len(), 4)
+            + bytes(self.casters.len(), size_of::<GpuCaster>())
+            + bytes(self.cutouts.len(), size_of::<crate::gpu_layout::GpuCutout>())
+            + bytes(self.raster_work.len(), 8)
+            + bytes(self.samples.len(), 8)
+    }
+
     /// The samples as `coverage.wgsl` reads them: per quad of four samples
     /// their x then their y, padded with zeros to whole 32-sample words
     /// (padding lanes are never counted: they are not above the horizon).
@@ -135,12 +151,12 @@ pub(crate) fn coverage_frame(
     receiver_bound: impl Iterator<Item = Vec3>,
     map_bytes: u64,
     max_buffer: u64,
-) -> (CoverageFrame, Option<FinDegradation>, usize) {
+) -> (CoverageFrame, FinDegradations, usize) {
     let ls = in_frame.light_space(scene, receiver_bound);
     let near = near_depth(&ls);
     // One list per texel, no layers to trade: resolution is what goes.
     let alloc = allocate_maps(resolution, 1, LIST_WORDS * 4, map_bytes, f32::INFINITY);
-    let mut degraded = alloc.degradation;
+    let mut degraded = FinDegradations::from(alloc.degradation);
     let triangles = reference::map_triangles(&ls, near);
     let region = in_frame.covering(triangles.iter().map(|t| t.bounds()), alloc.resolution.clamp(1, 8192));
     let edges = potential_silhouette_edges(scene, &ls, near);
@@ -150,8 +166,8 @@ pub(crate) fn coverage_frame(
     let (starts, items) = index.gpu_lists();
     let mut keep = |what: &'static str, n: usize, bytes: u64| {
         let fit = (max_buffer / bytes) as usize;
-        if n > fit && degraded.is_none() {
-            degraded = Some(FinDegradation::Capacity {
+        if n > fit {
+            degraded = degraded.with(FinDegradation::Capacity {
                 buffer: what,
                 kept: fit as u32,
                 wanted: n as u32,
@@ -210,11 +226,9 @@ pub(crate) fn coverage_frame(
     let n_work = keep("depth-list raster work", raster_work.len(), size_of::<[u32; 2]>() as u64);
     raster_work.truncate(n_work);
     if let Some(why) = crate::frame::map_casters::fit_cutouts(&mut casters, &mut cutouts, &mut mask_words, max_buffer) {
-        degraded = degraded.or(Some(why));
+        degraded = degraded.with(why);
     }
-    if degraded.is_none() {
-        degraded = long_cell(&cell_starts, LONG_CELL_EDGES);
-    }
+    degraded = degraded.with(long_cell(&cell_starts, LONG_CELL_EDGES));
     let frame = CoverageFrame {
         edges: gpu_edges,
         faces: gpu_faces,

@@ -248,14 +248,14 @@ pub(crate) fn update_fin_frames(
              (a FinLight past the limit is not lit)"
         );
         let over = FinFrameStats {
-            degraded: Some(FinDegradation::TooManyLights { max: MAX_FIN_LIGHTS as u32 }),
+            degraded: FinDegradation::TooManyLights { max: MAX_FIN_LIGHTS as u32 }.into(),
             up_to_date: true,
             ..default()
         };
         set_stats(&mut light_stats, cut.entity, over);
     }
     if let Some(why) = unsupported {
-        let off = FinFrameStats { degraded: Some(FinDegradation::Unsupported(why.0)), up_to_date: true, ..default() };
+        let off = FinFrameStats { degraded: FinDegradation::Unsupported(why.0).into(), up_to_date: true, ..default() };
         for s in &sources {
             set_stats(&mut light_stats, s.entity, off);
         }

@@ -21,7 +21,7 @@ use bevy::{
 };
 
 use crate::{
-    budget::FinDegradation,
+    budget::{FinDegradation, FinDegradations},
     casters::gpu_scene::{GpuCapacity, GpuInstance, GpuScene},
     frame::{FinFrameData, FinFrames, MAX_FIN_FRAMES, update::MeshCache},
     settings::FinMethod,
@@ -215,12 +215,11 @@ fn stats_of_readback(
         wanted_layers: wanted.layers,
         limit_bytes: f.map_limit_bytes,
     });
-    let shortfall = gpu
-        .capacity
-        .shortfalls(wanted)
-        .next()
-        .map(|(buffer, kept, wanted)| FinDegradation::Capacity { buffer, kept, wanted, limit_bytes: f.limit_bytes })
-        .or(layers_cut);
+    let shortfall =
+        FinDegradations::from(gpu.capacity.shortfalls(wanted).next().map(|(buffer, kept, wanted)| {
+            FinDegradation::Capacity { buffer, kept, wanted, limit_bytes: f.limit_bytes }
+        }))
+        .with(layers_cut);
     if grown.is_none() {
         state.shortfall = shortfall;
     }
@@ -232,7 +231,7 @@ fn stats_of_readback(
         partial_redraw: w[C_PARTIAL] & 1 != 0,
         incremental_extraction: w[C_PARTIAL] & 2 != 0,
         up_to_date: grown.is_none(),
-        degraded: if grown.is_none() { shortfall.or(f.stats.degraded) } else { f.stats.degraded },
+        degraded: if grown.is_none() { shortfall.and(f.stats.degraded) } else { f.stats.degraded },
         ..f.stats
     };
     crate::stats::warn_degradation(&mut state.warned, now.degraded);
