@@ -134,14 +134,18 @@ impl FinDegradations {
     /// already there (the first one found of a kind says the most).
     pub(crate) fn with(mut self, why: impl Into<Option<FinDegradation>>) -> Self {
         let Some(why) = why.into() else { return self };
-        let kind = std::mem::discriminant(&why);
-        if self.iter().any(|r| std::mem::discriminant(&r) == kind) {
+        if self.holds_kind_of(&why) {
             return self;
         }
         if let Some(free) = self.reasons.iter_mut().find(|r| r.is_none()) {
             *free = Some(why);
         }
         self
+    }
+
+    /// A reason of `why`'s kind is here (whatever its numbers).
+    pub(crate) fn holds_kind_of(&self, why: &FinDegradation) -> bool {
+        self.iter().any(|r| std::mem::discriminant(&r) == std::mem::discriminant(why))
     }
 
     /// These reasons, then those of `other` of kinds not here yet.
@@ -176,8 +180,10 @@ impl std::fmt::Display for FinDegradations {
 }
 
 /// Bytes for a person: MiB from 1 MiB on (one decimal), KiB below, bytes
-/// under 1 KiB — a test's 12 KiB limit is not "0.0 MiB".
-struct ByteSize(u64);
+/// under 1 KiB — a test's 12 KiB limit is not "0.0 MiB". The degradation
+/// reasons and the editor's memory figures (`FinFrameStats::gpu_bytes`) say
+/// sizes this way.
+pub struct ByteSize(pub u64);
 
 impl std::fmt::Display for ByteSize {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

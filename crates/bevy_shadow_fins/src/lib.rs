@@ -205,7 +205,7 @@ mod settings;
 mod stats;
 
 pub use bevy_shadow_maps::BevyShadowMapsKept;
-pub use budget::{FinDegradation, FinDegradations, FinShadowBudget};
+pub use budget::{ByteSize, FinDegradation, FinDegradations, FinShadowBudget};
 pub use casters::{
     FinCasterUpdates,
     cutout::{FinDefaultImageSampler, image_of_mask, mask_of_image},

@@ -3,7 +3,7 @@
 //! mesh could not cast ([`FinSceneError`]) or a frame models less than its
 //! settings ask ([`FinFrameStats::degraded`]).
 
-use crate::budget::{FinDegradation, FinDegradations};
+use crate::budget::FinDegradations;
 use bevy::prelude::*;
 
 /// Why a mesh could not be used as a caster (logged once per mesh).
@@ -136,8 +136,7 @@ pub(crate) fn set_stats(light_stats: &mut Query<&mut FinLightStats>, light: Enti
 pub(crate) fn warn_degradation(warned: &mut FinDegradations, now: FinDegradations) {
     // By kind: a buffer's count that changes as a light moves, or the order
     // a read-back merges in, is not news.
-    let kind = std::mem::discriminant::<FinDegradation>;
-    if now.iter().any(|r| !warned.iter().any(|w| kind(&w) == kind(&r))) {
+    if now.iter().any(|r| !warned.holds_kind_of(&r)) {
         warn!("fin shadows: {now}");
     }
     *warned = now;
@@ -163,6 +162,7 @@ pub enum FinExtraction {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::budget::FinDegradation;
 
     #[test]
     fn a_point_lights_faces_sum_their_bytes_and_keep_every_reason() {

@@ -197,7 +197,7 @@ fn lights_window(
                 st.fins,
                 st.layers,
                 st.map_resolution,
-                crate::ui::mib(st.gpu_bytes)
+                bevy_shadow_fins::ByteSize(st.gpu_bytes)
             ));
             for why in st.degraded.iter() {
                 ui.colored_label(egui::Color32::YELLOW, why.to_string());

@@ -267,7 +267,7 @@ fn panels(
                     "layers in use {} · maps {}² · CPU {:.2} ms",
                     s.layers, s.map_resolution, s.extract_ms
                 ));
-                ui.label(format!("GPU memory of the light's shadows {}", mib(s.gpu_bytes)));
+                ui.label(format!("GPU memory of the light's shadows {}", bevy_shadow_fins::ByteSize(s.gpu_bytes)));
                 // What the last update redid: the casters extracted, the maps
                 // in part or whole, and who posed.
                 let redraw = if s.partial_redraw { "partial" } else { "whole" };
@@ -514,15 +514,6 @@ fn plot(ui: &mut egui::Ui, history: &History) {
         egui::FontId::proportional(11.0),
         egui::Color32::GRAY,
     );
-}
-
-/// Bytes as MiB with one decimal (KiB below one MiB).
-pub(crate) fn mib(bytes: u64) -> String {
-    if bytes >= 1 << 20 {
-        format!("{:.1} MiB", bytes as f64 / (1u64 << 20) as f64)
-    } else {
-        format!("{:.1} KiB", bytes as f64 / 1024.0)
-    }
 }
 
 #[cfg(test)]

@@ -284,9 +284,7 @@ pub(crate) fn light_frame(
     data.windowed = map_window.is_some();
     if settings.method == FinMethod::Convolution {
         // The basis shares the light's map budget with the maps it filters.
-        let resolution = data.region.resolution as u64;
-        let maps = data.map_layers.max(1) as u64 * resolution * resolution * MAP_TEXEL_BYTES;
-        let room = limits.map_bytes.saturating_sub(maps).min(limits.max_buffer);
+        let room = limits.map_bytes.saturating_sub(data.map_bytes()).min(limits.max_buffer);
         match crate::budget::BasisLayout::new(data.region.resolution, settings.convolution_order, room) {
             Ok(layout) => {
                 if layout.first > 0 {
@@ -302,8 +300,7 @@ pub(crate) fn light_frame(
         }
     }
     data.stats.map_resolution = data.region.resolution;
-    let maps = data.map_layers.max(1) as u64 * (data.region.resolution as u64).pow(2) * MAP_TEXEL_BYTES;
-    data.stats.gpu_bytes = maps + data.convolution.as_ref().map_or(0, |basis| basis.bytes());
+    data.stats.gpu_bytes = data.map_bytes() + data.convolution.as_ref().map_or(0, |basis| basis.bytes());
     data.stats.extraction = if data.gpu.is_some() { FinExtraction::Gpu } else { FinExtraction::Cpu };
     // What the last read-back said the GPU had to drop still holds until a
     // read-back says otherwise (no flicker between re-extractions).

@@ -93,6 +93,17 @@ pub struct FinFrameData {
 }
 
 impl FinFrameData {
+    /// Texels of the penumbra maps as allocated (every layer; at least one
+    /// layer, which the GPU extraction may fill).
+    pub(crate) fn map_texels(&self) -> u64 {
+        self.map_layers.max(1) as u64 * (self.region.resolution as u64).pow(2)
+    }
+
+    /// Bytes of the penumbra maps as allocated.
+    pub(crate) fn map_bytes(&self) -> u64 {
+        self.map_texels() * crate::gpu_layout::MAP_TEXEL_BYTES
+    }
+
     /// A point light's sphere radius (the frame's `size` is the circle
     /// around its outline over the face, `stretch` times it); `None` for
     /// any other light.

@@ -28,7 +28,7 @@ use crate::frame::{FinFrameData, FinFrames};
 use crate::{
     render::{
         extraction,
-        params::{CHANNELS, FinParams, WORKGROUP, params_of},
+        params::{FinParams, WORKGROUP, params_of},
         view::{gbuffer_entry, queue_compute, workgroups},
     },
     settings::{FinIncrementalExtraction, FinPartialRedraw},
@@ -193,9 +193,8 @@ pub(crate) fn prepare_light_maps(
     let mut params = params_of(f);
     // The main world sized the maps to fit the budget and the device
     // (`budget::allocate_maps`); GPU extraction uses up to `map_layers`.
-    let (layers, resolution) = (f.map_layers.max(1) as u64, f.region.resolution);
-    let texels = layers * resolution as u64 * resolution as u64;
-    let maps_size = (texels * CHANNELS * 4).max(16);
+    let (texels, resolution) = (f.map_texels(), f.region.resolution);
+    let maps_size = f.map_bytes().max(16);
     if maps_size > device.limits().max_storage_buffer_binding_size {
         warn_once!("fin shadows: {maps_size}-byte maps exceed this GPU's storage binding limit; no fin shadows");
         gpu.bind_group = None;

@@ -20,8 +20,6 @@ pub(crate) struct FinParams {
     pub(crate) redraw: [u32; 4],
 }
 
-/// Words per layer texel (`CHANNELS` in `fin_types.wgsl`).
-pub(crate) const CHANNELS: u64 = 9;
 pub(crate) const WORKGROUP: u32 = 64;
 
 /// `FinParams.flags.w`: how the frame's maps project.
