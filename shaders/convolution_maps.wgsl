@@ -3,7 +3,7 @@
 // centres): the nearest depth, the Fourier basis at the first stored mip
 // level, then each coarser level by 2×2 boxes — as
 // `ConvolutionModel::on_depth_map` with `Prefilter::Mipmap` does.
-#import bevy_shadow_fins::fin_types::{FinParams, CHANNELS}
+#import bevy_shadow_fins::fin_types::{FinParams, FIRST_SLOT, page_index, pooled_texel_index}
 #import bevy_shadow_fins::convolution_types::{
     ConvolutionParams, c_k, level_resolution, level_offset, far_depth, near_depth, normalised,
 }
@@ -22,10 +22,12 @@ var<workgroup> partial: array<f32, REDUCE>;
 
 // The nearest caster depth over the maps' layers at a texel (+∞ where none).
 fn nearest_depth(x: u32, y: u32) -> f32 {
-    let res = params.counts.x;
     var z = bitcast<f32>(0x7f800000u);
     for (var layer = 0u; layer < params.counts.y; layer++) {
-        z = min(z, bitcast<f32>(maps[((layer * res + y) * res + x) * CHANNELS]));
+        let page = maps[page_index(params, layer, x, y)];
+        if (page >= FIRST_SLOT) {
+            z = min(z, bitcast<f32>(maps[pooled_texel_index(params, page, x, y)]));
+        }
     }
     return z;
 }

@@ -1550,7 +1550,10 @@ fn plan_layers() {
     let rect = plan_redraw(p, region_min, size / f32(resolution), resolution);
     let redrawn = (rect.y - rect.x + 1u) * (rect.w - rect.z + 1u) * used;
     atomicStore(&control[C_REDRAWN], select(0u, redrawn, rect.x <= rect.y && rect.z <= rect.w));
-    write_args(C_ARGS_CLEAR, atomicLoad(&control[C_REDRAWN]), WORKGROUP);
+    // A full redraw clears nothing: its maps' tiles are all new, and
+    // `allocate_tiles` (maps.wgsl) clears each as it hands it out.
+    let whole = all(rect == vec4<u32>(0u, resolution - 1u, 0u, resolution - 1u));
+    write_args(C_ARGS_CLEAR, select(atomicLoad(&control[C_REDRAWN]), 0u, whole), WORKGROUP);
     // A partial redraw's raster arguments are `redraw_args`'.
     write_args(C_ARGS_CASTERS, n_casters, 1u);
     write_args(C_ARGS_FINS, n_fins, 1u);

@@ -20,6 +20,10 @@ struct FinParams {
     // The texels the map passes redraw, inclusive (x0, x1, y0, y1); the
     // whole maps but on a partial redraw (`extract.wgsl`'s `plan_redraw`).
     redraw: vec4<u32>,
+    // The sparse maps' shape (below): (layers the page table holds, tiles
+    // the pool holds, 0, 0). Written by the CPU on both paths: the GPU
+    // extraction's copy of its `FinParams` stops before it.
+    tiles: vec4<u32>,
 }
 
 // Words of the GPU extraction's `control` holding where a partial redraw's
@@ -133,9 +137,42 @@ fn caster_depth_at(c: Caster, q: vec2<f32>, orthographic: bool) -> f32 {
     return z;
 }
 
-fn texel_index(params: FinParams, layer: u32, x: u32, y: u32) -> u32 {
-    let res = params.counts.x;
-    return ((layer * res + y) * res + x) * CHANNELS;
+// Sparse maps. A layer's texels live in 8×8 tiles, and only tiles that a
+// caster or fin writes are allocated (`maps.wgsl`: mark, allocate, draw).
+// The maps buffer holds MAPS_HEADER words, then a page table of one word per
+// tile per layer (PAGE_EMPTY, PAGE_WANTED while being allocated,
+// PAGE_OVERFLOW when the pool was full, else FIRST_SLOT + the tile's slot),
+// then the pool: `tiles.y` tiles of TILE_TEXELS texels of CHANNELS words.
+// A texel whose tile has no slot reads as cleared: no slab, no fin.
+const TILE: u32 = 8u;
+const TILE_TEXELS: u32 = 64u;
+// Header words: tiles allocated (counting past the pool: what the maps
+// wanted, read back), and the count before this redraw (a partial redraw
+// clears only tiles it did not allocate itself).
+const MAPS_HEADER: u32 = 4u;
+const HEADER_TILES: u32 = 0u;
+const HEADER_TILES_BEFORE: u32 = 1u;
+const PAGE_EMPTY: u32 = 0u;
+const PAGE_WANTED: u32 = 1u;
+const PAGE_OVERFLOW: u32 = 2u;
+const FIRST_SLOT: u32 = 3u;
+
+fn tiles_per_side(params: FinParams) -> u32 {
+    return (params.counts.x + TILE - 1u) / TILE;
+}
+
+// The page table word of the tile holding texel (x, y) of `layer`.
+fn page_index(params: FinParams, layer: u32, x: u32, y: u32) -> u32 {
+    let side = tiles_per_side(params);
+    return MAPS_HEADER + (layer * side + y / TILE) * side + x / TILE;
+}
+
+// The first word of texel (x, y) in the pool, for a page holding a slot
+// (page >= FIRST_SLOT).
+fn pooled_texel_index(params: FinParams, page: u32, x: u32, y: u32) -> u32 {
+    let side = tiles_per_side(params);
+    let pool = MAPS_HEADER + params.tiles.x * side * side;
+    return pool + ((page - FIRST_SLOT) * TILE_TEXELS + (y % TILE) * TILE + x % TILE) * CHANNELS;
 }
 
 fn weight_code(w: f32) -> u32 {

@@ -1,10 +1,18 @@
 // Penumbra-map passes: every layer's slab depth and inner/outer fin extremes,
 // evaluated at texel centres exactly as `shadow_fins::oracle::RasterMaps` does.
 // One workgroup per primitive; its threads stride over the primitive's texels.
+//
+// The maps are sparse (`fin_types.wgsl`): a redraw first resets the page
+// table (`reset_tiles`), marks every tile a caster or fin may write, by a
+// conservative test of the primitive against each tile of its bounds
+// (`mark_casters`, `mark_fins`: 64 times fewer tests than texels), gives
+// each marked tile a slot in the pool and clears it (`allocate_tiles`), and
+// only then draws. A tile nothing writes costs one page word.
 #import bevy_shadow_fins::fin_types::{
-    FinParams, Caster, Fin, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, INF_BITS, texel_index, min_key, max_key,
-    texel_center, cross2, orthographic, caster_depth_at, fin_bounds, partial_redraw, CONTROL_LIST_CASTERS,
-    CONTROL_LIST_FINS, RETIRED_LAYER,
+    FinParams, Caster, Fin, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, INF_BITS, min_key, max_key, texel_center,
+    cross2, orthographic, caster_depth_at, fin_bounds, partial_redraw, CONTROL_LIST_CASTERS, CONTROL_LIST_FINS,
+    RETIRED_LAYER, TILE_TEXELS, MAPS_HEADER, HEADER_TILES, HEADER_TILES_BEFORE, PAGE_EMPTY, PAGE_WANTED,
+    PAGE_OVERFLOW, FIRST_SLOT, TILE, tiles_per_side, page_index, pooled_texel_index,
 }
 #import bevy_shadow_fins::cutout::caster_opaque
 
@@ -20,8 +28,79 @@
 
 const WORKGROUP: u32 = 64u;
 
-// Clears the texels `params.redraw` names (the whole maps but on a partial
-// redraw) in every layer.
+fn clear_texel(base: u32) {
+    atomicStore(&maps[base + 0u], INF_BITS);
+    atomicStore(&maps[base + 1u], NO_MIN);
+    atomicStore(&maps[base + 2u], NO_MAX);
+    atomicStore(&maps[base + 3u], NO_MIN);
+    atomicStore(&maps[base + 4u], NO_MAX);
+    for (var c = 5u; c < CHANNELS; c++) {
+        atomicStore(&maps[base + c], INF_BITS);
+    }
+}
+
+fn page_words() -> u32 {
+    let side = tiles_per_side(params);
+    return params.tiles.x * side * side;
+}
+
+// A redraw's first pass, one thread per page word. A full redraw empties
+// the page table and the pool; a partial one keeps both (the texels outside
+// `params.redraw` stay as drawn) and notes where this redraw's tiles start.
+@compute @workgroup_size(64, 1, 1)
+fn reset_tiles(@builtin(global_invocation_id) id: vec3<u32>) {
+    let t = id.x + id.y * 65535u * WORKGROUP;
+    let partial = partial_redraw(params);
+    if (t == 0u) {
+        let before = select(0u, min(atomicLoad(&maps[HEADER_TILES]), params.tiles.y), partial);
+        atomicStore(&maps[HEADER_TILES], before);
+        atomicStore(&maps[HEADER_TILES_BEFORE], before);
+    }
+    if (t < page_words() && !partial) {
+        atomicStore(&maps[MAPS_HEADER + t], PAGE_EMPTY);
+    }
+}
+
+// A texel a primitive writes: its tile is wanted, if it has no slot yet.
+fn mark_tile(layer: u32, x: u32, y: u32) {
+    let page = page_index(params, layer, x, y);
+    // Most texels of a tile find it marked already: load before storing.
+    if (atomicLoad(&maps[page]) == PAGE_EMPTY) {
+        atomicStore(&maps[page], PAGE_WANTED);
+    }
+}
+
+// One thread per page word: each wanted tile takes the next slot of the pool
+// and is cleared; past the pool's end it overflows (its texels read as
+// empty, and the count read back says how many the maps wanted).
+@compute @workgroup_size(64, 1, 1)
+fn allocate_tiles(@builtin(global_invocation_id) id: vec3<u32>) {
+    let t = id.x + id.y * 65535u * WORKGROUP;
+    if (t >= page_words() || atomicLoad(&maps[MAPS_HEADER + t]) != PAGE_WANTED) {
+        return;
+    }
+    let slot = atomicAdd(&maps[HEADER_TILES], 1u);
+    if (slot >= params.tiles.y) {
+        atomicStore(&maps[MAPS_HEADER + t], PAGE_OVERFLOW);
+        return;
+    }
+    let page = FIRST_SLOT + slot;
+    atomicStore(&maps[MAPS_HEADER + t], page);
+    // The slot's texels in order: (x, y) within the tile only matter mod 8.
+    for (var k = 0u; k < TILE_TEXELS; k++) {
+        clear_texel(pooled_texel_index(params, page, k % 8u, k / 8u));
+    }
+}
+
+// The texel's first word, or NONE when its tile has no slot.
+fn drawn_texel(layer: u32, x: u32, y: u32) -> u32 {
+    let page = atomicLoad(&maps[page_index(params, layer, x, y)]);
+    return select(NONE, pooled_texel_index(params, page, x, y), page >= FIRST_SLOT);
+}
+
+// A partial redraw clears the texels `params.redraw` names in every layer's
+// tiles it kept (`allocate_tiles` cleared the ones it added). A full redraw
+// dispatches nothing here (all its tiles are new).
 @compute @workgroup_size(64, 1, 1)
 fn clear_maps(@builtin(global_invocation_id) id: vec3<u32>) {
     let r = params.redraw;
@@ -35,14 +114,11 @@ fn clear_maps(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let k = t % per_layer;
-    let base = texel_index(params, t / per_layer, r.x + k % width, r.z + k / width);
-    atomicStore(&maps[base + 0u], INF_BITS);
-    atomicStore(&maps[base + 1u], NO_MIN);
-    atomicStore(&maps[base + 2u], NO_MAX);
-    atomicStore(&maps[base + 3u], NO_MIN);
-    atomicStore(&maps[base + 4u], NO_MAX);
-    for (var c = 5u; c < CHANNELS; c++) {
-        atomicStore(&maps[base + c], INF_BITS);
+    let x = r.x + k % width;
+    let y = r.z + k / width;
+    let page = atomicLoad(&maps[page_index(params, t / per_layer, x, y)]);
+    if (page >= FIRST_SLOT && page - FIRST_SLOT < atomicLoad(&maps[HEADER_TILES_BEFORE])) {
+        clear_texel(pooled_texel_index(params, page, x, y));
     }
 }
 
@@ -82,8 +158,94 @@ fn fin_index(wg: vec3<u32>) -> u32 {
 const NONE: u32 = 0xffffffffu;
 
 @compute @workgroup_size(64, 1, 1)
-fn raster_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+fn mark_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let i = caster_index(wg);
+    if (i >= params.counts.z) {
+        return;
+    }
+    let c = casters[i];
+    if (c.layer == RETIRED_LAYER) {
+        return;
+    }
+    let corner = vec2<f32>(c.corners[4], c.corners[5]);
+    let hull = array<vec2<f32>, 4>(vec2<f32>(c.corners[0], c.corners[1]), vec2<f32>(c.corners[2], c.corners[3]), corner, corner);
+    mark_hull_tiles(c.layer, hull, false, lane);
+}
+
+// The tile range (x0, x1, y0, y1) holding the texels `texel_range` gives.
+fn tile_range(range: vec4<i32>) -> vec4<u32> {
+    return vec4<u32>(range) / TILE;
+}
+
+// A tile's map-space rectangle (min, max), grown by half a texel so that the
+// tests below stay conservative against the rasters' own tolerances (a
+// texel centre on an edge, `quad_coordinates`' 1e-5).
+fn tile_rect(tx: u32, ty: u32) -> vec4<f32> {
+    let lo = params.map.xy + vec2<f32>(f32(tx * TILE), f32(ty * TILE)) * params.map.z;
+    let pad = 0.5 * params.map.z;
+    return vec4<f32>(lo - pad, lo + f32(TILE) * params.map.z + pad);
+}
+
+// Whether the rectangle lies wholly outside the line a → b on the side away
+// from `inner` (a separating axis of a convex polygon holding `inner`).
+fn outside_edge(rect: vec4<f32>, a: vec2<f32>, b: vec2<f32>, inner: vec2<f32>) -> bool {
+    let e = b - a;
+    let s = cross2(e, inner - a);
+    if (s == 0.0) {
+        return false;
+    }
+    let corners = array<vec2<f32>, 4>(rect.xy, rect.zy, rect.xw, rect.zw);
+    for (var k = 0; k < 4; k++) {
+        if (cross2(e, corners[k] - a) * s >= 0.0) {
+            return false;
+        }
+    }
+    return true;
+}
+
+// Whether a tile's rectangle meets the triangle a b c (separating axes:
+// the rectangle's own are the tile range; then the triangle's edges). A
+// triangle of no area is kept whole (its texels are decided by the raster).
+fn rect_meets_triangle(rect: vec4<f32>, a: vec2<f32>, b: vec2<f32>, c: vec2<f32>) -> bool {
+    let lo = min(a, min(b, c));
+    let hi = max(a, max(b, c));
+    if (any(hi < rect.xy) || any(lo > rect.zw)) {
+        return false;
+    }
+    return !(outside_edge(rect, a, b, c) || outside_edge(rect, b, c, a) || outside_edge(rect, c, a, b));
+}
+
+// Marks the tiles of `layer` that the convex hull of four points meets
+// (`quad`): each of the four triangles of three of them, whose union is the
+// hull, so that any quad, twisted or not, is covered; else the triangle of
+// the first three.
+fn mark_hull_tiles(layer: u32, p: array<vec2<f32>, 4>, quad: bool, lane: u32) {
+    let range = texel_range(min(min(p[0], p[1]), min(p[2], p[3])), max(max(p[0], p[1]), max(p[2], p[3])));
+    if (range.x > range.y || range.z > range.w) {
+        return;
+    }
+    let t = tile_range(range);
+    let w = t.y - t.x + 1u;
+    let count = w * (t.w - t.z + 1u);
+    for (var k = lane; k < count; k += WORKGROUP) {
+        let tx = t.x + k % w;
+        let ty = t.z + k / w;
+        let rect = tile_rect(tx, ty);
+        let meets = rect_meets_triangle(rect, p[0], p[1], p[2]) || (quad && (rect_meets_triangle(rect, p[0], p[1], p[3])
+            || rect_meets_triangle(rect, p[0], p[2], p[3]) || rect_meets_triangle(rect, p[1], p[2], p[3])));
+        if (meets) {
+            mark_tile(layer, tx * TILE, ty * TILE);
+        }
+    }
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn raster_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    draw_caster(caster_index(wg), lane);
+}
+
+// A caster's slab depth into every texel it covers whose tile has a slot.
+fn draw_caster(i: u32, lane: u32) {
     if (i >= params.counts.z) {
         return;
     }
@@ -113,7 +275,10 @@ fn raster_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocatio
         }
         let z = caster_depth_at(c, q, orthographic(params));
         if (z > params.light.y && caster_opaque(c, q, orthographic(params))) {
-            atomicMin(&maps[texel_index(params, c.layer, x, y)], bitcast<u32>(z));
+            let base = drawn_texel(c.layer, x, y);
+            if (base != NONE) {
+                atomicMin(&maps[base], bitcast<u32>(z));
+            }
         }
     }
 }
@@ -210,10 +375,51 @@ fn fin_sample(f: Fin, q: vec2<f32>) -> vec2<f32> {
     return vec2<f32>(0.5 * (1.0 - sqrt(r2) / radius), f.data[7]);
 }
 
+// Marks the tiles every fin may write (before `allocate_tiles`): a quad's
+// by the hull of its four corners, a sector's by its disk.
+@compute @workgroup_size(64, 1, 1)
+fn mark_fins(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let i = fin_index(wg);
+    if (i >= params.counts.w) {
+        return;
+    }
+    let f = fins[i];
+    if (f.header.z == RETIRED_LAYER) {
+        return;
+    }
+    if (f.header.x == 0u) {
+        let m0 = vec2<f32>(f.data[0], f.data[1]);
+        let m1 = vec2<f32>(f.data[2], f.data[3]);
+        let p2 = m0 + vec2<f32>(f.data[4], f.data[5]) * f.data[8];
+        let p3 = m1 + vec2<f32>(f.data[6], f.data[7]) * f.data[9];
+        mark_hull_tiles(f.header.z, array<vec2<f32>, 4>(m0, m1, p2, p3), true, lane);
+        return;
+    }
+    let bounds = fin_bounds(f);
+    let range = texel_range(bounds.xy, bounds.zw);
+    if (range.x > range.y || range.z > range.w) {
+        return;
+    }
+    let center = vec2<f32>(f.data[0], f.data[1]);
+    let radius = f.data[6];
+    let t = tile_range(range);
+    let w = t.y - t.x + 1u;
+    let count = w * (t.w - t.z + 1u);
+    for (var k = lane; k < count; k += WORKGROUP) {
+        let tx = t.x + k % w;
+        let ty = t.z + k / w;
+        let rect = tile_rect(tx, ty);
+        let gap = center - clamp(center, rect.xy, rect.zw);
+        if (dot(gap, gap) <= radius * radius) {
+            mark_tile(f.header.z, tx * TILE, ty * TILE);
+        }
+    }
+}
+
 // Pass 1 of the fins: every fin's key into its side's min and max channels.
 @compute @workgroup_size(64, 1, 1)
 fn raster_fins(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    raster_fin(fin_index(wg), lane, false);
+    raster_fin(fin_index(wg), lane, PASS_KEYS);
 }
 
 // Pass 2: the exact depth of the fins whose key won in pass 1 (the nearest,
@@ -221,10 +427,13 @@ fn raster_fins(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
 // so the comparison sees the final keys: deterministic whatever the order.
 @compute @workgroup_size(64, 1, 1)
 fn raster_fin_depths(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    raster_fin(fin_index(wg), lane, true);
+    raster_fin(fin_index(wg), lane, PASS_DEPTHS);
 }
 
-fn raster_fin(i: u32, lane: u32, depths: bool) {
+const PASS_KEYS: u32 = 1u;
+const PASS_DEPTHS: u32 = 2u;
+
+fn raster_fin(i: u32, lane: u32, pass_kind: u32) {
     if (i >= params.counts.w) {
         return;
     }
@@ -252,10 +461,14 @@ fn raster_fin(i: u32, lane: u32, depths: bool) {
         if (orthographic(params)) {
             s.y = max(s.y, 0.0);
         }
-        let base = texel_index(params, f.header.z, x, y) + channel;
+        let texel = drawn_texel(f.header.z, x, y);
+        if (texel == NONE) {
+            continue;
+        }
+        let base = texel + channel;
         let lo = min_key(params, s.x, s.y);
         let hi = max_key(params, s.x, s.y);
-        if (!depths) {
+        if (pass_kind == PASS_KEYS) {
             atomicMin(&maps[base], lo);
             atomicMax(&maps[base + 1u], hi);
             continue;

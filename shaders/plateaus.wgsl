@@ -5,7 +5,7 @@
 // oracle's hard shadow, evaluated at each pixel instead of drawn into a
 // texture (the same values at the pixels' own points, no texel grid).
 #import bevy_render::view::View
-#import bevy_shadow_fins::fin_types::{FinParams, CHANNELS, orthographic}
+#import bevy_shadow_fins::fin_types::{FinParams, FIRST_SLOT, orthographic, page_index, pooled_texel_index}
 #import bevy_shadow_fins::fin_view::{FinView, prepass_normal, PIXEL_BACKGROUND, PIXEL_OTHER_FACE, pixel_receiver}
 
 // `PlateauUniform` in `frame/plateaus.rs`.
@@ -116,9 +116,12 @@ fn hard_blocked(position: vec3<f32>, normal: vec3<f32>) -> bool {
         return false;
     }
     let limit = p.z * (1.0 - 1e-6);
-    let r = params.counts.x;
     for (var layer = 0u; layer < params.counts.y; layer++) {
-        let slab = bitcast<f32>(maps[((layer * r + u32(t.y)) * r + u32(t.x)) * CHANNELS]);
+        let page = maps[page_index(params, layer, u32(t.x), u32(t.y))];
+        if (page < FIRST_SLOT) {
+            continue;
+        }
+        let slab = bitcast<f32>(maps[pooled_texel_index(params, page, u32(t.x), u32(t.y))]);
         if (slab < limit) {
             return true;
         }

@@ -4,7 +4,8 @@
 // refinement of eq. 5, the overlap rule and the falloff).
 #import bevy_render::view::View
 #import bevy_shadow_fins::fin_types::{
-    FinParams, FinSample, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, texel_index, decode_min_key, decode_max_key,
+    FinParams, FinSample, DEPTH_OF_KEY, NO_MIN, NO_MAX, FIRST_SLOT, page_index, pooled_texel_index, decode_min_key,
+    decode_max_key,
     orthographic, penumbra_half_width,
 }
 #import bevy_shadow_fins::receiver_normal::{clamped_to, receiver_normal}
@@ -131,7 +132,12 @@ fn visibility_pass(@builtin(global_invocation_id) id: vec3<u32>) {
             if (!inside) {
                 break;
             }
-            let base = texel_index(params, layer, u32(t.x), u32(t.y));
+            // A tile that no caster or fin wrote holds nothing.
+            let page = maps[page_index(params, layer, u32(t.x), u32(t.y))];
+            if (page < FIRST_SLOT) {
+                continue;
+            }
+            let base = pooled_texel_index(params, page, u32(t.x), u32(t.y));
             let slab = bitcast<f32>(maps[base]);
             let blocked = slab < limit;
             let inner = side_weight(base, 1u, p.z, true);

@@ -154,9 +154,14 @@ fn lights_past_the_budget_degrade_with_the_reason_in_their_stats() {
             panic!("no degradation reason: {s:?}");
         };
         assert_eq!(limit_bytes, 2 << 20, "the reason names the light's share");
-        let bytes = resolution as u64 * resolution as u64 * layers as u64 * 36;
-        assert!(bytes <= 2 << 20, "{layers} layers at {resolution}² exceed the light's share");
-        assert_eq!(s.gpu_bytes, bytes, "the stats count the maps as allocated");
+        // Sparse maps (`map_tiles`): a header and a page word per 8×8 tile
+        // per layer, then whole tiles of 64 texels × 36 B, never more than
+        // every tile.
+        let all_tiles = layers as u64 * (resolution as u64).div_ceil(8).pow(2);
+        let pool = s.gpu_bytes.checked_sub((4 + all_tiles) * 4).expect("the page table is allocated");
+        assert_eq!(pool % (64 * 36), 0, "the pool holds whole tiles: {} bytes", s.gpu_bytes);
+        assert!(pool / (64 * 36) <= all_tiles, "no more tiles than {layers} layers at {resolution}² have");
+        assert!(s.gpu_bytes <= 2 << 20, "{} bytes exceed the light's share", s.gpu_bytes);
     }
     for v in &shot.light_visibility {
         assert_visibility_not_trivial(v);

@@ -136,3 +136,26 @@ fn a_scene_over_the_buffer_limit_degrades_with_the_reason_in_the_stats() {
         assert!(shot.stats.map_resolution <= 1024);
     }
 }
+
+/// Sparse maps (`frame::map_tiles`): the dense blob fills 16 layers, which
+/// as dense 1024² maps would take 576 MiB, over lavapipe's 128 MiB binding
+/// (they used to drop to 256²). Only the tiles its casters and fins write
+/// are allocated: the maps keep the resolution asked for, nothing is
+/// degraded, and the shadow is the raster oracle's at that resolution.
+#[test]
+fn sixteen_layers_at_1024_keep_their_resolution_in_the_tiles_they_draw() {
+    let setup = setup(SceneId::DenseBlob, FinShadowSettings { map_resolution: 1024, ..settings() });
+    let mut session = Session::new(&setup);
+    let shot = session.settle(8).expect("render");
+    assert_not_trivial(&shot);
+    let s = shot.stats;
+    println!("{} layers at {}², {} MiB: {}", s.layers, s.map_resolution, s.gpu_bytes >> 20, s.degraded);
+    assert!(s.layers >= 12, "the blob fills most layers ({})", s.layers);
+    assert_eq!(s.map_resolution, 1024, "the resolution asked for: {}", s.degraded);
+    assert!(s.degraded.is_empty(), "nothing cut: {}", s.degraded);
+    let dense = s.layers as u64 * 1024 * 1024 * 36;
+    assert!(s.gpu_bytes <= 128 << 20 && s.gpu_bytes * 4 < dense, "{} bytes against {dense} dense", s.gpu_bytes);
+    let (mad, far) = compare(&shot.visibility, &oracle(&setup, Method::MultiLayer));
+    println!("mean |GPU − oracle| {mad:.2e}, {:.1}% off by > 0.1", far * 100.0);
+    assert!(mad <= 0.01 && far <= 0.03, "{mad} / {far}");
+}

@@ -298,6 +298,35 @@ impl BasisLayout {
     }
 }
 
+/// Each frame's share of `total` map bytes, split by need: a frame whose
+/// maps are known to need less than an equal share of what is left gets what
+/// it needs, the others split the rest equally (water-filling). `None`: not
+/// known yet (a first frame, the coverage method's dense lists). No share is
+/// above `cap`, the device's buffer limit.
+pub(crate) fn shares_by_need(total: u64, needs: &[Option<u64>], cap: u64) -> Vec<u64> {
+    let mut known: Vec<(u64, usize)> = needs.iter().enumerate().filter_map(|(i, n)| n.map(|n| (n, i))).collect();
+    known.sort_unstable();
+    let mut shares = vec![0; needs.len()];
+    let (mut left, mut frames) = (total, needs.len() as u64);
+    let mut given = vec![false; needs.len()];
+    for (need, i) in known {
+        if need > left / frames.max(1) {
+            break;
+        }
+        shares[i] = need.min(cap);
+        given[i] = true;
+        left -= need;
+        frames -= 1;
+    }
+    let rest = (left / frames.max(1)).min(cap);
+    for (share, given) in shares.iter_mut().zip(given) {
+        if !given {
+            *share = rest;
+        }
+    }
+    shares
+}
+
 /// Resolution the maps degrade to before they lose layers.
 pub const MIN_DEGRADED_RESOLUTION: u32 = 256;
 /// Resolution below which the maps never go.
@@ -332,7 +361,19 @@ pub(crate) fn allocate_maps(
     limit: u64,
     penumbra_texels: f32,
 ) -> MapAllocation {
-    let bytes = |r: u32, l: u32| l.max(1) as u64 * (r as u64).pow(2) * texel_bytes;
+    let dense = |r: u32, l: u32| l.max(1) as u64 * (r as u64).pow(2) * texel_bytes;
+    allocate_maps_by(resolution, layers, limit, penumbra_texels, dense)
+}
+
+/// [`allocate_maps`] for maps whose `bytes(resolution, layers)` is not one
+/// size per texel: the fin methods' sparse maps (`frame::map_tiles`).
+pub(crate) fn allocate_maps_by(
+    resolution: u32,
+    layers: u32,
+    limit: u64,
+    penumbra_texels: f32,
+    bytes: impl Fn(u32, u32) -> u64,
+) -> MapAllocation {
     let (mut r, mut l) = (resolution.max(MIN_RESOLUTION), layers.max(1));
     let penumbra_at = |r: u32| penumbra_texels * r as f32 / resolution.max(1) as f32;
     while bytes(r, l) > limit
@@ -342,7 +383,10 @@ pub(crate) fn allocate_maps(
         r /= 2;
     }
     while bytes(r, l) > limit && l > 1 {
-        l = (limit / bytes(r, 1)).clamp(1, l as u64 - 1) as u32;
+        // As many layers as fit when a layer's bytes are its share (exact
+        // for dense maps, a first guess for sparse ones: then one less).
+        let fit = (limit / bytes(r, 1).max(1)).clamp(1, l as u64 - 1) as u32;
+        l = if fit < l && bytes(r, fit) <= limit { fit } else { l - 1 };
     }
     while bytes(r, l) > limit && r / 2 >= MIN_RESOLUTION {
         r /= 2;
@@ -456,6 +500,19 @@ mod tests {
             FinDegradation::LongPlateauCell { .. } => 8,
         };
         assert_eq!(index(&FinDegradation::LongPlateauCell { sheets: 0, limit: 0 }) + 1, FinDegradations::MAX);
+    }
+
+    #[test]
+    fn shares_follow_need_and_what_is_left_is_split_equally() {
+        // 90 for three: the small need gets 10, the others split 80.
+        assert_eq!(shares_by_need(90, &[Some(10), None, Some(70)], u64::MAX), vec![10, 40, 40]);
+        // Everyone fits: each gets what it needs, no more.
+        assert_eq!(shares_by_need(90, &[Some(10), Some(20)], u64::MAX), vec![10, 20]);
+        // Nothing known: equal shares, never above the cap.
+        assert_eq!(shares_by_need(90, &[None, None, None], 20), vec![20, 20, 20]);
+        // A frame that needs nothing takes nothing.
+        assert_eq!(shares_by_need(90, &[Some(0), None], u64::MAX), vec![0, 90]);
+        assert!(shares_by_need(90, &[], 5).is_empty());
     }
 
     #[test]

@@ -41,7 +41,8 @@ pub struct FinFrameStats {
     /// The penumbra maps' resolution as allocated.
     pub map_resolution: u32,
     /// GPU memory the light's shadow data needs, bytes: for the fin methods
-    /// the penumbra maps (every layer allocated, 36 bytes a texel) and the
+    /// the sparse penumbra maps as allocated (`frame::map_tiles`: a page
+    /// word per 8×8 tile per layer, then the pool's tiles at 64 × 36 bytes) and the
     /// convolution method's basis; for the coverage method its depth lists
     /// (124 bytes a texel) and every record it uploads. Not counted: the fin
     /// methods' caster and fin records and the extraction's buffers, and the

@@ -4,7 +4,7 @@
 //! budget and the device's buffer limit.
 
 use crate::{
-    budget::{FinDegradation, FinDegradations, allocate_maps},
+    budget::{FinDegradation, FinDegradations, allocate_maps_by},
     casters::CasterScene,
     frame::{coverage::coverage_frame, sun_fit},
     settings::{FinMethod, FinShadowSettings},
@@ -18,8 +18,9 @@ use crate::{
         FinFrameData,
         in_frame::InFrame,
         map_casters::{fit_cutouts, gpu_casters, gpu_fin},
+        map_tiles::{self, TileDemand},
     },
-    gpu_layout::{GpuCaster, GpuFin, MAP_TEXEL_BYTES},
+    gpu_layout::{GpuCaster, GpuFin},
     stats::{FinExtraction, FinFrameStats, warn_degradation},
 };
 use bevy::prelude::*;
@@ -39,6 +40,9 @@ pub(crate) struct LightState {
     pub(crate) capacity_epoch: u64,
     /// What the latest GPU read-back said did not fit (kept into new frames).
     pub(crate) shortfall: FinDegradations,
+    /// How many map tiles the GPU's last redraw wanted (`map_tiles`): the
+    /// next frame's maps are sized by it.
+    pub(crate) tile_demand: Option<TileDemand>,
     /// The reasons last warned about.
     pub(crate) warned: FinDegradations,
     /// A sun's map window in its last frame (`sun_fit::sun_window` keeps it
@@ -206,14 +210,27 @@ pub(crate) fn light_frame(
             // Layers are known to the GPU only (a read-back grows them): the
             // maps hold what the GPU last wanted, at the best resolution that
             // fits, and may grow to the most layers that fit at all.
+            // The maps are sparse: sized by the tiles the last read-back
+            // said the GPU drew; before one, their pool takes what fits.
             let asked = if settings.method == FinMethod::MultiLayer { settings.layers } else { 1 };
-            let most =
-                allocate_maps(settings.map_resolution, asked, MAP_TEXEL_BYTES, limits.map_bytes, penumbra_texels)
-                    .layers;
+            let demand = state.tile_demand;
+            let needed = |r: u32, l: u32| map_tiles::bytes_needed(demand, r, l);
+            let allocate = |layers: u32| {
+                allocate_maps_by(settings.map_resolution, layers, limits.map_bytes, penumbra_texels, needed)
+            };
+            let most = allocate(asked).layers;
             let mut scene = scene;
-            let wanted = scene.capacity.layers.min(most);
-            let alloc =
-                allocate_maps(settings.map_resolution, wanted, MAP_TEXEL_BYTES, limits.map_bytes, penumbra_texels);
+            let alloc = allocate(scene.capacity.layers.min(most));
+            // A frame no caster face reaches (a cube face that sees nothing)
+            // draws no tile: it takes its page table only.
+            let tiles = if scene.totals[1] == 0 {
+                // And says so to the budget's split (`shares_by_need`).
+                state.tile_demand = Some(TileDemand { resolution: alloc.resolution, tiles: 0 });
+                0
+            } else {
+                TileDemand::tiles_at(demand, alloc.resolution, alloc.layers)
+            };
+            let shape = map_tiles::shape_within(alloc.resolution, alloc.layers, tiles, limits.map_bytes);
             scene.capacity.layers = alloc.layers;
             scene.max_capacity.layers = most;
             scene.map_window = in_frame.map_window;
@@ -243,6 +260,7 @@ pub(crate) fn light_frame(
                 fins: Vec::new(),
                 region: MapRegion { min: Vec2::ZERO, texel: 1.0, resolution: alloc.resolution },
                 map_layers: alloc.layers,
+                map_tiles: shape.tiles,
                 limit_bytes: limits.max_buffer,
                 map_limit_bytes: limits.map_bytes,
                 origin: frame.origin(),
@@ -355,6 +373,8 @@ pub(crate) fn coverage_data(
         fins: Vec::new(),
         region: coverage.region,
         map_layers: 1,
+        // The coverage method's lists are its own (`CoverageFrame::gpu_bytes`).
+        map_tiles: 0,
         limit_bytes: limits.max_buffer,
         map_limit_bytes: limits.map_bytes,
         origin: in_frame.frame.origin(),
@@ -388,12 +408,13 @@ pub(crate) fn cpu_frame(
     let mut core = settings.core();
     let mut model = FinShadowModel::new(&scene, &ls, settings.method.into(), core);
     let penumbra_texels = in_frame.widest_penumbra_texels(settings.map_resolution);
-    let mut alloc = allocate_maps(
+    // Sparse maps: the page table must fit first; the tiles are counted below.
+    let mut alloc = allocate_maps_by(
         settings.map_resolution,
         model.plan.len() as u32,
-        MAP_TEXEL_BYTES,
         limits.map_bytes,
         penumbra_texels,
+        |r, l| map_tiles::bytes_needed(None, r, l),
     );
     if (alloc.layers as usize) < model.plan.len() {
         // Fewer layers fit than the plan made: plan again with that many.
@@ -401,8 +422,8 @@ pub(crate) fn cpu_frame(
         model = FinShadowModel::new(&scene, &ls, settings.method.into(), core);
         alloc.layers = alloc.layers.max(model.plan.len() as u32);
     }
-    let bounds = model.casters.iter().map(|c| c.bounds()).chain(model.fins.iter().map(|f| f.bounds()));
-    let region = in_frame.covering(bounds, alloc.resolution);
+    let bounds = || model.casters.iter().map(|c| c.bounds()).chain(model.fins.iter().map(|f| f.bounds()));
+    let mut region = in_frame.covering(bounds(), alloc.resolution);
     let mut degraded = FinDegradations::from(alloc.degradation);
     // What does not fit one buffer is dropped (and said so: the first buffer cut).
     let mut capped = |buffer: &'static str, n: usize, bytes: u64| {
@@ -426,6 +447,54 @@ pub(crate) fn cpu_frame(
     }
     let fins_gpu: Vec<GpuFin> =
         model.fins.iter().take(n_fins).zip(&model.fin_layers).map(|(f, &l)| gpu_fin(f, l)).collect();
+    // The sparse maps' tiles, counted by the primitives' bounds (never fewer
+    // than the GPU marks); past the limit, the resolution halves as the
+    // budget says and they are counted again.
+    let count = |region: &MapRegion| {
+        let tiles = map_tiles::count_tiles(
+            &casters_gpu,
+            &fins_gpu,
+            region.min.into(),
+            region.texel,
+            region.resolution,
+            alloc.layers,
+        );
+        TileDemand { resolution: region.resolution, tiles }
+    };
+    let mut demand = count(&region);
+    let exact = |d: TileDemand| {
+        move |r: u32, l: u32| {
+            // Counted at this resolution: the tiles exactly, no room (nothing
+            // moves between a CPU frame and its maps).
+            let tiles = if r == d.resolution { d.tiles as u64 } else { TileDemand::tiles_at(Some(d), r, l) };
+            map_tiles::MapShape { resolution: r, layers: l.max(1), tiles: tiles as u32 }.bytes()
+        }
+    };
+    for _ in 0..4 {
+        let refit = allocate_maps_by(region.resolution, alloc.layers, limits.map_bytes, f32::INFINITY, exact(demand));
+        if refit.resolution == region.resolution {
+            break;
+        }
+        alloc.resolution = refit.resolution;
+        degraded = degraded.with(FinDegradation::Maps {
+            resolution: refit.resolution,
+            wanted_resolution: settings.map_resolution,
+            layers: alloc.layers,
+            wanted_layers: model.plan.len() as u32,
+            limit_bytes: limits.map_bytes,
+        });
+        region = in_frame.covering(bounds(), alloc.resolution);
+        demand = count(&region);
+    }
+    let shape = map_tiles::shape_within(region.resolution, alloc.layers, demand.tiles as u64, limits.map_bytes);
+    if shape.tiles < demand.tiles {
+        degraded = degraded.with(FinDegradation::Capacity {
+            buffer: "penumbra map tiles",
+            kept: shape.tiles,
+            wanted: demand.tiles,
+            limit_bytes: limits.map_bytes,
+        });
+    }
     let stats = FinFrameStats {
         casters: scene.objects.iter().filter(|o| o.casts_shadows).count(),
         triangles: scene.triangle_count(),
@@ -454,6 +523,7 @@ pub(crate) fn cpu_frame(
         fins: fins_gpu,
         region,
         map_layers: alloc.layers,
+        map_tiles: shape.tiles,
         limit_bytes: limits.max_buffer,
         map_limit_bytes: limits.map_bytes,
         origin: ls.frame.origin(),

@@ -37,6 +37,7 @@ pub(crate) mod coverage;
 pub(crate) mod in_frame;
 pub(crate) mod lights;
 pub(crate) mod map_casters;
+pub(crate) mod map_tiles;
 pub(crate) mod plateaus;
 pub(crate) mod sun_fit;
 pub(crate) mod update;
@@ -56,6 +57,9 @@ pub struct FinFrameData {
     /// Map layers allocated (what fits the budget; the GPU merges the deepest
     /// layers beyond it).
     pub(crate) map_layers: u32,
+    /// Tiles the sparse maps' pool holds (`map_tiles`): what the frame
+    /// wants, or what fits while that is unknown.
+    pub(crate) map_tiles: u32,
     /// The largest buffer this frame was built for, bytes.
     pub(crate) limit_bytes: u64,
     /// The most the penumbra maps may take, bytes (`FinShadowBudget::map_bytes`).
@@ -93,15 +97,19 @@ pub struct FinFrameData {
 }
 
 impl FinFrameData {
-    /// Texels of the penumbra maps as allocated (every layer; at least one
-    /// layer, which the GPU extraction may fill).
-    pub(crate) fn map_texels(&self) -> u64 {
-        self.map_layers.max(1) as u64 * (self.region.resolution as u64).pow(2)
+    /// The sparse maps' layout as allocated (at least one layer, which the
+    /// GPU extraction may fill).
+    pub(crate) fn map_shape(&self) -> map_tiles::MapShape {
+        map_tiles::MapShape {
+            resolution: self.region.resolution,
+            layers: self.map_layers.max(1),
+            tiles: self.map_tiles,
+        }
     }
 
     /// Bytes of the penumbra maps as allocated.
     pub(crate) fn map_bytes(&self) -> u64 {
-        self.map_texels() * crate::gpu_layout::MAP_TEXEL_BYTES
+        self.map_shape().bytes()
     }
 
     /// A point light's sphere radius (the frame's `size` is the circle

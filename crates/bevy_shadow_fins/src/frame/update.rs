@@ -298,16 +298,34 @@ pub(crate) fn update_fin_frames(
         .collect();
     cache.lights.retain(|key, _| sources.iter().any(|(_, s, face)| (s.entity, *face) == *key));
 
+    // The maps' budget is split between the frames by need: what each
+    // one's sparse maps last wanted (a face that sees nothing: its page
+    // table), the rest equally.
+    let max_buffer = device.max_buffer(&budget);
+    let needs: Vec<Option<u64>> = sources
+        .iter()
+        .map(|(_, source, face)| {
+            // The convolution basis shares the budget too: its frames split equally.
+            if source.settings.method == crate::settings::FinMethod::Convolution {
+                return None;
+            }
+            let demand = cache.lights.get(&(source.entity, *face))?.tile_demand?;
+            let (resolution, layers) = (source.settings.map_resolution, source.settings.layers);
+            Some(crate::frame::map_tiles::bytes_needed(Some(demand), resolution, layers))
+        })
+        .collect();
+    let shares = crate::budget::shares_by_need(budget.map_bytes, &needs, max_buffer);
     let mut scene_caught_up = false;
     let mut next = Vec::with_capacity(sources.len());
     let mut changed = frames.0.len() != sources.len();
-    for &(layer, source, face) in &sources {
+    for (&(layer, source, face), &map_bytes) in sources.iter().zip(&shares) {
         let key = (source.entity, face);
         // The light's own part of its frame's signature: it, its settings,
         // the budget and how many lights share it.
         let mut hasher = std::collections::hash_map::DefaultHasher::new();
         budget.hash(&mut hasher);
         sources.len().hash(&mut hasher);
+        map_bytes.hash(&mut hasher);
         let state = cache.lights.entry(key).or_default();
         state.window = source.window;
         state.capacity_epoch.hash(&mut hasher);
@@ -349,9 +367,6 @@ pub(crate) fn update_fin_frames(
             catch_up(scene, &mut changes.kept.pending, &mut sources, &mut changes.updates);
             scene_caught_up = true;
         }
-        let max_buffer = device.max_buffer(&budget);
-        // The maps' budget is shared equally between the frames.
-        let map_bytes = (budget.map_bytes / sources.len().max(1) as u64).min(max_buffer);
         let limits = FrameLimits { max_buffer, map_bytes };
         cache.generation += 1;
         let generation = cache.generation;

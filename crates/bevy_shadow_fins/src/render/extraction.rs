@@ -23,7 +23,7 @@ use bevy::{
 use crate::{
     budget::{FinDegradation, FinDegradations},
     casters::gpu_scene::{GpuCapacity, GpuInstance, GpuScene},
-    frame::{FinFrameData, FinFrames, MAX_FIN_FRAMES, update::MeshCache},
+    frame::{FinFrameData, FinFrames, MAX_FIN_FRAMES, map_tiles::TileDemand, update::MeshCache},
     settings::FinMethod,
     stats::{FinFrameStats, FinLightStats},
 };
@@ -31,8 +31,8 @@ use shadow_fins::light::Aperture;
 
 /// `control` buffer layout (u32 words), as in `extract.wgsl`.
 pub(super) const C_PARAMS: u64 = 16;
-/// The maps' `FinParams`, bytes.
-const PARAMS_BYTES: u64 = size_of::<crate::render::params::FinParams>() as u64;
+/// The maps' `FinParams` the extraction writes, bytes.
+const PARAMS_BYTES: u64 = crate::render::params::GPU_WRITTEN_BYTES;
 pub(super) const C_ARGS_CLEAR: u64 = 56;
 pub(super) const C_ARGS_CASTERS: u64 = 59;
 pub(super) const C_ARGS_FINS: u64 = 62;
@@ -125,9 +125,14 @@ struct StatsReadback;
 #[derive(Resource, Clone, ExtractResource)]
 pub(crate) struct FinStatsBuffer(Handle<ShaderBuffer>);
 
+/// Words per frame slot of the stats buffer: the extraction's counts, then
+/// the tiles its maps wanted (`maps.wgsl`'s header, `map_tiles`).
+const SLOT_WORDS: u64 = STATS_WORDS + 1;
+const SLOT_TILES: usize = STATS_WORDS as usize;
+
 /// Byte offset of frame slot `slot` in the stats buffer.
 pub(super) fn stats_offset(slot: usize) -> u64 {
-    slot as u64 * STATS_WORDS * 4
+    slot as u64 * SLOT_WORDS * 4
 }
 
 fn spawn_stats_readback(mut commands: Commands, mut buffers: ResMut<Assets<ShaderBuffer>>) {
@@ -175,8 +180,8 @@ fn on_stats_readback(
     let words: Vec<u32> = readback.data.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
     let mut any = false;
     for (slot, frame) in frames.0.iter().enumerate() {
-        let at = slot * STATS_WORDS as usize;
-        let Some(w) = words.get(at..at + STATS_WORDS as usize) else { continue };
+        let at = slot * SLOT_WORDS as usize;
+        let Some(w) = words.get(at..at + SLOT_WORDS as usize) else { continue };
         let Some(state) = cache.lights.get_mut(&frame.key()) else { continue };
         if let Some(now) = stats_of_readback(&frame.data, w, state) {
             any |= state.stats != now;
@@ -220,6 +225,27 @@ fn stats_of_readback(
             FinDegradation::Capacity { buffer, kept, wanted, limit_bytes: f.limit_bytes }
         }))
         .with(layers_cut);
+    // The sparse maps: the tiles this redraw wanted, past the pool's end
+    // too (those were dropped: the next frame is sized for them).
+    let tiles = TileDemand { resolution: f.region.resolution, tiles: w[SLOT_TILES] };
+    let pool = f.map_tiles;
+    let overflowed = tiles.tiles > pool;
+    // Grow when they did not fit, shrink when they would fit in half; else
+    // the pool keeps its size, so that the next frame may redraw in part.
+    let resize = overflowed || TileDemand::tiles_at(Some(tiles), tiles.resolution, f.map_layers) < pool as u64 / 2;
+    let rebuild = resize && state.tile_demand != Some(tiles);
+    if rebuild {
+        state.tile_demand = Some(tiles);
+        state.capacity_epoch += 1;
+    }
+    let shortfall = shortfall.with(overflowed.then_some(FinDegradation::Capacity {
+        buffer: "penumbra map tiles",
+        kept: pool,
+        wanted: tiles.tiles,
+        limit_bytes: f.map_limit_bytes,
+    }));
+    // A frame sized anew follows: this one is not what the light will show.
+    let grown = grown.or(rebuild.then_some(gpu.capacity));
     if grown.is_none() {
         state.shortfall = shortfall;
     }
@@ -747,6 +773,12 @@ pub(super) fn record(
     buffers.recorded = true;
     buffers.pose_pending = false;
     true
+}
+
+/// Copies the tiles a frame's maps wanted (their header's first word,
+/// `maps.wgsl`) into its read-back slot, after the extraction's counts.
+pub(super) fn copy_tile_count(maps: &Buffer, stats: &Buffer, offset: u64, encoder: &mut CommandEncoder) {
+    encoder.copy_buffer_to_buffer(maps, 0, stats, offset + SLOT_TILES as u64 * 4, 4);
 }
 
 /// Copies the extraction's counts (`control`'s first words) into a frame's

@@ -1,7 +1,10 @@
 //! The fin methods' penumbra maps (`shaders/maps.wgsl`): per light frame,
 //! the uploads (or the GPU extraction, `extraction.rs`), then each layer's
 //! slab depth, inner and outer fin weights rasterised (eq. 1), only when
-//! the frame changed; redrawn in part under moved casters.
+//! the frame changed; redrawn in part under moved casters. The maps are
+//! sparse (`frame::map_tiles`): each redraw resets the page table, marks
+//! the tiles its casters and fins write, allocates and clears those, then
+//! draws; the tiles it wanted go back with the read-back.
 
 use std::sync::Arc;
 
@@ -38,6 +41,10 @@ use crate::{
 pub(crate) struct FinPipelines {
     pub(crate) maps_layout: BindGroupLayoutDescriptor,
     pub(crate) view_layout: BindGroupLayoutDescriptor,
+    pub(crate) reset_tiles: CachedComputePipelineId,
+    pub(crate) mark_casters: CachedComputePipelineId,
+    pub(crate) mark_fins: CachedComputePipelineId,
+    pub(crate) allocate_tiles: CachedComputePipelineId,
     pub(crate) clear: CachedComputePipelineId,
     pub(crate) casters: CachedComputePipelineId,
     pub(crate) fins: CachedComputePipelineId,
@@ -88,6 +95,10 @@ pub(crate) fn init_pipelines(
     let visibility_shader = load_embedded_asset!(asset_server.as_ref(), "shaders/visibility.wgsl");
     let compute = |label, layout: &_, shader: &_, entry| queue_compute(&pipeline_cache, label, layout, shader, entry);
     commands.insert_resource(FinPipelines {
+        reset_tiles: compute("fin_reset_tiles", &maps_layout, &maps_shader, "reset_tiles"),
+        mark_casters: compute("fin_mark_casters", &maps_layout, &maps_shader, "mark_casters"),
+        mark_fins: compute("fin_mark_fins", &maps_layout, &maps_shader, "mark_fins"),
+        allocate_tiles: compute("fin_allocate_tiles", &maps_layout, &maps_shader, "allocate_tiles"),
         clear: compute("fin_clear_maps", &maps_layout, &maps_shader, "clear_maps"),
         casters: compute("fin_raster_casters", &maps_layout, &maps_shader, "raster_casters"),
         fins: compute("fin_raster_fins", &maps_layout, &maps_shader, "raster_fins"),
@@ -122,7 +133,11 @@ pub(crate) struct FinMapsGpu {
     /// The read-back slot its counts were last copied into.
     pub(crate) stats_slot: Option<usize>,
     pub(crate) bind_group: Option<BindGroup>,
+    /// Casters, fins, and the page table's words (`map_tiles`).
     pub(crate) counts: (u32, u32, u64),
+    /// The layout the maps buffer holds: a partial redraw keeps its
+    /// contents only under the same one.
+    pub(crate) shape: crate::frame::map_tiles::MapShape,
     /// How many times the map passes have drawn these maps (what the
     /// convolution method's basis was built from, `convolution.rs`).
     pub(crate) renders: u64,
@@ -193,7 +208,7 @@ pub(crate) fn prepare_light_maps(
     let mut params = params_of(f);
     // The main world sized the maps to fit the budget and the device
     // (`budget::allocate_maps`); GPU extraction uses up to `map_layers`.
-    let (texels, resolution) = (f.map_texels(), f.region.resolution);
+    let (shape, resolution) = (f.map_shape(), f.region.resolution);
     let maps_size = f.map_bytes().max(16);
     if maps_size > device.limits().max_storage_buffer_binding_size {
         warn_once!("fin shadows: {maps_size}-byte maps exceed this GPU's storage binding limit; no fin shadows");
@@ -209,7 +224,8 @@ pub(crate) fn prepare_light_maps(
     let old_maps = gpu.maps.as_ref().map(|b| b.id());
     ensure(&mut gpu.maps, device, "fin_maps", maps_size, storage | BufferUsages::COPY_SRC, cap.min(f.map_limit_bytes));
     // New maps hold nothing a partial redraw could keep.
-    let maps_kept = scope.partial_redraw && old_maps == gpu.maps.as_ref().map(|b| b.id());
+    let maps_kept = scope.partial_redraw && old_maps == gpu.maps.as_ref().map(|b| b.id()) && gpu.shape == shape;
+    gpu.shape = shape;
     let (caster_bytes, fin_bytes) = match &f.gpu {
         Some(scene) => (
             scene.capacity.casters as u64 * extraction::CASTER_BYTES,
@@ -243,6 +259,9 @@ pub(crate) fn prepare_light_maps(
     };
     match (&f.gpu, gpu.mode) {
         (Some(scene), MapsSource::Gpu) => {
+            // The extraction writes every params word but the maps' shape.
+            let tiles_at = crate::render::params::GPU_WRITTEN_BYTES;
+            queue.write_buffer(gpu.params.as_ref().unwrap(), tiles_at, bytemuck::bytes_of(&params.tiles));
             let FinMapsGpu { extraction, fins, casters, .. } = gpu;
             extraction::prepare(
                 extraction,
@@ -300,7 +319,7 @@ pub(crate) fn prepare_light_maps(
             )),
         ),
     );
-    gpu.counts = (f.casters.len() as u32, f.fins.len() as u32, texels);
+    gpu.counts = (f.casters.len() as u32, f.fins.len() as u32, shape.page_words());
     gpu.generation = f.generation;
     gpu.dirty = true;
 }
@@ -334,6 +353,9 @@ pub(crate) fn render_maps(
             // The lights changed order since: its counts follow it to its new
             // slot, where a read-back still waiting for them looks.
             extraction::copy_stats(control, stats, offset, ctx.command_encoder());
+            if let Some(maps) = gpu.maps.as_ref() {
+                extraction::copy_tile_count(maps, stats, offset, ctx.command_encoder());
+            }
             gpu.stats_slot = Some(slot);
         }
     }
@@ -351,15 +373,24 @@ pub(crate) fn render_light_maps(
         return;
     }
     let Some(bind_group) = gpu.bind_group.clone() else { return };
-    let (Some(clear), Some(casters), Some(fins), Some(fin_depths)) = (
-        pipeline_cache.get_compute_pipeline(pipelines.clear),
-        pipeline_cache.get_compute_pipeline(pipelines.casters),
-        pipeline_cache.get_compute_pipeline(pipelines.fins),
-        pipeline_cache.get_compute_pipeline(pipelines.fin_depths),
+    let get = |id| pipeline_cache.get_compute_pipeline(id);
+    let (Some(reset), Some(mark_casters), Some(mark_fins), Some(allocate)) = (
+        get(pipelines.reset_tiles),
+        get(pipelines.mark_casters),
+        get(pipelines.mark_fins),
+        get(pipelines.allocate_tiles),
     ) else {
         return;
     };
-    let (n_casters, n_fins, texels) = gpu.counts;
+    let (Some(casters), Some(fins), Some(fin_depths)) =
+        (get(pipelines.casters), get(pipelines.fins), get(pipelines.fin_depths))
+    else {
+        return;
+    };
+    let (n_casters, n_fins, page_words) = gpu.counts;
+    // The page table's passes, one thread per word (and thread 0 at least,
+    // which resets the header).
+    let pages = workgroups((page_words as u32).max(1).div_ceil(WORKGROUP));
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
     match gpu.mode {
@@ -370,6 +401,8 @@ pub(crate) fn render_light_maps(
         }
         MapsSource::Gpu => {
             let (Some(params), Some(control)) = (gpu.params.clone(), gpu.extraction.indirect.clone()) else { return };
+            // Only a partial redraw clears (the tiles it kept).
+            let Some(clear) = get(pipelines.clear) else { return };
             let span = diagnostics.time_span(ctx.command_encoder(), "fin_shadows/extraction");
             let recorded = extraction::record(
                 &mut gpu.extraction,
@@ -390,6 +423,16 @@ pub(crate) fn render_light_maps(
                     timestamp_writes: None,
                 });
                 pass.set_bind_group(0, &bind_group, &[]);
+                pass.set_pipeline(reset);
+                pass.dispatch_workgroups(pages.0, pages.1, 1);
+                for (pipeline, args) in
+                    [(mark_casters, extraction::C_ARGS_CASTERS), (mark_fins, extraction::C_ARGS_FINS)]
+                {
+                    pass.set_pipeline(pipeline);
+                    pass.dispatch_workgroups_indirect(&control, args * 4);
+                }
+                pass.set_pipeline(allocate);
+                pass.dispatch_workgroups(pages.0, pages.1, 1);
                 for (pipeline, args) in [
                     (clear, extraction::C_ARGS_CLEAR),
                     (casters, extraction::C_ARGS_CASTERS),
@@ -399,6 +442,10 @@ pub(crate) fn render_light_maps(
                     pass.set_pipeline(pipeline);
                     pass.dispatch_workgroups_indirect(&control, args * 4);
                 }
+            }
+            // The tiles the maps wanted go back with the extraction's counts.
+            if let (Some((stats, offset)), Some(maps)) = (stats, gpu.maps.as_ref()) {
+                extraction::copy_tile_count(maps, stats, offset, ctx.command_encoder());
             }
             span.end(ctx.command_encoder());
             gpu.dirty = false;
@@ -413,23 +460,30 @@ pub(crate) fn render_light_maps(
             .command_encoder()
             .begin_compute_pass(&ComputePassDescriptor { label: Some("fin_penumbra_maps"), timestamp_writes: None });
         pass.set_bind_group(0, &bind_group, &[]);
-        if texels > 0 {
-            pass.set_pipeline(clear);
-            let (x, y) = workgroups((texels as u32).div_ceil(WORKGROUP));
-            pass.dispatch_workgroups(x, y, 1);
-        }
+        // Always a full redraw: no clear (`allocate_tiles` clears each new tile).
+        pass.set_pipeline(reset);
+        pass.dispatch_workgroups(pages.0, pages.1, 1);
+        let (caster_groups, fin_groups) = (workgroups(n_casters), workgroups(n_fins));
         if n_casters > 0 {
-            pass.set_pipeline(casters);
-            let (x, y) = workgroups(n_casters);
-            pass.dispatch_workgroups(x, y, 1);
+            pass.set_pipeline(mark_casters);
+            pass.dispatch_workgroups(caster_groups.0, caster_groups.1, 1);
         }
         if n_fins > 0 {
-            let (x, y) = workgroups(n_fins);
+            pass.set_pipeline(mark_fins);
+            pass.dispatch_workgroups(fin_groups.0, fin_groups.1, 1);
+        }
+        pass.set_pipeline(allocate);
+        pass.dispatch_workgroups(pages.0, pages.1, 1);
+        if n_casters > 0 {
+            pass.set_pipeline(casters);
+            pass.dispatch_workgroups(caster_groups.0, caster_groups.1, 1);
+        }
+        if n_fins > 0 {
             // Keys first, then the exact depths of the winners (a second
             // dispatch, so that it compares against final keys).
             for pipeline in [fins, fin_depths] {
                 pass.set_pipeline(pipeline);
-                pass.dispatch_workgroups(x, y, 1);
+                pass.dispatch_workgroups(fin_groups.0, fin_groups.1, 1);
             }
         }
     }

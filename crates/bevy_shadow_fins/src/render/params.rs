@@ -18,7 +18,15 @@ pub(crate) struct FinParams {
     /// The texels the map passes redraw, inclusive (x0, x1, y0, y1): the
     /// whole maps, but on the GPU extraction's partial redraw.
     pub(crate) redraw: [u32; 4],
+    /// The sparse maps' shape (`map_tiles`): (layers in the page table,
+    /// tiles in the pool, 0, 0). The CPU writes it on both paths; the GPU
+    /// extraction's copy of its params stops before it ([`GPU_WRITTEN_BYTES`]).
+    pub(crate) tiles: [u32; 4],
 }
+
+/// The bytes of [`FinParams`] the GPU extraction writes (its `FinParams`
+/// words in `control`, `extract.wgsl`): all but `tiles`.
+pub(crate) const GPU_WRITTEN_BYTES: u64 = std::mem::offset_of!(FinParams, tiles) as u64;
 
 pub(crate) const WORKGROUP: u32 = 64;
 
@@ -59,6 +67,10 @@ pub(crate) fn params_of(f: &FinFrameData) -> FinParams {
         redraw: {
             let last = f.region.resolution.max(1) - 1;
             [0, last, 0, last]
+        },
+        tiles: {
+            let shape = f.map_shape();
+            [shape.layers, shape.tiles, 0, 0]
         },
     }
 }
