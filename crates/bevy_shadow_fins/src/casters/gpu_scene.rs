@@ -58,11 +58,11 @@ pub(crate) struct GpuCapacity {
 
 impl GpuCapacity {
     /// A first guess for a scene: silhouettes are a small share of a big
-    /// scene's edges. With the quarter of room [`Self::grown_for`] keeps, so
+    /// scene's edges. With the quarter of room [`Self::resized_for`] keeps, so
     /// that a small scene of open or masked meshes (every face a caster,
     /// nearly every outline edge a silhouette) does not grow, and extract
     /// again, on its first read-back.
-    fn initial(faces: u32, edges: u32) -> Self {
+    pub(crate) fn initial(faces: u32, edges: u32) -> Self {
         let room = |n: u32| n.saturating_add(n / 4);
         let silhouettes = room(edges).min(4096 + edges / 16).max(64);
         Self { silhouettes, fins: 4 * silhouettes + 64, casters: room(faces).saturating_add(64), layers: 1 }
@@ -77,20 +77,31 @@ impl GpuCapacity {
         }
     }
 
-    /// Grown to hold what a read-back says a frame wanted, with a quarter
-    /// more room, but never past `max`; `None` if it already holds all it
-    /// may. (The room is for the records an incremental update retires and
-    /// appends again, `extract.wgsl`: a buffer the live records fill has
-    /// none, and every update would extract everything. An alpha-masked
-    /// card's outline is nearly all silhouettes.)
-    pub fn grown_for(self, wanted: Self, max: Self) -> Option<Self> {
-        let grow = |have: u32, want: u32, max: u32| {
-            if want.saturating_add(want / 4) > have { want.saturating_add(want / 2).min(max).max(have) } else { have }
+    /// Resized to what a read-back says a frame wanted. Grown, with a
+    /// quarter more room, when the frame needed more than its capacity minus
+    /// that room, but never past `max`. (The room is for the records an
+    /// incremental update retires and appends again, `extract.wgsl`: a
+    /// buffer the live records fill has none, and every update would extract
+    /// everything. An alpha-masked card's outline is nearly all silhouettes.)
+    /// Shrunk to half as much again as wanted when that is under a quarter of
+    /// the capacity (a scene that got smaller), but never below `floor`, the
+    /// scene's first guess ([`Self::initial`], which a build takes at least).
+    /// Layers only grow. `None` if nothing changes.
+    pub fn resized_for(self, wanted: Self, floor: Self, max: Self) -> Option<Self> {
+        let fit = |have: u32, want: u32, floor: u32, max: u32| {
+            let roomy = want.saturating_add(want / 2);
+            if want.saturating_add(want / 4) > have {
+                roomy.min(max).max(have)
+            } else if roomy < have / 4 {
+                roomy.max(floor).min(have)
+            } else {
+                have
+            }
         };
         let next = Self {
-            silhouettes: grow(self.silhouettes, wanted.silhouettes, max.silhouettes),
-            fins: grow(self.fins, wanted.fins, max.fins),
-            casters: grow(self.casters, wanted.casters, max.casters),
+            silhouettes: fit(self.silhouettes, wanted.silhouettes, floor.silhouettes, max.silhouettes),
+            fins: fit(self.fins, wanted.fins, floor.fins, max.fins),
+            casters: fit(self.casters, wanted.casters, floor.casters, max.casters),
             // Layers exactly: each one is a full set of maps.
             layers: self.layers.max(wanted.layers.min(max.layers)),
         };
@@ -490,15 +501,23 @@ mod tests {
     use shadow_fins::shapes;
 
     #[test]
-    fn capacity_grows_past_what_a_frame_wanted_and_never_shrinks() {
+    fn capacity_grows_past_what_a_frame_wanted_and_shrinks_when_the_scene_got_smaller() {
         let have = GpuCapacity { silhouettes: 100, fins: 400, casters: 1000, layers: 2 };
         let max = GpuCapacity::max_for(1 << 30);
-        assert_eq!(have.grown_for(GpuCapacity { silhouettes: 80, fins: 10, casters: 0, layers: 2 }, max), None);
+        let floor = GpuCapacity { silhouettes: 64, fins: 64, casters: 64, layers: 1 };
+        let want = |silhouettes, fins, casters, layers| GpuCapacity { silhouettes, fins, casters, layers };
+        assert_eq!(have.resized_for(want(80, 200, 700, 2), floor, max), None);
         // Full to the last record: no room to retire and append in.
-        let full = have.grown_for(GpuCapacity { silhouettes: 100, fins: 10, casters: 0, layers: 2 }, max).unwrap();
+        let full = have.resized_for(want(100, 200, 700, 2), floor, max).unwrap();
         assert_eq!(full.silhouettes, 150);
-        let grown = have.grown_for(GpuCapacity { silhouettes: 300, fins: 10, casters: 0, layers: 5 }, max).unwrap();
+        let grown = have.resized_for(want(300, 200, 700, 5), floor, max).unwrap();
         assert_eq!(grown, GpuCapacity { silhouettes: 450, fins: 400, casters: 1000, layers: 5 });
+        // Far less wanted: down to half as much again, never below the floor;
+        // layers stay.
+        let shrunk = have.resized_for(want(80, 10, 100, 1), floor, max).unwrap();
+        assert_eq!(shrunk, GpuCapacity { silhouettes: 100, fins: 64, casters: 150, layers: 2 });
+        // Shrunk capacity is stable for the same want.
+        assert_eq!(shrunk.resized_for(want(80, 10, 100, 1), floor, max), None);
     }
 
     #[test]
@@ -508,10 +527,10 @@ mod tests {
         assert_eq!(max.silhouettes, 585);
         let have = GpuCapacity { silhouettes: 100, fins: 400, casters: 1000, layers: 1 };
         let wanted = GpuCapacity { silhouettes: 5000, fins: 10, casters: 0, layers: 1 };
-        let grown = have.grown_for(wanted, max).unwrap();
+        let grown = have.resized_for(wanted, GpuCapacity::initial(0, 0), max).unwrap();
         assert_eq!(grown.silhouettes, 585);
         // At the limit a frame that still wants more grows no further: no endless redo.
-        assert_eq!(grown.grown_for(wanted, max), None);
+        assert_eq!(grown.resized_for(wanted, GpuCapacity::initial(0, 0), max), None);
         assert_eq!(grown.shortfalls(wanted).collect::<Vec<_>>(), vec![("silhouettes", 585, 5000)]);
     }
 

@@ -207,7 +207,10 @@ fn stats_of_readback(
         return None;
     }
     let wanted = GpuCapacity { silhouettes: w[0], fins: w[1], casters: w[2], layers: w[10] };
-    let grown = gpu.capacity.grown_for(wanted, gpu.max_capacity);
+    // Grown when the frame overflowed, shrunk when the scene got smaller
+    // (never below the first guess a build takes anyway).
+    let floor = GpuCapacity::initial(gpu.totals[1], gpu.totals[2]);
+    let grown = gpu.capacity.resized_for(wanted, floor, gpu.max_capacity);
     if let Some(next) = grown {
         state.capacity = Some(next);
         state.capacity_epoch += 1;
