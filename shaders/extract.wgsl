@@ -207,6 +207,9 @@ const H_KEPT: u32 = 76u;
 const H_UNION: u32 = 85u;
 const H_DIRTY_ITEMS: u32 = 88u; // the listed instances' vertices, faces, edges
 const H_EPOCH: u32 = 91u; // counts updates; an instance listed this update is marked with it
+// The maps' header after their last redraw (tiles wanted, before, pool;
+// `maps.wgsl`), copied here by the render world (`extraction::copy_tile_header`).
+const H_TILES: u32 = 92u;
 const H_INSTANCES: u32 = 96u; // INSTANCE_WORDS per instance, then MAX_DIRTY
                               // dirty entries, then the redraw lists
 // Per instance: its footprint (ordered keys: min x, min y, max x, max y),
@@ -1564,6 +1567,17 @@ fn plan_layers() {
 // Full or partial redraw (see the top of this file): writes the texels to
 // redraw, inclusive (x0, x1, y0, y1), into the maps' `FinParams.redraw`, and
 // keeps this frame's plan for the next. `p`: the plan's first 32 words.
+// The sparse maps' pool kept an eighth free in their last redraw (it is
+// sized with a fifth free, `map_tiles::TileDemand::tiles_at`). A partial
+// redraw never frees a tile (those it no longer draws stay allocated), so a
+// pool filling up, or one that overflowed, is emptied by a full redraw.
+// `maps.wgsl` says 0xffffffff for a pool of every tile, which cannot overflow.
+fn tiles_to_spare() -> bool {
+    let used = atomicLoad(&control[h(H_TILES)]);
+    let pool = atomicLoad(&control[h(H_TILES + 2u)]);
+    return pool == 0u || pool == 0xffffffffu || used <= pool - pool / 8u;
+}
+
 fn plan_redraw(p: array<u32, 32>, region_min: vec2<f32>, texel: f32, resolution: u32) -> vec4<u32> {
     let full_rect = vec4<u32>(0u, resolution - 1u, 0u, resolution - 1u);
     var partial = atomicLoad(&control[h(H_DIRTY_COUNT)]) != FULL && atomicLoad(&control[h(H_VALID)]) == 1u;
@@ -1585,7 +1599,8 @@ fn plan_redraw(p: array<u32, 32>, region_min: vec2<f32>, texel: f32, resolution:
         && atomicLoad(&control[C_CURSORS + C_FINS]) <= params.capacity.y
         && atomicLoad(&control[C_CURSORS + C_CASTERS]) <= params.capacity.z
         && atomicLoad(&control[C_LAYERS_WANTED]) <= params.layering.z
-        && atomicLoad(&control[C_UNBOUNDED]) == 0u;
+        && atomicLoad(&control[C_UNBOUNDED]) == 0u
+        && tiles_to_spare();
     atomicStore(&control[h(H_VALID)], select(0u, 1u, complete));
     partial = partial && complete;
     var rect = full_rect;

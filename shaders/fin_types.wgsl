@@ -152,6 +152,9 @@ const TILE_TEXELS: u32 = 64u;
 const MAPS_HEADER: u32 = 4u;
 const HEADER_TILES: u32 = 0u;
 const HEADER_TILES_BEFORE: u32 = 1u;
+// The pool's size in tiles (`tiles.y`), for the extraction's next plan: the
+// header goes back to its `history` after each redraw (`extract.wgsl`).
+const HEADER_POOL: u32 = 2u;
 const PAGE_EMPTY: u32 = 0u;
 const PAGE_WANTED: u32 = 1u;
 const PAGE_OVERFLOW: u32 = 2u;

@@ -11,7 +11,7 @@
 #import bevy_shadow_fins::fin_types::{
     FinParams, Caster, Fin, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, INF_BITS, min_key, max_key, texel_center,
     cross2, orthographic, caster_depth_at, fin_bounds, partial_redraw, CONTROL_LIST_CASTERS, CONTROL_LIST_FINS,
-    RETIRED_LAYER, TILE_TEXELS, MAPS_HEADER, HEADER_TILES, HEADER_TILES_BEFORE, PAGE_EMPTY, PAGE_WANTED,
+    RETIRED_LAYER, TILE_TEXELS, MAPS_HEADER, HEADER_TILES, HEADER_TILES_BEFORE, HEADER_POOL, PAGE_EMPTY, PAGE_WANTED,
     PAGE_OVERFLOW, FIRST_SLOT, TILE, tiles_per_side, page_index, pooled_texel_index,
 }
 #import bevy_shadow_fins::cutout::caster_opaque
@@ -52,9 +52,13 @@ fn reset_tiles(@builtin(global_invocation_id) id: vec3<u32>) {
     let t = id.x + id.y * 65535u * WORKGROUP;
     let partial = partial_redraw(params);
     if (t == 0u) {
-        let before = select(0u, min(atomicLoad(&maps[HEADER_TILES]), params.tiles.y), partial);
+        // Not clamped to the pool: past it, the count is still what the maps want.
+        let before = select(0u, atomicLoad(&maps[HEADER_TILES]), partial);
         atomicStore(&maps[HEADER_TILES], before);
         atomicStore(&maps[HEADER_TILES_BEFORE], before);
+        // A pool of every tile cannot overflow, however many a partial
+        // redraw leaves allocated: no limit for the next plan.
+        atomicStore(&maps[HEADER_POOL], select(params.tiles.y, 0xffffffffu, params.tiles.y >= page_words()));
     }
     if (t < page_words() && !partial) {
         atomicStore(&maps[MAPS_HEADER + t], PAGE_EMPTY);

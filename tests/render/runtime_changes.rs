@@ -596,3 +596,44 @@ fn a_part_of_the_kitbash_moved_is_extracted_again_and_shadows_as_a_fresh_app() {
     assert!(changed > 1e-4, "moving the ball changed no shadow ({changed})");
     assert!(worst <= 1e-4, "the kitbash updated in place differs from a fresh app's (max {worst})");
 }
+
+#[test]
+fn a_cube_moving_every_frame_across_the_map_keeps_every_tile_of_its_shadow() {
+    // Sparse maps (`map_tiles`): a partial redraw never frees a tile, and
+    // while a caster moves every frame the read-back lags behind the
+    // newest frame. The tiles its trail leaves must neither run the pool
+    // out (the extraction redraws whole when it fills, `tiles_to_spare`)
+    // nor stay dropped (a lagging read-back still sizes the pool): after
+    // 24 one-frame moves the shadow is a fresh app's, nothing degraded.
+    use shadow_fins_app::render_lab::scaling::spawn_cubes;
+    // At 1024² the cubes' layer fills a small part of its tiles: the pool is
+    // sized to them, well under every tile.
+    let setup = setup(SceneId::BoxOverPlane, FinShadowSettings { map_resolution: 1024, ..settings() });
+    let (mover, step, steps) = (66, Vec3::new(0.05, 0.0, 0.02), 24);
+    let mut session = harness::Session::new(&setup);
+    let cubes = spawn_cubes(session.app.world_mut(), 100);
+    assert_visibility_not_trivial(&session.settle(6).expect("render").visibility);
+    for _ in 0..steps {
+        session.app.world_mut().get_mut::<Transform>(cubes[mover]).expect("a transform").translation += step;
+        session.app.update();
+    }
+    let moved = session.settle(8).expect("render").visibility;
+    let stats = fin_stats(&session);
+    let all_tiles = stats.layers as u64 * 128 * 128;
+    let pool = (stats.gpu_bytes - (4 + all_tiles) * 4) / (64 * 36);
+    println!("{} layers, a pool of {pool} of {all_tiles} tiles", stats.layers);
+    assert!(pool * 2 < all_tiles, "the pool is sized to the tiles drawn, not every tile ({pool} of {all_tiles})");
+    let mut fresh = harness::Session::new(&setup);
+    let fresh_cubes = spawn_cubes(fresh.app.world_mut(), 100);
+    fresh.app.world_mut().get_mut::<Transform>(fresh_cubes[mover]).expect("a transform").translation +=
+        step * steps as f32;
+    let expected = fresh.settle(6).expect("render").visibility;
+    let (mad, far) = compare(&moved, &expected);
+    println!(
+        "after {steps} one-frame moves: |V − V fresh| = {mad:.2e}, {:.2}% off by > 0.1; {}",
+        far * 100.0,
+        stats.degraded
+    );
+    assert!(stats.degraded.is_empty(), "{}", stats.degraded);
+    assert!(mad <= 1e-3 && far <= 1e-3, "the moved cube's shadow differs from a fresh app's: {mad} / {far}");
+}

@@ -43,6 +43,9 @@ pub(crate) struct LightState {
     /// How many map tiles the GPU's last redraw wanted (`map_tiles`): the
     /// next frame's maps are sized by it.
     pub(crate) tile_demand: Option<TileDemand>,
+    /// The maps' shape of this light's last few GPU frames, by generation (a
+    /// read-back of an earlier one still sizes the pool, `extraction.rs`).
+    pub(crate) recent_frames: [(u32, map_tiles::MapShape); 4],
     /// The reasons last warned about.
     pub(crate) warned: FinDegradations,
     /// A sun's map window in its last frame (`sun_fit::sun_window` keeps it
@@ -52,6 +55,19 @@ pub(crate) struct LightState {
     pub(crate) stats: FinFrameStats,
     /// The objects as this light saw them in its last frame.
     pub(crate) built: Option<LightBuild>,
+}
+
+impl LightState {
+    /// The maps' shape of this light's recent GPU frame of `generation`
+    /// (its low 32 bits, as the read-back has it).
+    pub(crate) fn recent_shape(&self, generation: u32) -> Option<map_tiles::MapShape> {
+        self.recent_frames.iter().find(|(g, shape)| *g == generation && shape.resolution > 0).map(|(_, s)| *s)
+    }
+
+    pub(crate) fn remember_frame(&mut self, generation: u64, shape: map_tiles::MapShape) {
+        self.recent_frames.rotate_right(1);
+        self.recent_frames[0] = (generation as u32, shape);
+    }
 }
 
 /// The objects one light's last frame was built from, kept so that the next
@@ -213,6 +229,11 @@ pub(crate) fn light_frame(
             // The maps are sparse: sized by the tiles the last read-back
             // said the GPU drew; before one, their pool takes what fits.
             let asked = if settings.method == FinMethod::MultiLayer { settings.layers } else { 1 };
+            // A frame that was empty (demand 0) and now has casters starts
+            // again from what fits, not from a pool of no tiles.
+            if scene.totals[1] != 0 && state.tile_demand.is_some_and(|d| d.tiles == 0) {
+                state.tile_demand = None;
+            }
             let demand = state.tile_demand;
             let needed = |r: u32, l: u32| map_tiles::bytes_needed(demand, r, l);
             let allocate = |layers: u32| {
@@ -324,6 +345,9 @@ pub(crate) fn light_frame(
     // read-back says otherwise (no flicker between re-extractions).
     data.stats.degraded = data.stats.degraded.and(state.shortfall);
     warn_degradation(&mut state.warned, data.stats.degraded);
+    if data.gpu.is_some() {
+        state.remember_frame(data.generation, data.map_shape());
+    }
     data
 }
 
@@ -424,7 +448,10 @@ pub(crate) fn cpu_frame(
     }
     let bounds = || model.casters.iter().map(|c| c.bounds()).chain(model.fins.iter().map(|f| f.bounds()));
     let mut region = in_frame.covering(bounds(), alloc.resolution);
-    let mut degraded = FinDegradations::from(alloc.degradation);
+    // What the maps lost comes first (the tile count below may add to it);
+    // then what the buffers dropped.
+    let mut maps_cut = alloc.degradation;
+    let mut degraded = FinDegradations::default();
     // What does not fit one buffer is dropped (and said so: the first buffer cut).
     let mut capped = |buffer: &'static str, n: usize, bytes: u64| {
         let keep = (limits.max_buffer / bytes) as usize;
@@ -476,7 +503,7 @@ pub(crate) fn cpu_frame(
             break;
         }
         alloc.resolution = refit.resolution;
-        degraded = degraded.with(FinDegradation::Maps {
+        maps_cut = Some(FinDegradation::Maps {
             resolution: refit.resolution,
             wanted_resolution: settings.map_resolution,
             layers: alloc.layers,
@@ -486,6 +513,7 @@ pub(crate) fn cpu_frame(
         region = in_frame.covering(bounds(), alloc.resolution);
         demand = count(&region);
     }
+    let mut degraded = FinDegradations::from(maps_cut).and(degraded);
     let shape = map_tiles::shape_within(region.resolution, alloc.layers, demand.tiles as u64, limits.map_bytes);
     if shape.tiles < demand.tiles {
         degraded = degraded.with(FinDegradation::Capacity {

@@ -310,7 +310,10 @@ pub(crate) fn update_fin_frames(
                 return None;
             }
             let demand = cache.lights.get(&(source.entity, *face))?.tile_demand?;
-            let (resolution, layers) = (source.settings.map_resolution, source.settings.layers);
+            // The single-layer methods build one layer's page table.
+            let multi = source.settings.method == crate::settings::FinMethod::MultiLayer;
+            let layers = if multi { source.settings.layers } else { 1 };
+            let resolution = source.settings.map_resolution;
             Some(crate::frame::map_tiles::bytes_needed(Some(demand), resolution, layers))
         })
         .collect();

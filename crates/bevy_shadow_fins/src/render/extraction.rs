@@ -57,6 +57,10 @@ const C_REDRAWN: usize = 14;
 const H_DIRTY_COUNT: u64 = 64;
 /// 1: the GPU may extract the moved instances alone ([`FinIncrementalExtraction`](crate::settings::FinIncrementalExtraction)).
 const H_INCREMENTAL: u64 = 66;
+/// The maps' header after their last redraw (`H_TILES` in `extract.wgsl`).
+const H_TILES: u64 = 92;
+/// Header words copied: tiles wanted, before, pool (`maps.wgsl`).
+const TILE_HEADER_WORDS: u64 = 3;
 const H_INSTANCES: u64 = 96;
 const INSTANCE_WORDS: u64 = 8;
 const DIRTY_WORDS: u64 = 4;
@@ -203,7 +207,16 @@ fn stats_of_readback(
     let gpu = f.gpu.as_ref()?;
     // Generations are unique over all lights' frames: a slot that another
     // light used last frame cannot pass for this one's.
-    if w[11] != f.generation as u32 || gpu.totals[1] == 0 {
+    if gpu.totals[1] == 0 {
+        return None;
+    }
+    if w[11] != f.generation as u32 {
+        // An earlier frame of this light's (while anything moves, every
+        // update makes a new frame and the read-back, a frame or more
+        // behind, never matches the newest): its tiles still size the pool.
+        if let Some(shape) = state.recent_shape(w[11]) {
+            size_tile_pool(state, TileDemand { resolution: shape.resolution, tiles: w[SLOT_TILES] }, shape);
+        }
         return None;
     }
     let wanted = GpuCapacity { silhouettes: w[0], fins: w[1], casters: w[2], layers: w[10] };
@@ -232,15 +245,7 @@ fn stats_of_readback(
     // too (those were dropped: the next frame is sized for them).
     let tiles = TileDemand { resolution: f.region.resolution, tiles: w[SLOT_TILES] };
     let pool = f.map_tiles;
-    let overflowed = tiles.tiles > pool;
-    // Grow when they did not fit, shrink when they would fit in half; else
-    // the pool keeps its size, so that the next frame may redraw in part.
-    let resize = overflowed || TileDemand::tiles_at(Some(tiles), tiles.resolution, f.map_layers) < pool as u64 / 2;
-    let rebuild = resize && state.tile_demand != Some(tiles);
-    if rebuild {
-        state.tile_demand = Some(tiles);
-        state.capacity_epoch += 1;
-    }
+    let (overflowed, rebuild) = size_tile_pool(state, tiles, f.map_shape());
     let shortfall = shortfall.with(overflowed.then_some(FinDegradation::Capacity {
         buffer: "penumbra map tiles",
         kept: pool,
@@ -265,6 +270,26 @@ fn stats_of_readback(
     };
     crate::stats::warn_degradation(&mut state.warned, now.degraded);
     Some(now)
+}
+
+/// The sparse maps' pool after a redraw of `shape` wanted `tiles`: grown
+/// when they did not fit, shrunk when they would fit in half; else it keeps
+/// its size, so that the next frame may redraw in part. Returns (the tiles
+/// overflowed, a frame sized anew follows).
+fn size_tile_pool(
+    state: &mut crate::frame::build::LightState,
+    tiles: TileDemand,
+    shape: crate::frame::map_tiles::MapShape,
+) -> (bool, bool) {
+    let overflowed = tiles.tiles > shape.tiles;
+    let roomy = TileDemand::tiles_at(Some(tiles), tiles.resolution, shape.layers);
+    let resize = overflowed || roomy < shape.tiles as u64 / 2;
+    let rebuild = resize && state.tile_demand != Some(tiles);
+    if rebuild {
+        state.tile_demand = Some(tiles);
+        state.capacity_epoch += 1;
+    }
+    (overflowed, rebuild)
 }
 
 /// `ExtractParams` in `extract.wgsl`.
@@ -356,6 +381,8 @@ pub(super) struct ExtractBuffers {
     geometry: Option<Buffer>,
     geometry_key: u64,
     control: Option<Buffer>,
+    /// Where `history` starts in `control`, words.
+    history: u64,
     /// Indirect dispatch arguments, copied out of `control` between passes.
     pub(super) indirect: Option<Buffer>,
     state: Option<Buffer>,
@@ -553,6 +580,7 @@ pub(super) fn prepare(
     buffers.uploaded_poses = Some(scene.poses.clone());
     let instances = scene.instances.len() as u64;
     let history = C_HISTOGRAM + s.sub_layers as u64;
+    buffers.history = history;
     let dirty_list = history + H_INSTANCES + INSTANCE_WORDS * instances;
     // ... then the dirty list and the redraw lists (a count, then indices).
     let control_words = dirty_list
@@ -778,6 +806,14 @@ pub(super) fn record(
     true
 }
 
+/// Copies the maps' header into the extraction's `history` after a redraw,
+/// where its next plan reads how full the pool is (`tiles_to_spare`).
+pub(super) fn copy_tile_header(buffers: &ExtractBuffers, maps: &Buffer, encoder: &mut CommandEncoder) {
+    if let Some(control) = &buffers.control {
+        encoder.copy_buffer_to_buffer(maps, 0, control, (buffers.history + H_TILES) * 4, TILE_HEADER_WORDS * 4);
+    }
+}
+
 /// Copies the tiles a frame's maps wanted (their header's first word,
 /// `maps.wgsl`) into its read-back slot, after the extraction's counts.
 pub(super) fn copy_tile_count(maps: &Buffer, stats: &Buffer, offset: u64, encoder: &mut CommandEncoder) {
@@ -819,7 +855,43 @@ pub(super) fn stats_buffer<'a>(
 
 #[cfg(test)]
 mod tests {
-    use super::{DIRTY_WORDS, changed_runs, dirty_table};
+    use super::{DIRTY_WORDS, changed_runs, dirty_table, size_tile_pool};
+    use crate::frame::{
+        build::LightState,
+        map_tiles::{MapShape, TileDemand},
+    };
+
+    #[test]
+    fn the_tile_pool_is_resized_on_overflow_or_half_use_and_kept_between() {
+        let shape = MapShape { resolution: 1024, layers: 16, tiles: 1000 };
+        let mut state = LightState::default();
+        let want = |tiles| TileDemand { resolution: 1024, tiles };
+        // Used, with room to spare but over half: kept (a partial redraw may follow).
+        assert_eq!(size_tile_pool(&mut state, want(700), shape), (false, false));
+        assert_eq!((state.tile_demand, state.capacity_epoch), (None, 0));
+        // Overflowed: sized anew for what was wanted.
+        assert_eq!(size_tile_pool(&mut state, want(1200), shape), (true, true));
+        assert_eq!((state.tile_demand, state.capacity_epoch), (Some(want(1200)), 1));
+        // The same overflow read back again (an older frame's slot): no second rebuild.
+        assert_eq!(size_tile_pool(&mut state, want(1200), shape), (true, false));
+        assert_eq!(state.capacity_epoch, 1);
+        // Far under half: shrunk.
+        assert_eq!(size_tile_pool(&mut state, want(100), shape), (false, true));
+        assert_eq!(state.tile_demand, Some(want(100)));
+    }
+
+    #[test]
+    fn a_lights_recent_frames_are_found_by_their_generation() {
+        let mut state = LightState::default();
+        assert_eq!(state.recent_shape(0), None, "no frame yet: the zeroed entries are not frames");
+        let shape = |tiles| MapShape { resolution: 256, layers: 2, tiles };
+        for g in 1..=6u64 {
+            state.remember_frame(g, shape(g as u32));
+        }
+        assert_eq!(state.recent_shape(6), Some(shape(6)));
+        assert_eq!(state.recent_shape(3), Some(shape(3)));
+        assert_eq!(state.recent_shape(2), None, "only the last four are kept");
+    }
 
     #[test]
     fn the_dirty_table_starts_each_moved_instance_after_the_ones_before_it() {

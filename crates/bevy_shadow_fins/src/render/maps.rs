@@ -443,9 +443,13 @@ pub(crate) fn render_light_maps(
                     pass.dispatch_workgroups_indirect(&control, args * 4);
                 }
             }
-            // The tiles the maps wanted go back with the extraction's counts.
-            if let (Some((stats, offset)), Some(maps)) = (stats, gpu.maps.as_ref()) {
-                extraction::copy_tile_count(maps, stats, offset, ctx.command_encoder());
+            // The tiles the maps wanted go back with the extraction's counts,
+            // and to the extraction's next plan.
+            if let Some(maps) = gpu.maps.as_ref() {
+                extraction::copy_tile_header(&gpu.extraction, maps, ctx.command_encoder());
+                if let Some((stats, offset)) = stats {
+                    extraction::copy_tile_count(maps, stats, offset, ctx.command_encoder());
+                }
             }
             span.end(ctx.command_encoder());
             gpu.dirty = false;
