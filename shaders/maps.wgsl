@@ -164,13 +164,10 @@ const NONE: u32 = 0xffffffffu;
 @compute @workgroup_size(64, 1, 1)
 fn mark_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let i = caster_index(wg);
-    if (i >= params.counts.z) {
+    if (!live_caster(i)) {
         return;
     }
     let c = casters[i];
-    if (c.layer == RETIRED_LAYER) {
-        return;
-    }
     let corner = vec2<f32>(c.corners[4], c.corners[5]);
     let hull = array<vec2<f32>, 4>(vec2<f32>(c.corners[0], c.corners[1]), vec2<f32>(c.corners[2], c.corners[3]), corner, corner);
     mark_hull_tiles(c.layer, hull, false, lane);
@@ -248,15 +245,17 @@ fn raster_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocatio
     draw_caster(caster_index(wg), lane);
 }
 
+// A caster the passes draw: listed, and not retired by the extraction.
+fn live_caster(i: u32) -> bool {
+    return i < params.counts.z && casters[i].layer != RETIRED_LAYER;
+}
+
 // A caster's slab depth into every texel it covers whose tile has a slot.
 fn draw_caster(i: u32, lane: u32) {
-    if (i >= params.counts.z) {
+    if (!live_caster(i)) {
         return;
     }
     let c = casters[i];
-    if (c.layer == RETIRED_LAYER) {
-        return;
-    }
     let a = vec2<f32>(c.corners[0], c.corners[1]);
     let b = vec2<f32>(c.corners[2], c.corners[3]);
     let d = vec2<f32>(c.corners[4], c.corners[5]);
