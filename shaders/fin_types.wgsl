@@ -217,14 +217,20 @@ fn cross2(a: vec2<f32>, b: vec2<f32>) -> f32 {
     return a.x * b.y - a.y * b.x;
 }
 
+// A quad fin's corners m0, m1 and their ends m0 + a0 w0, m1 + a1 w1.
+fn fin_quad_corners(f: Fin) -> array<vec2<f32>, 4> {
+    let m0 = vec2<f32>(f.data[0], f.data[1]);
+    let m1 = vec2<f32>(f.data[2], f.data[3]);
+    return array<vec2<f32>, 4>(
+        m0, m1, m0 + vec2<f32>(f.data[4], f.data[5]) * f.data[8], m1 + vec2<f32>(f.data[6], f.data[7]) * f.data[9],
+    );
+}
+
 // A fin's map-space bounds (min x, min y, max x, max y).
 fn fin_bounds(f: Fin) -> vec4<f32> {
     if (f.header.x == 0u) {
-        let m0 = vec2<f32>(f.data[0], f.data[1]);
-        let m1 = vec2<f32>(f.data[2], f.data[3]);
-        let p2 = m0 + vec2<f32>(f.data[4], f.data[5]) * f.data[8];
-        let p3 = m1 + vec2<f32>(f.data[6], f.data[7]) * f.data[9];
-        return vec4<f32>(min(min(m0, m1), min(p2, p3)), max(max(m0, m1), max(p2, p3)));
+        let p = fin_quad_corners(f);
+        return vec4<f32>(min(min(p[0], p[1]), min(p[2], p[3])), max(max(p[0], p[1]), max(p[2], p[3])));
     }
     let c = vec2<f32>(f.data[0], f.data[1]);
     let r = f.data[6];

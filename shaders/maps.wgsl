@@ -10,7 +10,7 @@
 // only then draws. A tile nothing writes costs one page word.
 #import bevy_shadow_fins::fin_types::{
     FinParams, Caster, Fin, CHANNELS, DEPTH_OF_KEY, NO_MIN, NO_MAX, INF_BITS, min_key, max_key, texel_center,
-    cross2, orthographic, caster_depth_at, fin_bounds, partial_redraw, CONTROL_LIST_CASTERS, CONTROL_LIST_FINS,
+    cross2, orthographic, caster_depth_at, fin_bounds, fin_quad_corners, partial_redraw, CONTROL_LIST_CASTERS, CONTROL_LIST_FINS,
     RETIRED_LAYER, TILE_TEXELS, MAPS_HEADER, HEADER_TILES, HEADER_TILES_BEFORE, HEADER_POOL, PAGE_EMPTY, PAGE_WANTED,
     PAGE_OVERFLOW, FIRST_SLOT, TILE, tiles_per_side, page_index, pooled_texel_index,
 }
@@ -168,10 +168,25 @@ fn mark_casters(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
         return;
     }
     let c = casters[i];
-    let corner = vec2<f32>(c.corners[4], c.corners[5]);
-    let hull = array<vec2<f32>, 4>(vec2<f32>(c.corners[0], c.corners[1]), vec2<f32>(c.corners[2], c.corners[3]), corner, corner);
-    mark_hull_tiles(c.layer, hull, false, lane);
+    let a = vec2<f32>(c.corners[0], c.corners[1]);
+    let b = vec2<f32>(c.corners[2], c.corners[3]);
+    let d = vec2<f32>(c.corners[4], c.corners[5]);
+    let footprint = Footprint(array<vec2<f32>, 4>(a, b, d, d), FOOTPRINT_TRIANGLE, 0.0);
+    mark_footprint_tiles(c.layer, footprint, min(a, min(b, d)), max(a, max(b, d)), lane);
 }
+
+// What a primitive may cover, for marking tiles: a triangle (the first
+// three points), the convex hull of four (a fin quad, twisted or not), or a
+// disk (centre `points[0]`, `radius`: a sector fin).
+struct Footprint {
+    points: array<vec2<f32>, 4>,
+    kind: u32,
+    radius: f32,
+}
+
+const FOOTPRINT_TRIANGLE: u32 = 0u;
+const FOOTPRINT_HULL: u32 = 1u;
+const FOOTPRINT_DISK: u32 = 2u;
 
 // The tile range (x0, x1, y0, y1) holding the texels `texel_range` gives.
 fn tile_range(range: vec4<i32>) -> vec4<u32> {
@@ -216,12 +231,22 @@ fn rect_meets_triangle(rect: vec4<f32>, a: vec2<f32>, b: vec2<f32>, c: vec2<f32>
     return !(outside_edge(rect, a, b, c) || outside_edge(rect, b, c, a) || outside_edge(rect, c, a, b));
 }
 
-// Marks the tiles of `layer` that the convex hull of four points meets
-// (`quad`): each of the four triangles of three of them, whose union is the
-// hull, so that any quad, twisted or not, is covered; else the triangle of
-// the first three.
-fn mark_hull_tiles(layer: u32, p: array<vec2<f32>, 4>, quad: bool, lane: u32) {
-    let range = texel_range(min(min(p[0], p[1]), min(p[2], p[3])), max(max(p[0], p[1]), max(p[2], p[3])));
+// Whether a tile's rectangle meets a footprint: a hull is the union of the
+// four triangles of three of its points.
+fn footprint_meets(rect: vec4<f32>, f: Footprint) -> bool {
+    let p = f.points;
+    if (f.kind == FOOTPRINT_DISK) {
+        let gap = p[0] - clamp(p[0], rect.xy, rect.zw);
+        return dot(gap, gap) <= f.radius * f.radius;
+    }
+    return rect_meets_triangle(rect, p[0], p[1], p[2]) || (f.kind == FOOTPRINT_HULL && (rect_meets_triangle(rect, p[0], p[1], p[3])
+        || rect_meets_triangle(rect, p[0], p[2], p[3]) || rect_meets_triangle(rect, p[1], p[2], p[3])));
+}
+
+// Marks the tiles of `layer` within the bounds [lo, hi] that the footprint
+// meets, the workgroup's lanes striding over them.
+fn mark_footprint_tiles(layer: u32, footprint: Footprint, lo: vec2<f32>, hi: vec2<f32>, lane: u32) {
+    let range = texel_range(lo, hi);
     if (range.x > range.y || range.z > range.w) {
         return;
     }
@@ -231,10 +256,7 @@ fn mark_hull_tiles(layer: u32, p: array<vec2<f32>, 4>, quad: bool, lane: u32) {
     for (var k = lane; k < count; k += WORKGROUP) {
         let tx = t.x + k % w;
         let ty = t.z + k / w;
-        let rect = tile_rect(tx, ty);
-        let meets = rect_meets_triangle(rect, p[0], p[1], p[2]) || (quad && (rect_meets_triangle(rect, p[0], p[1], p[3])
-            || rect_meets_triangle(rect, p[0], p[2], p[3]) || rect_meets_triangle(rect, p[1], p[2], p[3])));
-        if (meets) {
+        if (footprint_meets(tile_rect(tx, ty), footprint)) {
             mark_tile(layer, tx * TILE, ty * TILE);
         }
     }
@@ -383,46 +405,23 @@ fn fin_sample(f: Fin, q: vec2<f32>) -> vec2<f32> {
 @compute @workgroup_size(64, 1, 1)
 fn mark_fins(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let i = fin_index(wg);
-    if (i >= params.counts.w) {
+    if (!live_fin(i)) {
         return;
     }
     let f = fins[i];
-    if (f.header.z == RETIRED_LAYER) {
-        return;
-    }
+    let center = vec2<f32>(f.data[0], f.data[1]);
+    var footprint = Footprint(array<vec2<f32>, 4>(center, center, center, center), FOOTPRINT_DISK, f.data[6]);
     if (f.header.x == 0u) {
-        let m0 = vec2<f32>(f.data[0], f.data[1]);
-        let m1 = vec2<f32>(f.data[2], f.data[3]);
-        let p2 = m0 + vec2<f32>(f.data[4], f.data[5]) * f.data[8];
-        let p3 = m1 + vec2<f32>(f.data[6], f.data[7]) * f.data[9];
-        mark_hull_tiles(f.header.z, array<vec2<f32>, 4>(m0, m1, p2, p3), true, lane);
-        return;
+        footprint = Footprint(fin_quad_corners(f), FOOTPRINT_HULL, 0.0);
     }
     let bounds = fin_bounds(f);
-    let range = texel_range(bounds.xy, bounds.zw);
-    if (range.x > range.y || range.z > range.w) {
-        return;
-    }
-    let center = vec2<f32>(f.data[0], f.data[1]);
-    let radius = f.data[6];
-    let t = tile_range(range);
-    let w = t.y - t.x + 1u;
-    let count = w * (t.w - t.z + 1u);
-    for (var k = lane; k < count; k += WORKGROUP) {
-        let tx = t.x + k % w;
-        let ty = t.z + k / w;
-        let rect = tile_rect(tx, ty);
-        let gap = center - clamp(center, rect.xy, rect.zw);
-        if (dot(gap, gap) <= radius * radius) {
-            mark_tile(f.header.z, tx * TILE, ty * TILE);
-        }
-    }
+    mark_footprint_tiles(f.header.z, footprint, bounds.xy, bounds.zw, lane);
 }
 
 // Pass 1 of the fins: every fin's key into its side's min and max channels.
 @compute @workgroup_size(64, 1, 1)
 fn raster_fins(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    raster_fin(fin_index(wg), lane, PASS_KEYS);
+    raster_fin(fin_index(wg), lane, false);
 }
 
 // Pass 2: the exact depth of the fins whose key won in pass 1 (the nearest,
@@ -430,20 +429,19 @@ fn raster_fins(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
 // so the comparison sees the final keys: deterministic whatever the order.
 @compute @workgroup_size(64, 1, 1)
 fn raster_fin_depths(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    raster_fin(fin_index(wg), lane, PASS_DEPTHS);
+    raster_fin(fin_index(wg), lane, true);
 }
 
-const PASS_KEYS: u32 = 1u;
-const PASS_DEPTHS: u32 = 2u;
+// A fin the passes draw: listed, and not retired by the extraction.
+fn live_fin(i: u32) -> bool {
+    return i < params.counts.w && fins[i].header.z != RETIRED_LAYER;
+}
 
-fn raster_fin(i: u32, lane: u32, pass_kind: u32) {
-    if (i >= params.counts.w) {
+fn raster_fin(i: u32, lane: u32, depths: bool) {
+    if (!live_fin(i)) {
         return;
     }
     let f = fins[i];
-    if (f.header.z == RETIRED_LAYER) {
-        return;
-    }
     let bounds = fin_bounds(f);
     let range = texel_range(bounds.xy, bounds.zw);
     if (range.x > range.y || range.z > range.w) {
@@ -471,7 +469,7 @@ fn raster_fin(i: u32, lane: u32, pass_kind: u32) {
         let base = texel + channel;
         let lo = min_key(params, s.x, s.y);
         let hi = max_key(params, s.x, s.y);
-        if (pass_kind == PASS_KEYS) {
+        if (!depths) {
             atomicMin(&maps[base], lo);
             atomicMax(&maps[base + 1u], hi);
             continue;

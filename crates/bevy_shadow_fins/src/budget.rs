@@ -306,25 +306,18 @@ impl BasisLayout {
 pub(crate) fn shares_by_need(total: u64, needs: &[Option<u64>], cap: u64) -> Vec<u64> {
     let mut known: Vec<(u64, usize)> = needs.iter().enumerate().filter_map(|(i, n)| n.map(|n| (n, i))).collect();
     known.sort_unstable();
-    let mut shares = vec![0; needs.len()];
+    let mut given = vec![None; needs.len()];
     let (mut left, mut frames) = (total, needs.len() as u64);
-    let mut given = vec![false; needs.len()];
     for (need, i) in known {
         if need > left / frames.max(1) {
             break;
         }
-        shares[i] = need.min(cap);
-        given[i] = true;
+        given[i] = Some(need.min(cap));
         left -= need;
         frames -= 1;
     }
     let rest = (left / frames.max(1)).min(cap);
-    for (share, given) in shares.iter_mut().zip(given) {
-        if !given {
-            *share = rest;
-        }
-    }
-    shares
+    given.into_iter().map(|share| share.unwrap_or(rest)).collect()
 }
 
 /// Resolution the maps degrade to before they lose layers.

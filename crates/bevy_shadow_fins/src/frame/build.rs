@@ -45,7 +45,7 @@ pub(crate) struct LightState {
     pub(crate) tile_demand: Option<TileDemand>,
     /// The maps' shape of this light's last few GPU frames, by generation (a
     /// read-back of an earlier one still sizes the pool, `extraction.rs`).
-    pub(crate) recent_frames: [(u32, map_tiles::MapShape); 4],
+    pub(crate) recent_frames: [Option<(u32, map_tiles::MapShape)>; 4],
     /// The reasons last warned about.
     pub(crate) warned: FinDegradations,
     /// A sun's map window in its last frame (`sun_fit::sun_window` keeps it
@@ -61,12 +61,12 @@ impl LightState {
     /// The maps' shape of this light's recent GPU frame of `generation`
     /// (its low 32 bits, as the read-back has it).
     pub(crate) fn recent_shape(&self, generation: u32) -> Option<map_tiles::MapShape> {
-        self.recent_frames.iter().find(|(g, shape)| *g == generation && shape.resolution > 0).map(|(_, s)| *s)
+        self.recent_frames.iter().flatten().find(|(g, _)| *g == generation).map(|(_, shape)| *shape)
     }
 
     pub(crate) fn remember_frame(&mut self, generation: u64, shape: map_tiles::MapShape) {
         self.recent_frames.rotate_right(1);
-        self.recent_frames[0] = (generation as u32, shape);
+        self.recent_frames[0] = Some((generation as u32, shape));
     }
 }
 
@@ -478,14 +478,9 @@ pub(crate) fn cpu_frame(
     // than the GPU marks); past the limit, the resolution halves as the
     // budget says and they are counted again.
     let count = |region: &MapRegion| {
-        let tiles = map_tiles::count_tiles(
-            &casters_gpu,
-            &fins_gpu,
-            region.min.into(),
-            region.texel,
-            region.resolution,
-            alloc.layers,
-        );
+        let casters = model.casters[..n_casters].iter().zip(&model.caster_layers).map(|(c, &l)| (l, c.bounds()));
+        let fins = model.fins[..n_fins].iter().zip(&model.fin_layers).map(|(f, &l)| (l, f.bounds()));
+        let tiles = map_tiles::count_tiles(region, alloc.layers, casters.chain(fins));
         TileDemand { resolution: region.resolution, tiles }
     };
     let mut demand = count(&region);

@@ -10,7 +10,10 @@
 //! few casters and fins assigned to it. Tiles of 8×8 keep the page table
 //! small (1 MiB at 16 layers, 1024²) and a tile's texels together.
 
-use crate::gpu_layout::{GpuCaster, GpuFin, MAP_TEXEL_BYTES};
+use bevy::math::Vec2;
+use shadow_fins::oracle::MapRegion;
+
+use crate::gpu_layout::MAP_TEXEL_BYTES;
 
 /// Texels along a tile's side (`TILE` in `fin_types.wgsl`).
 pub(crate) const TILE: u32 = 8;
@@ -92,74 +95,32 @@ pub(crate) fn bytes_needed(demand: Option<TileDemand>, resolution: u32, layers: 
 }
 
 /// The tiles the CPU extraction's casters and fins can write, by their
-/// bounds (a superset of what `maps.wgsl` marks by their texels), within a
-/// `resolution²` map starting at `min` with texels of `texel`.
+/// map-space bounds `(layer, (min, max))` (a superset of what `maps.wgsl`
+/// marks): every tile holding a texel of the bounds' `texel_range`.
 pub(crate) fn count_tiles(
-    casters: &[GpuCaster],
-    fins: &[GpuFin],
-    min: [f32; 2],
-    texel: f32,
-    resolution: u32,
+    region: &MapRegion,
     layers: u32,
+    footprints: impl Iterator<Item = (u32, (Vec2, Vec2))>,
 ) -> u32 {
-    let side = tiles_per_side(resolution) as usize;
-    let mut marked = vec![false; all_tiles(resolution, layers) as usize];
-    let last = resolution.max(1) as f32 - 1.0;
-    let mut mark = |layer: u32, lo: [f32; 2], hi: [f32; 2]| {
-        // Texels whose centres may lie in [lo, hi] (`texel_range`); bounds
-        // not finite reach every texel.
-        let range = |a: f32, b: f32, origin: f32| {
-            let from = ((a - origin) / texel - 0.5).ceil();
-            let to = ((b - origin) / texel - 0.5).floor();
-            let from = if from.is_finite() { from.max(0.0) } else { 0.0 };
-            let to = if to.is_finite() { to.min(last) } else { last };
-            (from <= to).then_some((from as usize / TILE as usize, to as usize / TILE as usize))
-        };
-        let (Some((x0, x1)), Some((y0, y1))) = (range(lo[0], hi[0], min[0]), range(lo[1], hi[1], min[1])) else {
-            return;
-        };
-        if layer >= layers.max(1) {
-            return;
-        }
+    let side = tiles_per_side(region.resolution) as usize;
+    let mut marked = vec![false; all_tiles(region.resolution, layers) as usize];
+    for (layer, (lo, hi)) in footprints.filter(|(layer, _)| *layer < layers.max(1)) {
+        let Some((x0, x1, y0, y1)) = region.texel_range(lo, hi) else { continue };
+        let (x0, x1) = ((x0 / TILE) as usize, (x1 / TILE) as usize);
         let base = layer as usize * side * side;
-        for y in y0..=y1 {
+        for y in (y0 / TILE) as usize..=(y1 / TILE) as usize {
             marked[base + y * side + x0..=base + y * side + x1].fill(true);
         }
-    };
-    for c in casters {
-        let [ax, ay, bx, by, dx, dy] = c.corners;
-        mark(c.layer, [ax.min(bx).min(dx), ay.min(by).min(dy)], [ax.max(bx).max(dx), ay.max(by).max(dy)]);
-    }
-    for f in fins {
-        let (lo, hi) = fin_bounds(f);
-        mark(f.header[2], lo, hi);
     }
     marked.iter().filter(|m| **m).count() as u32
-}
-
-/// A fin's map-space bounds, as `fin_bounds` in `fin_types.wgsl`.
-fn fin_bounds(f: &GpuFin) -> ([f32; 2], [f32; 2]) {
-    let d = &f.data;
-    if f.header[0] == 0 {
-        let xs = [d[0], d[2], d[0] + d[4] * d[8], d[2] + d[6] * d[9]];
-        let ys = [d[1], d[3], d[1] + d[5] * d[8], d[3] + d[7] * d[9]];
-        let lo = [xs.iter().copied().fold(f32::INFINITY, f32::min), ys.iter().copied().fold(f32::INFINITY, f32::min)];
-        let hi = [
-            xs.iter().copied().fold(f32::NEG_INFINITY, f32::max),
-            ys.iter().copied().fold(f32::NEG_INFINITY, f32::max),
-        ];
-        return (lo, hi);
-    }
-    let r = d[6];
-    ([d[0] - r, d[1] - r], [d[0] + r, d[1] + r])
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn caster(corners: [f32; 6], layer: u32) -> GpuCaster {
-        GpuCaster { corners, layer, ..bytemuck::Zeroable::zeroed() }
+    fn bounds(lo: [f32; 2], hi: [f32; 2]) -> (Vec2, Vec2) {
+        (Vec2::from(lo), Vec2::from(hi))
     }
 
     #[test]
@@ -185,20 +146,22 @@ mod tests {
     #[test]
     fn tiles_are_counted_once_per_layer_under_each_primitives_bounds() {
         // A 64² map of unit texels from the origin: 8×8 tiles.
-        let a = caster([0.0, 0.0, 20.0, 0.0, 0.0, 4.0], 0);
+        let region = |resolution| MapRegion { min: Vec2::ZERO, texel: 1.0, resolution };
+        let a = (0, bounds([0.0, 0.0], [20.0, 4.0]));
         // The same tiles again on layer 0, and one tile on layer 1.
-        let b = caster([1.0, 1.0, 2.0, 1.0, 1.0, 2.0], 0);
-        let c = caster([60.0, 60.0, 61.0, 60.0, 60.0, 61.0], 1);
-        // Texel centres 0.5 … 20.5 span tiles 0..=2 in x, one row in y.
-        assert_eq!(count_tiles(&[a, b, c], &[], [0.0, 0.0], 1.0, 64, 2), 3 + 1);
+        let b = (0, bounds([1.0, 1.0], [2.0, 2.0]));
+        let c = (1, bounds([60.0, 60.0], [61.0, 61.0]));
+        // Texel centres 0.5 … 19.5 span tiles 0..=2 in x, one row in y.
+        assert_eq!(count_tiles(&region(64), 2, [a, b, c].into_iter()), 3 + 1);
         // Outside the map, or past the layers allocated: nothing.
-        let out = caster([-9.0, -9.0, -8.0, -9.0, -9.0, -8.0], 0);
-        assert_eq!(count_tiles(&[out, c], &[], [0.0, 0.0], 1.0, 64, 1), 0);
+        let out = (0, bounds([-9.0, -9.0], [-8.0, -8.0]));
+        assert_eq!(count_tiles(&region(64), 1, [out, c].into_iter()), 0);
         // A sector fin of radius 9 around (32, 32): texels 23..=40 → tiles 2..=5.
-        let mut sector = GpuFin { header: [1, 0, 0, 0], ..bytemuck::Zeroable::zeroed() };
-        sector.data[..2].copy_from_slice(&[32.0, 32.0]);
-        sector.data[6] = 9.0;
-        assert_eq!(count_tiles(&[], &[sector], [0.0, 0.0], 1.0, 64, 1), 16);
+        let sector = (0, bounds([23.0, 23.0], [41.0, 41.0]));
+        assert_eq!(count_tiles(&region(64), 1, [sector].into_iter()), 16);
+        // Bounds not finite reach every tile.
+        let unbounded = (0, bounds([f32::NEG_INFINITY; 2], [f32::INFINITY; 2]));
+        assert_eq!(count_tiles(&region(64), 1, [unbounded].into_iter()), 64);
     }
 
     #[test]

@@ -133,8 +133,8 @@ pub(crate) struct FinMapsGpu {
     /// The read-back slot its counts were last copied into.
     pub(crate) stats_slot: Option<usize>,
     pub(crate) bind_group: Option<BindGroup>,
-    /// Casters, fins, and the page table's words (`map_tiles`).
-    pub(crate) counts: (u32, u32, u64),
+    /// Casters and fins the CPU extraction uploaded.
+    pub(crate) counts: (u32, u32),
     /// The layout the maps buffer holds: a partial redraw keeps its
     /// contents only under the same one.
     pub(crate) shape: crate::frame::map_tiles::MapShape,
@@ -319,7 +319,7 @@ pub(crate) fn prepare_light_maps(
             )),
         ),
     );
-    gpu.counts = (f.casters.len() as u32, f.fins.len() as u32, shape.page_words());
+    gpu.counts = (f.casters.len() as u32, f.fins.len() as u32);
     gpu.generation = f.generation;
     gpu.dirty = true;
 }
@@ -387,7 +387,8 @@ pub(crate) fn render_light_maps(
     else {
         return;
     };
-    let (n_casters, n_fins, page_words) = gpu.counts;
+    let (n_casters, n_fins) = gpu.counts;
+    let page_words = gpu.shape.page_words();
     // The page table's passes, one thread per word (and thread 0 at least,
     // which resets the header).
     let pages = workgroups((page_words as u32).max(1).div_ceil(WORKGROUP));
