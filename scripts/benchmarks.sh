@@ -340,7 +340,7 @@ fi
   echo "## Fin extraction on the GPU against the CPU, moving light"
   echo
   echo "The light moves a hair every frame, so the plugin extracts fins and renders every map each frame."
-  echo "\`--extraction gpu\`: the compute passes of shaders/extract.wgsl (only instance transforms are uploaded);"
+  echo "\`--extraction gpu\`: the compute passes of shaders/extract_*.wgsl (only instance transforms are uploaded);"
   echo "\`--extraction cpu\`: the core crate on the CPU, uploading map-space casters and fins. Same process,"
   echo "same scenes, side by side. On a CPU-only machine both 'GPU' sides run on lavapipe's CPU threads."
   echo

@@ -18,7 +18,7 @@ struct FinParams {
     axis_v: vec4<f32>,
     axis_n: vec4<f32>,
     // The texels the map passes redraw, inclusive (x0, x1, y0, y1); the
-    // whole maps but on a partial redraw (`extract.wgsl`'s `plan_redraw`).
+    // whole maps but on a partial redraw (`extract_plan.wgsl`'s `plan_redraw`).
     redraw: vec4<u32>,
     // The sparse maps' shape (below): (layers the page table holds, tiles
     // the pool holds, 0, 0). Written by the CPU on both paths: the GPU
@@ -27,7 +27,7 @@ struct FinParams {
 }
 
 // Words of the GPU extraction's `control` holding where a partial redraw's
-// caster and fin lists start (`extract.wgsl` writes them, `maps.wgsl` reads).
+// caster and fin lists start (`extract_*.wgsl` writes them, `maps.wgsl` reads).
 const CONTROL_LIST_CASTERS: u32 = 106u;
 const CONTROL_LIST_FINS: u32 = 107u;
 
@@ -64,7 +64,7 @@ struct CasterCutout {
 }
 
 // The layer of a caster or fin the GPU extraction retired (its instance
-// moved and emitted anew, `extract.wgsl`'s `retire_moved`): the maps skip it.
+// moved and emitted anew, `extract_plan.wgsl`'s `retire_moved`): the maps skip it.
 const RETIRED_LAYER: u32 = 0xffffffffu;
 
 // One fin (`GpuFin`): header = (kind 0 quad / 1 sector, side 0 inner / 1 outer,
@@ -153,7 +153,7 @@ const MAPS_HEADER: u32 = 4u;
 const HEADER_TILES: u32 = 0u;
 const HEADER_TILES_BEFORE: u32 = 1u;
 // The pool's size in tiles (`tiles.y`), for the extraction's next plan: the
-// header goes back to its `history` after each redraw (`extract.wgsl`).
+// header goes back to its `history` after each redraw (`extract_*.wgsl`).
 const HEADER_POOL: u32 = 2u;
 const PAGE_EMPTY: u32 = 0u;
 const PAGE_WANTED: u32 = 1u;

@@ -22,7 +22,7 @@
 @group(0) @binding(3) var<storage, read> fins: array<Fin>;
 // The GPU extraction's `control`: a partial redraw's caster and fin lists
 // (count, then indices) at the offsets in its words CONTROL_LIST_CASTERS and
-// CONTROL_LIST_FINS (`extract.wgsl`). Not read on a full redraw (a stand-in
+// CONTROL_LIST_FINS (`extract_*.wgsl`). Not read on a full redraw (a stand-in
 // on the CPU path).
 @group(0) @binding(6) var<storage, read> control: array<u32>;
 

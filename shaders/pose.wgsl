@@ -2,7 +2,7 @@
 // skinned or morphed caster instance has its own copy of its mesh's packed
 // geometry at rest (`GpuMeshGeometry::pack_posable`), less the pose section,
 // which its mesh's shared packing holds once.
-// These passes pose the copy in place before the extraction (`extract.wgsl`)
+// These passes pose the copy in place before the extraction (`extract_*.wgsl`)
 // reads it, the way Bevy's vertex shader poses what it draws (`morph.wgsl`,
 // `skinning.wgsl`) and `pose.rs` poses the CPU's copy:
 //

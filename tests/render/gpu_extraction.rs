@@ -1,4 +1,4 @@
-//! GPU fin extraction and layer assignment (`shaders/extract.wgsl`) against the
+//! GPU fin extraction and layer assignment (`shaders/extract_*.wgsl`) against the
 //! CPU extraction of the core crate, which the plugin can still run
 //! (`FinExtraction::Cpu`): same counts, same visibility.
 //!

@@ -341,7 +341,7 @@ fn a_still_scene_is_not_walked_again_and_a_moved_caster_moves_its_shadow() {
 
 #[test]
 fn one_cube_of_many_moving_redraws_only_its_part_of_the_maps_and_shadows_as_a_fresh_app() {
-    // Partial redraw (`extract.wgsl`): 100 cubes over the ground under the
+    // Partial redraw (`extract_*.wgsl`): 100 cubes over the ground under the
     // spot; one moved sideways leaves the maps' region, reference depth and
     // layer planes as they were, so the update clears and redraws only the
     // texels under its old and new footprints — and the visibility is the
@@ -423,7 +423,7 @@ fn one_cube_of_many_moving_redraws_only_its_part_of_the_maps_and_shadows_as_a_fr
 
 #[test]
 fn a_cube_lifted_out_of_the_kept_silhouette_depth_range_is_extracted_with_every_other_in_the_same_update() {
-    // Incremental extraction (`extract.wgsl`'s `decide`): the moved cube's
+    // Incremental extraction (`extract_plan.wgsl`'s `decide`): the moved cube's
     // new silhouettes are the nearest to the light, so the histogram's depth
     // range — and with it every silhouette's sub-layer — is not last
     // frame's. The update must throw away its incremental attempt and

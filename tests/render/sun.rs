@@ -255,7 +255,7 @@ fn a_still_or_slightly_moved_camera_keeps_the_suns_frame_and_a_far_move_rebuilds
 fn cubes_under_a_sun_moved_and_turned_shadow_as_the_cpu_extraction_does() {
     // 100 cubes of one mesh under a sun, rendered by the GPU extraction and
     // by the CPU's: still, after one cube moved sideways (the GPU extracts it
-    // alone, `extract.wgsl`'s incremental extraction) and after another
+    // alone, `extract_plan.wgsl`'s incremental extraction) and after another
     // turned. Same silhouettes, fins and layers; the same shadow.
     use bevy::prelude::*;
     use shadow_fins_app::{harness::Session, render_lab::scaling::spawn_cubes};

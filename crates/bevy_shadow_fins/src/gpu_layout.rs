@@ -2,7 +2,7 @@
 //! map-space casters ([`GpuCaster`]), their cut-outs ([`GpuCutout`]) and fins
 //! ([`GpuFin`]) of the CPU extraction, and the sizes of the GPU extraction's
 //! buffers. Their WGSL twins: `fin_types.wgsl`, `cutout.wgsl`, `maps.wgsl`,
-//! `extract.wgsl`.
+//! `extract_*.wgsl`.
 
 /// One caster triangle in light-map space (see the core's `MapTriangle`).
 #[repr(C)]
@@ -16,7 +16,7 @@ pub(crate) struct GpuCaster {
     pub layer: u32,
     /// 0: solid; else 1 + its index in the frame's [`GpuCutout`]s.
     pub cutout: u32,
-    /// The GPU extraction's patch of the caster (`extract.wgsl`); 0 here.
+    /// The GPU extraction's patch of the caster (`extract_*.wgsl`); 0 here.
     pub patch_id: u32,
 }
 
@@ -44,11 +44,11 @@ pub(crate) struct GpuFin {
 /// Bytes per penumbra-map texel (nine 32-bit channels, `fin_types.wgsl`).
 pub(crate) const MAP_TEXEL_BYTES: u64 = 9 * 4;
 
-/// Bytes per record of the extraction's outputs (`extract.wgsl`).
+/// Bytes per record of the extraction's outputs (`extract_*.wgsl`).
 pub(crate) const SILHOUETTE_BYTES: u64 = 7 * 16;
 pub(crate) const FIN_BYTES: u64 = 64;
 pub(crate) const CASTER_BYTES: u64 = size_of::<crate::gpu_layout::GpuCaster>() as u64;
-/// `state` words per caster face (`FACE_WORDS` in `extract.wgsl`).
+/// `state` words per caster face (`FACE_WORDS` in `extract_common.wgsl`).
 pub(crate) const FACE_STATE_WORDS: u64 = 5;
 /// `state` words per instance vertex: its light-frame position (`VERTEX_WORDS`).
 pub(crate) const VERTEX_STATE_WORDS: u64 = 3;

@@ -122,7 +122,7 @@
 //!
 //! Stages, per light, per frame and only when something moved or a setting changed:
 //! 1. **fin extraction and layer assignment** in compute passes
-//!    (`shaders/extract.wgsl`): per-face facing test, patches (connected
+//!    (`shaders/extract_*.wgsl`): per-face facing test, patches (connected
 //!    light-facing regions) by a lock-free union-find, per-edge silhouette test
 //!    appending oriented edges, fins and fans appended per silhouette edge and
 //!    vertex, the sub-layer histogram of edge depths (atomics), its prefix sum

@@ -65,7 +65,7 @@ pub struct FinFrameStats {
     pub redrawn_texels: u64,
     /// The GPU extraction's last update extracted only the casters that
     /// moved, and kept every other caster's silhouettes, fins and map
-    /// triangles from before (`extract.wgsl`): a few moved, and the
+    /// triangles from before (`extract_*.wgsl`): a few moved, and the
     /// reference depth and the silhouettes' depth range stayed. `false`:
     /// everything extracted anew, or on the CPU.
     pub incremental_extraction: bool,
@@ -150,7 +150,7 @@ pub(crate) fn warn_degradation(warned: &mut FinDegradations, now: FinDegradation
 /// [`FinLightStats`] without the two files needing each other.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Reflect)]
 pub enum FinExtraction {
-    /// Compute passes (`shaders/extract.wgsl`): caster geometry is uploaded once
+    /// Compute passes (`shaders/extract_*.wgsl`): caster geometry is uploaded once
     /// per mesh and only instance transforms when something moves; silhouettes,
     /// patches, fins, the depth histogram and the layer cut all run on the GPU.
     #[default]

@@ -1,4 +1,4 @@
-//! Caster geometry packed once per mesh for `shaders/extract.wgsl` (and
+//! Caster geometry packed once per mesh for `shaders/extract_*.wgsl` (and
 //! posed in place by `pose.wgsl`): the word layout, and a pose's record.
 
 use crate::casters::pose::PoseSource;
@@ -6,7 +6,7 @@ use bevy::prelude::*;
 use shadow_fins::mesh::{NO_FACE, Topology};
 use std::hash::{Hash, Hasher};
 
-/// Word offsets of a packed mesh's header (`G_*` in `extract.wgsl` and
+/// Word offsets of a packed mesh's header (`G_*` in `extract_common.wgsl` and
 /// `pose.wgsl`): vertex count, face count, edge count, then where the faces,
 /// vertices, edges, vertex → edge lists and non-manifold face lists start;
 /// then, for a posable packing, where its pose section starts (0: none) and
@@ -28,8 +28,8 @@ pub(crate) const NO_JOINT: u32 = 0xFFFF;
 /// Words of a pose buffer's header and of each of its jobs (`pose.wgsl`).
 pub(crate) const POSES_HEADER_WORDS: usize = 8;
 pub(crate) const POSE_JOB_WORDS: usize = 8;
-pub(crate) const EDGE_FORWARD0: u32 = 1;
-pub(crate) const EDGE_FORWARD1: u32 = 2;
+pub(crate) const EDGE_FORWARD_FIRST: u32 = 1;
+pub(crate) const EDGE_FORWARD_SECOND: u32 = 2;
 pub(crate) const EDGE_CREASE: u32 = 4;
 pub(crate) const EDGE_NON_MANIFOLD: u32 = 8;
 /// An outlined packing's mesh edge: it joins patches, and is never a
@@ -122,8 +122,8 @@ impl GpuMeshGeometry {
         });
         let mesh_edges = t.edges.iter().zip(&t.crease).map(|(edge, &crease)| (*edge, crease, mesh_edge_flags));
         for (edge, crease, kind) in mesh_edges.chain(outline_edges) {
-            let flags = if edge.forward[0] { EDGE_FORWARD0 } else { 0 }
-                | if edge.forward[1] { EDGE_FORWARD1 } else { 0 }
+            let flags = if edge.forward[0] { EDGE_FORWARD_FIRST } else { 0 }
+                | if edge.forward[1] { EDGE_FORWARD_SECOND } else { 0 }
                 | if crease { EDGE_CREASE } else { 0 }
                 | kind;
             let f1 = if edge.faces[1] == NO_FACE { u32::MAX } else { edge.faces[1] };

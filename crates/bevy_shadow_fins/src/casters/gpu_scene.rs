@@ -19,7 +19,7 @@ use std::{
     sync::Arc,
 };
 
-/// One caster instance, the layout of `Instance` in `extract.wgsl`.
+/// One caster instance, the layout of `Instance` in `extract_common.wgsl`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 pub(crate) struct GpuInstance {
@@ -80,7 +80,7 @@ impl GpuCapacity {
     /// Resized to what a read-back says a frame wanted. Grown, with a
     /// quarter more room, when the frame needed more than its capacity minus
     /// that room, but never past `max`. (The room is for the records an
-    /// incremental update retires and appends again, `extract.wgsl`: a
+    /// incremental update retires and appends again, `extract_*.wgsl`: a
     /// buffer the live records fill has none, and every update would extract
     /// everything. An alpha-masked card's outline is nearly all silhouettes.)
     /// Shrunk to half as much again as wanted when that is under a quarter of

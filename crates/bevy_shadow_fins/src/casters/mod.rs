@@ -28,7 +28,7 @@
 //! that touch every instance or record once without extracting it (depth
 //! and footprint reductions, retiring, layer assignment, gathering: only
 //! the moved instances are extracted and the maps redrawn under them when
-//! the plan stayed, `extract.wgsl`), a few flat loops
+//! the plan stayed, `extract_*.wgsl`), a few flat loops
 //! here (the scene's box, a copy of the instance records) and, for a caster
 //! with new geometry (a mesh swapped, or a pose the GPU cannot pose), each
 //! light's records and packed geometry.

@@ -19,7 +19,7 @@
 //!   place from the [`Pose`] (joint matrices, morph weights) before the
 //!   extraction runs. A new pose is then a changed instance record, not new
 //!   geometry: nothing is repacked or uploaded but the pose, and the maps
-//!   are redrawn only under the caster (`extract.wgsl`'s partial redraw).
+//!   are redrawn only under the caster (`extract_plan.wgsl`'s partial redraw).
 //!
 //! The GPU poses the topology at rest (welded vertices, faces, edges); a pose
 //! whose own topology differs (it welds two vertices apart, or folds a face

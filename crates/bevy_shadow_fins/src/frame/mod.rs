@@ -73,7 +73,7 @@ pub struct FinFrameData {
     /// circle's), or the sun's `tan θ`.
     pub(crate) size: f32,
     /// Where in that circle the light is: a rectangle's fins are as wide as
-    /// its support function across them (`extract.wgsl`'s `support`).
+    /// its support function across them (`extract_common.wgsl`'s `support`).
     pub(crate) aperture: Aperture,
     /// The sun's orthographic maps (`x, y` in world units); else perspective
     /// maps from the disk's centre (`x/L, y/L`).

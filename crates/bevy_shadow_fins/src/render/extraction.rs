@@ -1,5 +1,5 @@
 //! Render world side of GPU fin extraction and layer assignment: the buffers
-//! and compute passes of `extract.wgsl`, run before the penumbra-map passes
+//! and compute passes of `extract_*.wgsl`, run before the penumbra-map passes
 //! whenever the fin frame changed, and the read-back of their counts.
 
 use std::sync::Arc;
@@ -29,7 +29,7 @@ use crate::{
 };
 use shadow_fins::light::Aperture;
 
-/// `control` buffer layout (u32 words), as in `extract.wgsl`.
+/// `control` buffer layout (u32 words), as in `extract_common.wgsl`.
 pub(super) const C_PARAMS: u64 = 16;
 /// The maps' `FinParams` the extraction writes, bytes.
 const PARAMS_BYTES: u64 = crate::render::params::GPU_WRITTEN_BYTES;
@@ -50,14 +50,14 @@ const C_HISTOGRAM: u64 = 128;
 const C_PARTIAL: usize = 13;
 const C_REDRAWN: usize = 14;
 /// After the histogram, what a partial redraw keeps between frames
-/// (`history` in `extract.wgsl`, words relative to its start): the dirty
+/// (`history` in `extract_common.wgsl`, words relative to its start): the dirty
 /// list's length (or [`FULL`]), then `INSTANCE_WORDS` per instance (its
 /// footprint, deepest vertex, silhouette depths), then `DIRTY_WORDS` per
 /// dirty instance, then the redraw lists.
 const H_DIRTY_COUNT: u64 = 64;
 /// 1: the GPU may extract the moved instances alone ([`FinIncrementalExtraction`](crate::settings::FinIncrementalExtraction)).
 const H_INCREMENTAL: u64 = 66;
-/// The maps' header after their last redraw (`H_TILES` in `extract.wgsl`).
+/// The maps' header after their last redraw (`H_TILES` in `extract_common.wgsl`).
 const H_TILES: u64 = 92;
 /// Header words copied: tiles wanted, before, pool (`maps.wgsl`).
 const TILE_HEADER_WORDS: u64 = 3;
@@ -79,40 +79,102 @@ use crate::gpu_layout::CUTOUT_BYTES;
 use crate::gpu_layout::SILHOUETTE_BYTES;
 pub(super) use crate::gpu_layout::{CASTER_BYTES, FIN_BYTES};
 
-/// The posing passes' entry points (`pose.wgsl`), in the order they run.
-const POSE_ENTRY_POINTS: [&str; 5] = ["pose_vertices", "pose_faces", "pose_outline", "pose_normals", "pose_creases"];
 /// The most workgroups a posing pass dispatches per job (its threads stride).
 const MAX_POSE_GROUPS: u32 = 1024;
 
-/// The entry points, in the order they run.
-const ENTRY_POINTS: [&str; 23] = [
-    "reset",
-    "begin",
-    "forget_footprints",
-    "reduce_instances",
-    "decide",
-    "retire_moved",
-    "reduce_footprints",
-    "reset_footprints",
-    "transform_vertices",
-    "classify_faces",
-    "join_patches",
-    "flatten_patches",
-    "find_silhouettes",
-    "silhouette_args",
-    "silhouette_vertices",
-    "silhouette_quads",
-    "map_casters",
-    "plan_layers",
-    "assign_fin_layers",
-    "assign_caster_layers",
-    "gather_redraw_fins",
-    "gather_redraw_casters",
-    "redraw_args",
-];
+/// One compute pipeline per entry point, each a field named after its entry
+/// point, grouped by the shader that holds them: `$ids` holds the queued ids
+/// (`queue` takes one handle per shader, by the group's name), `$ready` the
+/// compiled pipelines once every one of them is. A misspelt pass is a
+/// compile error here or a pipeline error naming it, not a wrong index.
+macro_rules! pipeline_set {
+    (
+        $(#[$doc:meta])* $ids:ident, $ready:ident, $label:literal
+        { $($shader:ident: [$($entry:ident),* $(,)?]),* $(,)? }
+    ) => {
+        $(#[$doc])*
+        struct $ids {
+            $($($entry: CachedComputePipelineId,)*)*
+        }
+
+        #[doc = concat!("The compiled pipelines of [`", stringify!($ids), "`].")]
+        struct $ready<'a> {
+            $($($entry: &'a ComputePipeline,)*)*
+        }
+
+        impl $ids {
+            fn queue(
+                cache: &PipelineCache,
+                layout: &BindGroupLayoutDescriptor,
+                $($shader: &Handle<Shader>,)*
+            ) -> Self {
+                Self {
+                    $($($entry: crate::render::view::queue_compute(
+                        cache,
+                        concat!($label, stringify!($entry)),
+                        layout,
+                        $shader,
+                        stringify!($entry),
+                    ),)*)*
+                }
+            }
+
+            fn ready<'a>(&self, cache: &'a PipelineCache) -> Option<$ready<'a>> {
+                Some($ready { $($($entry: cache.get_compute_pipeline(self.$entry)?,)*)* })
+            }
+        }
+    };
+}
+
+pipeline_set! {
+    /// The extraction's passes, by the shader that holds them (stages 0 and
+    /// 10–12 `extract_plan.wgsl`, 1–6 `extract_silhouettes.wgsl`, 7–9
+    /// `extract_fins.wgsl`), each in the order [`record`] runs them.
+    ExtractionPasses, ReadyExtractionPasses, "fin_extract_" {
+        plan: [
+            reset,
+            begin,
+            forget_footprints,
+            reduce_instances,
+            decide,
+            retire_moved,
+            reduce_footprints,
+            reset_footprints,
+            plan_layers,
+            assign_fin_layers,
+            assign_caster_layers,
+            gather_redraw_fins,
+            gather_redraw_casters,
+            redraw_args,
+        ],
+        silhouettes: [
+            transform_vertices,
+            classify_faces,
+            join_patches,
+            flatten_patches,
+            find_silhouettes,
+            silhouette_args,
+        ],
+        fins: [
+            silhouette_vertices,
+            silhouette_quads,
+            map_casters,
+        ],
+    }
+}
+
+pipeline_set! {
+    /// The posing passes (`pose.wgsl`), in the order they run.
+    PosingPasses, ReadyPosingPasses, "fin_extract_" {
+        pose: [pose_vertices, pose_faces, pose_outline, pose_normals, pose_creases],
+    }
+}
 
 pub(super) fn build(app: &mut App) {
-    embedded_asset!(app, "shaders/extract.wgsl");
+    bevy::shader::load_shader_library!(app, "shaders/extract_common.wgsl");
+    embedded_asset!(app, "shaders/extract_plan.wgsl");
+    embedded_asset!(app, "shaders/extract_silhouettes.wgsl");
+    embedded_asset!(app, "shaders/extract_fins.wgsl");
     embedded_asset!(app, "shaders/pose.wgsl");
     app.add_plugins(ExtractResourcePlugin::<FinStatsBuffer>::default())
         .add_systems(Startup, spawn_stats_readback)
@@ -292,7 +354,7 @@ fn size_tile_pool(
     (overflowed, rebuild)
 }
 
-/// `ExtractParams` in `extract.wgsl`.
+/// `ExtractParams` in `extract_common.wgsl`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 struct ExtractParams {
@@ -315,9 +377,9 @@ struct ExtractParams {
 
 pub(super) struct ExtractPipelines {
     layout: BindGroupLayoutDescriptor,
-    ids: Vec<CachedComputePipelineId>,
+    passes: ExtractionPasses,
     pose_layout: BindGroupLayoutDescriptor,
-    pose_ids: Vec<CachedComputePipelineId>,
+    posing: PosingPasses,
 }
 
 impl ExtractPipelines {
@@ -346,29 +408,17 @@ impl ExtractPipelines {
                 (storage_buffer_read_only_sized(false, None), storage_buffer_sized(false, None)),
             ),
         );
-        let queue = |shader: &Handle<Shader>, layout: &BindGroupLayoutDescriptor, entries: &[&'static str]| {
-            (entries.iter())
-                .map(|entry| {
-                    crate::render::view::queue_compute(
-                        pipeline_cache,
-                        format!("fin_extract_{entry}"),
-                        layout,
-                        shader,
-                        entry,
-                    )
-                })
-                .collect()
-        };
-        let ids = queue(&load_embedded_asset!(asset_server, "shaders/extract.wgsl"), &layout, &ENTRY_POINTS);
-        let pose_ids =
-            queue(&load_embedded_asset!(asset_server, "shaders/pose.wgsl"), &pose_layout, &POSE_ENTRY_POINTS);
-        Self { layout, ids, pose_layout, pose_ids }
+        let passes = ExtractionPasses::queue(
+            pipeline_cache,
+            &layout,
+            &load_embedded_asset!(asset_server, "shaders/extract_plan.wgsl"),
+            &load_embedded_asset!(asset_server, "shaders/extract_silhouettes.wgsl"),
+            &load_embedded_asset!(asset_server, "shaders/extract_fins.wgsl"),
+        );
+        let posing =
+            PosingPasses::queue(pipeline_cache, &pose_layout, &load_embedded_asset!(asset_server, "shaders/pose.wgsl"));
+        Self { layout, passes, pose_layout, posing }
     }
-}
-
-/// Every pipeline of `ids`, once all are compiled.
-fn all_ready<'a>(ids: &[CachedComputePipelineId], cache: &'a PipelineCache) -> Option<Vec<&'a ComputePipeline>> {
-    ids.iter().map(|&id| cache.get_compute_pipeline(id)).collect()
 }
 
 /// GPU copies of the extraction's inputs and its work buffers.
@@ -463,7 +513,7 @@ fn changed_runs(old: &[u8], new: &[u8], record: usize) -> Vec<std::ops::Range<us
 /// binds the work buffers; `fins` and `casters` are the maps' input buffers.
 /// `maps_kept`: the maps buffer still holds the last update's maps and
 /// [`FinPartialRedraw`](crate::settings::FinPartialRedraw) is on (a partial redraw may
-/// keep them; see the top of `extract.wgsl`); `incremental`: the GPU may then
+/// keep them; see the top of `extract_common.wgsl`); `incremental`: the GPU may then
 /// extract the moved instances alone ([`FinIncrementalExtraction`](crate::settings::FinIncrementalExtraction)).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn prepare(
@@ -622,7 +672,7 @@ pub(super) fn prepare(
     // Partial when the last update reached the GPU, the same maps, light,
     // settings, geometry, history and records are there, and few instances
     // moved. The GPU then extracts the moved instances only, if it can
-    // (`extract.wgsl`'s `decide`), from the dirty table: per moved instance
+    // (`extract_plan.wgsl`'s `decide`), from the dirty table: per moved instance
     // its index and where its vertices, faces and edges start among the
     // moved instances'.
     let id = |b: &Option<Buffer>| b.as_ref().map(|b| b.id());
@@ -668,7 +718,7 @@ pub(super) fn prepare(
     ));
 }
 
-/// The dirty table `extract.wgsl`'s `item_of` reads: per moved instance
+/// The dirty table `extract_common.wgsl`'s `item_of` reads: per moved instance
 /// (`DIRTY_WORDS`) its index, then where its vertices, faces and edges start
 /// among the moved instances' (`info`: an instance's
 /// [`GpuInstance::info`], whose words 1..4 count them).
@@ -696,7 +746,7 @@ pub(super) fn record(
     encoder: &mut CommandEncoder,
 ) -> bool {
     let (Some(ready), Some(bind_group), Some(control)) =
-        (all_ready(&pipelines.ids, pipeline_cache), buffers.bind_group.as_ref(), buffers.control.as_ref())
+        (pipelines.passes.ready(pipeline_cache), buffers.bind_group.as_ref(), buffers.control.as_ref())
     else {
         return false;
     };
@@ -728,9 +778,8 @@ pub(super) fn record(
     let copy_args = |encoder: &mut CommandEncoder, from: u64, to: u64| {
         encoder.copy_buffer_to_buffer(control, from * 4, args, from * 4, (to - from) * 4);
     };
-    let entry = |name: &str| ready[ENTRY_POINTS.iter().position(|e| *e == name).expect("an entry point")];
     if let Some(pose_bind_group) = buffers.pose_bind_group.as_ref().filter(|_| buffers.pose_pending) {
-        let Some(pose) = all_ready(&pipelines.pose_ids, pipeline_cache) else { return false };
+        let Some(pose) = pipelines.posing.ready(pipeline_cache) else { return false };
         let [jobs, vertices, faces, edges] =
             crate::casters::gpu_scene::pose_sizes(buffers.uploaded_poses.as_deref().map_or(&[], |p| p.as_slice()));
         let mut pass =
@@ -738,35 +787,42 @@ pub(super) fn record(
         pass.set_bind_group(0, pose_bind_group, &[]);
         // Jobs along y, past 65 535 along z too (`pose.wgsl`'s `job_of`).
         let (y, z) = crate::render::view::workgroups(jobs);
-        for (pipeline, n) in pose.into_iter().zip([vertices, faces, vertices, vertices, edges]) {
+        let passes = [
+            (pose.pose_vertices, vertices),
+            (pose.pose_faces, faces),
+            (pose.pose_outline, vertices),
+            (pose.pose_normals, vertices),
+            (pose.pose_creases, edges),
+        ];
+        for (pipeline, n) in passes {
             pass.set_pipeline(pipeline);
             pass.dispatch_workgroups(n.div_ceil(WORKGROUP).clamp(1, MAX_POSE_GROUPS), y, z);
         }
     }
-    // Stages 1–9 (`extract.wgsl`), over the items `item_of` gives: the
+    // Stages 1–9 (`extract_silhouettes.wgsl`, `extract_fins.wgsl`), over the items `item_of` gives: the
     // moved instances' (the first time), or every instance's (the second).
     let stages_1_to_9 = |encoder: &mut CommandEncoder| {
         copy_args(encoder, C_ARGS_ITEMS, C_ARGS_ITEMS + 12);
         begin(encoder, &mut |pass| {
-            indirect(pass, entry("reset_footprints"), args, C_ARGS_ITEMS + 9);
-            indirect(pass, entry("transform_vertices"), args, C_ARGS_ITEMS);
-            indirect(pass, entry("classify_faces"), args, C_ARGS_ITEMS + 3);
-            indirect(pass, entry("join_patches"), args, C_ARGS_ITEMS + 6);
-            indirect(pass, entry("flatten_patches"), args, C_ARGS_ITEMS + 3);
-            indirect(pass, entry("find_silhouettes"), args, C_ARGS_ITEMS + 6);
-            direct(pass, entry("silhouette_args"), (1, 1));
+            indirect(pass, ready.reset_footprints, args, C_ARGS_ITEMS + 9);
+            indirect(pass, ready.transform_vertices, args, C_ARGS_ITEMS);
+            indirect(pass, ready.classify_faces, args, C_ARGS_ITEMS + 3);
+            indirect(pass, ready.join_patches, args, C_ARGS_ITEMS + 6);
+            indirect(pass, ready.flatten_patches, args, C_ARGS_ITEMS + 3);
+            indirect(pass, ready.find_silhouettes, args, C_ARGS_ITEMS + 6);
+            direct(pass, ready.silhouette_args, (1, 1));
         });
         copy_args(encoder, C_ARGS_SILHOUETTES, C_ARGS_SILHOUETTES + 3);
         begin(encoder, &mut |pass| {
-            indirect(pass, entry("silhouette_vertices"), args, C_ARGS_SILHOUETTES);
-            indirect(pass, entry("silhouette_quads"), args, C_ARGS_SILHOUETTES);
-            indirect(pass, entry("map_casters"), args, C_ARGS_ITEMS + 3);
+            indirect(pass, ready.silhouette_vertices, args, C_ARGS_SILHOUETTES);
+            indirect(pass, ready.silhouette_quads, args, C_ARGS_SILHOUETTES);
+            indirect(pass, ready.map_casters, args, C_ARGS_ITEMS + 3);
         });
     };
     begin(encoder, &mut |pass| {
-        direct(pass, entry("reset"), threads(C_HISTOGRAM as u32));
-        direct(pass, entry("begin"), (1, 1));
-        direct(pass, entry("forget_footprints"), threads(dirty));
+        direct(pass, ready.reset, threads(C_HISTOGRAM as u32));
+        direct(pass, ready.begin, (1, 1));
+        direct(pass, ready.forget_footprints, threads(dirty));
     });
     // The moved instances alone first — unless the CPU asked for a full
     // update (`begin` then chooses `STAGE_FULL`: that run would do nothing).
@@ -776,24 +832,24 @@ pub(super) fn record(
     }
     begin(encoder, &mut |pass| {
         if attempt {
-            direct(pass, entry("reduce_instances"), threads(instances as u32));
+            direct(pass, ready.reduce_instances, threads(instances as u32));
         }
-        direct(pass, entry("decide"), (1, 1));
+        direct(pass, ready.decide, (1, 1));
     });
     stages_1_to_9(encoder);
     copy_args(encoder, C_ARGS_RETIRE, C_ARGS_RETIRE + 3);
     begin(encoder, &mut |pass| {
-        indirect(pass, entry("retire_moved"), args, C_ARGS_RETIRE);
-        direct(pass, entry("reduce_footprints"), threads(instances as u32));
-        direct(pass, entry("plan_layers"), (1, 1));
+        indirect(pass, ready.retire_moved, args, C_ARGS_RETIRE);
+        direct(pass, ready.reduce_footprints, threads(instances as u32));
+        direct(pass, ready.plan_layers, (1, 1));
     });
     copy_args(encoder, C_ARGS_FIN_THREADS, C_ARGS_CASTER_THREADS + 3);
     begin(encoder, &mut |pass| {
-        indirect(pass, entry("assign_fin_layers"), args, C_ARGS_FIN_THREADS);
-        indirect(pass, entry("assign_caster_layers"), args, C_ARGS_CASTER_THREADS);
-        indirect(pass, entry("gather_redraw_fins"), args, C_ARGS_FIN_THREADS);
-        indirect(pass, entry("gather_redraw_casters"), args, C_ARGS_CASTER_THREADS);
-        direct(pass, entry("redraw_args"), (1, 1));
+        indirect(pass, ready.assign_fin_layers, args, C_ARGS_FIN_THREADS);
+        indirect(pass, ready.assign_caster_layers, args, C_ARGS_CASTER_THREADS);
+        indirect(pass, ready.gather_redraw_fins, args, C_ARGS_FIN_THREADS);
+        indirect(pass, ready.gather_redraw_casters, args, C_ARGS_CASTER_THREADS);
+        direct(pass, ready.redraw_args, (1, 1));
     });
     // The maps' clear and raster arguments: a partial redraw's, or all.
     copy_args(encoder, C_ARGS_CLEAR, C_ARGS_FINS + 3);

@@ -25,7 +25,7 @@ pub(crate) struct FinParams {
 }
 
 /// The bytes of [`FinParams`] the GPU extraction writes (its `FinParams`
-/// words in `control`, `extract.wgsl`): all but `tiles`.
+/// words in `control`, `extract_*.wgsl`): all but `tiles`.
 pub(crate) const GPU_WRITTEN_BYTES: u64 = std::mem::offset_of!(FinParams, tiles) as u64;
 
 pub(crate) const WORKGROUP: u32 = 64;
