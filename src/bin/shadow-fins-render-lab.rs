@@ -11,6 +11,7 @@
 //! - `sun`: a fin-shadowed `DirectionalLight` against the truth and beside
 //!   Bevy's cascades;
 //! - `scaling`: the frame cost against the object count, static and moving;
+//! - `posing`: what a skinned mesh's new pose costs, by mesh size, posed on the GPU and on the CPU;
 //! - `foliage`: alpha-masked leaf cards at scale, one moving, extracted on
 //!   the GPU against on the CPU.
 
@@ -100,6 +101,14 @@ enum Command {
         /// Object counts, comma-separated (1 to 100 000).
         #[arg(long, default_value = "10,100,1000,10000")]
         counts: String,
+        #[command(flatten)]
+        timed: TimedArgs,
+    },
+    /// What a skinned mesh's new pose costs the main world (CPU) and the render world, by mesh size.
+    Posing {
+        /// Rings of the skinned arm (about 32 vertices each), comma-separated (1 to 4096).
+        #[arg(long, default_value = "1,64,512")]
+        segments: String,
         #[command(flatten)]
         timed: TimedArgs,
     },
@@ -223,6 +232,7 @@ fn main() -> ExitCode {
         Command::Stability { cases, samples, method, out } => run_stability(&cases, samples, &method, out),
         Command::Lights { scene, counts, timed } => run_lights(&scene, &counts, &timed).map(|()| ExitCode::SUCCESS),
         Command::Scaling { counts, timed } => run_scaling(&counts, &timed, false).map(|()| ExitCode::SUCCESS),
+        Command::Posing { segments, timed } => run_posing(&segments, &timed).map(|()| ExitCode::SUCCESS),
         Command::Foliage { counts, timed } => run_scaling(&counts, &timed, true).map(|()| ExitCode::SUCCESS),
         Command::Sun { scenes, angles, frames, width, height, map_resolution, samples, layers, out } => {
             let parsed = parse_sun(&scenes, &angles);
@@ -291,6 +301,21 @@ fn run_scaling(counts: &str, timed: &TimedArgs, cards: bool) -> Result<(), LabEr
         false => scaling::markdown(&scaling::run(&run).map_err(usage)?),
     };
     print_table(&table, out)
+}
+
+/// The posing run: one skinned arm per size.
+fn run_posing(segments: &str, timed: &TimedArgs) -> Result<(), LabError> {
+    let TimedArgs { frames, width, height, map_resolution, ref out } = *timed;
+    let segments = parse_list("segments", segments, |s| s.parse::<u32>().ok().filter(|n| (1..=4096).contains(n)))
+        .map_err(usage)?;
+    let run = scaling::ScalingRun {
+        counts: vec![],
+        frames: frames.max(1),
+        width: width.clamp(1, 4096),
+        height: height.clamp(1, 4096),
+        map_resolution,
+    };
+    print_table(&scaling::posing_markdown(&scaling::posing(&run, &segments).map_err(usage)?), out)
 }
 
 /// The sun run's scenes and angles (`scene` or a finite angle in [0, 1.4] rad).

@@ -151,11 +151,22 @@ pub fn spawn_skinned_bar(world: &mut World, at: Vec3) -> Entity {
 /// cuboid's 24 vertices (4 per face: each corner three times, once per
 /// face) given by `bend_weight(vertex, position)`, the root's the rest.
 pub fn spawn_skinned_bar_weighted(world: &mut World, at: Vec3, bend_weight: impl Fn(usize, Vec3) -> f32) -> Entity {
+    spawn_skinned_mesh(world, Mesh::from(Cuboid::new(1.2, 0.15, 0.15)), at, bend_weight)
+}
+
+/// `mesh` skinned as [`spawn_skinned_bar_weighted`] skins its bar: two
+/// joints at `at`, the second's weight of each vertex `bend_weight(vertex,
+/// position)`. Returns the bending joint.
+pub fn spawn_skinned_mesh(
+    world: &mut World,
+    mut mesh: Mesh,
+    at: Vec3,
+    bend_weight: impl Fn(usize, Vec3) -> f32,
+) -> Entity {
     use bevy::mesh::{
         VertexAttributeValues,
         skinning::{SkinnedMesh, SkinnedMeshInverseBindposes},
     };
-    let mut mesh = Mesh::from(Cuboid::new(1.2, 0.15, 0.15));
     let Some(VertexAttributeValues::Float32x3(positions)) = mesh.attribute(Mesh::ATTRIBUTE_POSITION) else {
         unreachable!("a cuboid has positions")
     };
@@ -361,6 +372,90 @@ pub fn markdown(rows: &[ScalingRow]) -> String {
             r.cpu_posed_render_ms,
             r.bevy_main_ms,
             r.bevy_render_ms,
+        );
+    }
+    out
+}
+
+/// One skinned mesh's size and what its poses cost (`shadow-fins-render-lab
+/// posing`): ms per frame, main and render world, still and bent a little
+/// further every frame, posed on the GPU (the default) and on the CPU.
+#[derive(Debug, Clone, Copy)]
+pub struct PosingRow {
+    pub vertices: usize,
+    pub triangles: usize,
+    pub static_main_ms: f64,
+    pub static_render_ms: f64,
+    pub gpu_posed_main_ms: f64,
+    pub gpu_posed_render_ms: f64,
+    pub posed_on_gpu: usize,
+    pub cpu_posed_main_ms: f64,
+    pub cpu_posed_render_ms: f64,
+}
+
+/// A skinned arm of about `segments` × 32 vertices: a capsule along x
+/// (`Capsule3d`, 32 longitudes), its far half bent by the second joint with
+/// a weight smooth along its length (so the seams' split vertices, at one
+/// position, move as one: the pose keeps the topology at rest).
+pub fn skinned_arm(segments: u32) -> Mesh {
+    let mut mesh = Capsule3d::new(0.08, 1.1).mesh().rings(segments.max(1)).latitudes(8).longitudes(32).build();
+    mesh.rotate_by(Quat::from_rotation_z(-std::f32::consts::FRAC_PI_2));
+    mesh
+}
+
+/// The box-over-plane scene under its fin-shadowed spot light with one
+/// skinned arm per size in `segments` (each in its own app): what a new pose
+/// costs the main world (the CPU) and the render world.
+pub fn posing(run: &ScalingRun, segments: &[u32]) -> Result<Vec<PosingRow>, String> {
+    let mut rows = vec![];
+    for &n in segments {
+        let mut session = spot_session(run);
+        let mesh = skinned_arm(n);
+        let vertices = mesh.count_vertices();
+        let triangles = mesh.indices().map_or(vertices / 3, |i| i.len() / 3);
+        let joint = spawn_skinned_mesh(session.app.world_mut(), mesh, Vec3::new(-0.5, 0.9, 0.0), |_, p| {
+            ((p.x + 0.55) / 1.1).clamp(0.0, 1.0)
+        });
+        session.settle(6)?;
+        let still = time(&mut session, run.frames, Motion::Still);
+        let gpu = time(&mut session, run.frames, Motion::Joint(joint));
+        session.app.insert_resource(FinGpuPosing(false));
+        session.settle(6)?;
+        let cpu = time(&mut session, run.frames, Motion::Joint(joint));
+        rows.push(PosingRow {
+            vertices,
+            triangles,
+            static_main_ms: still.main,
+            static_render_ms: still.render,
+            gpu_posed_main_ms: gpu.main,
+            gpu_posed_render_ms: gpu.render,
+            posed_on_gpu: gpu.posed_on_gpu,
+            cpu_posed_main_ms: cpu.main,
+            cpu_posed_render_ms: cpu.render,
+        });
+    }
+    Ok(rows)
+}
+
+/// The posing rows as a markdown table.
+pub fn posing_markdown(rows: &[PosingRow]) -> String {
+    let mut out = String::from(
+        "| vertices | triangles | static: main ms | render ms | bent every frame, posed on the GPU: main ms | \
+         render ms | posed on the GPU | posed on the CPU (FinGpuPosing off): main ms | render ms |\n\
+         |---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        out += &format!(
+            "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} |\n",
+            r.vertices,
+            r.triangles,
+            r.static_main_ms,
+            r.static_render_ms,
+            r.gpu_posed_main_ms,
+            r.gpu_posed_render_ms,
+            r.posed_on_gpu,
+            r.cpu_posed_main_ms,
+            r.cpu_posed_render_ms,
         );
     }
     out
