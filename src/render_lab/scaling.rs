@@ -167,8 +167,10 @@ pub fn spawn_skinned_mesh(
         VertexAttributeValues,
         skinning::{SkinnedMesh, SkinnedMeshInverseBindposes},
     };
-    let Some(VertexAttributeValues::Float32x3(positions)) = mesh.attribute(Mesh::ATTRIBUTE_POSITION) else {
-        unreachable!("a cuboid has positions")
+    // A mesh without float positions gets no joint weights (and casts nothing).
+    let positions = match mesh.attribute(Mesh::ATTRIBUTE_POSITION) {
+        Some(VertexAttributeValues::Float32x3(positions)) => positions.clone(),
+        _ => vec![],
     };
     let weights: Vec<[f32; 4]> = (positions.iter().enumerate())
         .map(|(i, p)| {
@@ -393,10 +395,10 @@ pub struct PosingRow {
     pub cpu_posed_render_ms: f64,
 }
 
-/// A skinned arm of about `segments` × 32 vertices: a capsule along x
-/// (`Capsule3d`, 32 longitudes), its far half bent by the second joint with
-/// a weight smooth along its length (so the seams' split vertices, at one
-/// position, move as one: the pose keeps the topology at rest).
+/// A skinned arm of about 33 × `segments` + 328 vertices: a capsule along x
+/// (`Capsule3d`, 32 longitudes), bent by the second joint with a weight
+/// that ramps along its whole length ([`posing`]; the seams' split vertices,
+/// at one position, move as one: the pose keeps the topology at rest).
 pub fn skinned_arm(segments: u32) -> Mesh {
     let mut mesh = Capsule3d::new(0.08, 1.1).mesh().rings(segments.max(1)).latitudes(8).longitudes(32).build();
     mesh.rotate_by(Quat::from_rotation_z(-std::f32::consts::FRAC_PI_2));
@@ -413,6 +415,8 @@ pub fn posing(run: &ScalingRun, segments: &[u32]) -> Result<Vec<PosingRow>, Stri
         let mesh = skinned_arm(n);
         let vertices = mesh.count_vertices();
         let triangles = mesh.indices().map_or(vertices / 3, |i| i.len() / 3);
+        // Just under the box (its bottom at y = 1): `time` turns the joint by about
+        // 0.005 rad × frames in all, lifting the far end towards it (20 frames: 0.1 rad).
         let joint = spawn_skinned_mesh(session.app.world_mut(), mesh, Vec3::new(-0.5, 0.9, 0.0), |_, p| {
             ((p.x + 0.55) / 1.1).clamp(0.0, 1.0)
         });

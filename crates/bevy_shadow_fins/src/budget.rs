@@ -24,8 +24,11 @@ use bevy::prelude::*;
 #[derive(Resource, Debug, Clone, Copy, PartialEq, Eq, Hash, Reflect)]
 #[reflect(Resource, Default, Debug, Clone)]
 pub struct FinShadowBudget {
-    /// Bytes all penumbra-map layers may take together, shared equally by the
-    /// fin-shadowed lights (each light's maps get `map_bytes / lights`).
+    /// Bytes all penumbra-map layers may take together, split between the
+    /// fin-shadowed lights' frames (a point light's six faces are six) by
+    /// need: a frame whose maps are known to need less than an equal share
+    /// gets what it needs, the others share the rest (`shares_by_need`);
+    /// convolution frames share equally.
     pub map_bytes: u64,
     /// The largest single GPU buffer, bytes: `None` is the device's
     /// `max_storage_buffer_binding_size`; a value above it is lowered to it.

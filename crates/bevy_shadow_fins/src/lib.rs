@@ -38,7 +38,9 @@
 //! The plugin's own [`FinLight`] is a disk lighting the half-space it faces
 //! (shaded by the plugin, deferred materials only). Up to [`MAX_FIN_LIGHTS`]
 //! lights at once, any mix, each with its own [`FinShadowSettings`] (method,
-//! layers, map resolution, light size falloff) and its own [`FinLightStats`].
+//! layers, sub-layers, map resolution, refinement, falloff, overlap) and its own
+//! [`FinLightStats`]. A light that sees no caster runs no extraction or map
+//! pass (its visibility is 1).
 //!
 //! ## Cameras and meshes
 //!
@@ -84,8 +86,10 @@
 //! that moved are re-extracted ([`FinIncrementalExtraction`]) and only the
 //! maps under them redrawn ([`FinPartialRedraw`]). The penumbra maps are
 //! sparse (only the 8×8 tiles a caster or fin touches are stored), and the
-//! budget ([`FinShadowBudget::map_bytes`]) is split between the lights by
-//! what their maps need. Past it a light's maps lose resolution, then layers,
+//! budget ([`FinShadowBudget::map_bytes`]) is split between the lights' frames by
+//! what their maps need. The GPU's output buffers start at a size guessed
+//! from the scene and are resized when a read-back says a frame needed more
+//! (or far less). Past it a light's maps lose resolution, then layers,
 //! with every reason in its stats ([`FinFrameStats`], [`FinShadowStats`]).
 //!
 //! GPU time per pass is recorded under the diagnostic paths
@@ -93,7 +97,9 @@
 //! `render/fin_shadows/visibility` (the coverage method's per-pixel passes too),
 //! `render/fin_shadows/coverage_lists` and `render/fin_shadows/composite` (add
 //! Bevy's `RenderDiagnosticsPlugin`); extraction and maps only on frames where
-//! something changed.
+//! something changed. [`FinShadowView::visibility_target`] (the first light)
+//! and [`FinShadowView::light_visibility_targets`] (any light) copy the
+//! visibility into images, for tests and the editor.
 //!
 //! How a frame flows through the plugin, stage by stage, and where each of
 //! the paper's equations lives: `docs/ARCHITECTURE.md`.

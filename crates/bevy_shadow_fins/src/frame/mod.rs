@@ -176,7 +176,7 @@ pub(crate) type FrameKey = (Entity, Option<CubeFace>);
 /// Every fin-shadowed light's frames, by entity order (at most
 /// [`MAX_FIN_LIGHTS`] lights; a point light's six faces one after another).
 /// Each frame has its own maps and layers, each light its own visibility
-/// layer; the penumbra-map budget is shared equally between the frames.
+/// layer; the penumbra-map budget is split between the frames by need.
 #[derive(Resource, Clone, Default, ExtractResource)]
 pub struct FinFrames(pub Vec<FinLightFrame>);
 

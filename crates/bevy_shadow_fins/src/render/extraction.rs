@@ -129,7 +129,7 @@ macro_rules! pipeline_set {
 pipeline_set! {
     /// The extraction's passes, by the shader that holds them (stages 0 and
     /// 10–12 `extract_plan.wgsl`, 1–6 `extract_silhouettes.wgsl`, 7–9
-    /// `extract_fins.wgsl`), each in the order [`record`] runs them.
+    /// `extract_fins.wgsl`); [`record`] says in which order they run.
     ExtractionPasses, ReadyExtractionPasses, "fin_extract_" {
         plan: [
             reset,
@@ -799,7 +799,7 @@ pub(super) fn record(
             pass.dispatch_workgroups(n.div_ceil(WORKGROUP).clamp(1, MAX_POSE_GROUPS), y, z);
         }
     }
-    // Stages 1–9 (`extract_silhouettes.wgsl`, `extract_fins.wgsl`), over the items `item_of` gives: the
+    // Stages 1–9 (`extract_silhouettes.wgsl`, `extract_fins.wgsl`, after `extract_plan.wgsl`'s `reset_footprints`), over the items `item_of` gives: the
     // moved instances' (the first time), or every instance's (the second).
     let stages_1_to_9 = |encoder: &mut CommandEncoder| {
         copy_args(encoder, C_ARGS_ITEMS, C_ARGS_ITEMS + 12);
