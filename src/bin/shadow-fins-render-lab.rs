@@ -286,36 +286,34 @@ fn print_table(table: &str, out: &Option<PathBuf>) -> Result<(), LabError> {
 
 /// The scaling run (cubes), or with `cards` the foliage run (masked leaf cards).
 fn run_scaling(counts: &str, timed: &TimedArgs, cards: bool) -> Result<(), LabError> {
-    let TimedArgs { frames, width, height, map_resolution, ref out } = *timed;
     let counts = parse_list("counts", counts, |s| s.parse::<usize>().ok().filter(|n| (1..=100_000).contains(n)))
         .map_err(usage)?;
-    let run = scaling::ScalingRun {
+    let run = scaling_run(counts, timed);
+    let table = match cards {
+        true => foliage::markdown(&foliage::run(&run).map_err(usage)?),
+        false => scaling::markdown(&scaling::run(&run).map_err(usage)?),
+    };
+    print_table(&table, &timed.out)
+}
+
+/// The timed arguments as a scaling run over `counts` (frames at least 1, sizes clamped).
+fn scaling_run(counts: Vec<usize>, timed: &TimedArgs) -> scaling::ScalingRun {
+    let TimedArgs { frames, width, height, map_resolution, .. } = *timed;
+    scaling::ScalingRun {
         counts,
         frames: frames.max(1),
         width: width.clamp(1, 4096),
         height: height.clamp(1, 4096),
         map_resolution,
-    };
-    let table = match cards {
-        true => foliage::markdown(&foliage::run(&run).map_err(usage)?),
-        false => scaling::markdown(&scaling::run(&run).map_err(usage)?),
-    };
-    print_table(&table, out)
+    }
 }
 
-/// The posing run: one skinned arm per size.
+/// The posing run: one skinned arm per size (the run's counts unused).
 fn run_posing(segments: &str, timed: &TimedArgs) -> Result<(), LabError> {
-    let TimedArgs { frames, width, height, map_resolution, ref out } = *timed;
     let segments = parse_list("segments", segments, |s| s.parse::<u32>().ok().filter(|n| (1..=4096).contains(n)))
         .map_err(usage)?;
-    let run = scaling::ScalingRun {
-        counts: vec![],
-        frames: frames.max(1),
-        width: width.clamp(1, 4096),
-        height: height.clamp(1, 4096),
-        map_resolution,
-    };
-    print_table(&scaling::posing_markdown(&scaling::posing(&run, &segments).map_err(usage)?), out)
+    let run = scaling_run(vec![], timed);
+    print_table(&scaling::posing_markdown(&scaling::posing(&run, &segments).map_err(usage)?), &timed.out)
 }
 
 /// The sun run's scenes and angles (`scene` or a finite angle in [0, 1.4] rad).
