@@ -101,10 +101,12 @@ pub struct NonManifoldEdge {
 }
 
 /// Light-independent connectivity of a mesh, built once and reused every frame.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Topology {
     /// Positions after welding: one per distinct position.
     pub positions: Vec<Vec3>,
+    /// Per input vertex, its welded vertex (an index into `positions`).
+    pub welded_from: Vec<u32>,
     /// Non-degenerate faces, as welded vertex indices in the input winding.
     pub faces: Vec<[u32; 3]>,
     /// Per face, the input triangle it is (its index in the mesh's triangles).
@@ -150,20 +152,8 @@ impl Topology {
                 source_triangles.push(t as u32);
             }
         }
-        let face_planes: Vec<(Vec3, f32)> = faces
-            .iter()
-            .map(|f| {
-                let [a, b, c] = f.map(|i| positions[i as usize]);
-                let n = (b - a).cross(c - a);
-                (n, n.dot(a))
-            })
-            .collect();
-        let mut vertex_normals = vec![Vec3::ZERO; positions.len()];
-        for (f, (n, _)) in faces.iter().zip(&face_planes) {
-            for &v in f {
-                vertex_normals[v as usize] += *n;
-            }
-        }
+        let face_planes = planes_of(&faces, &positions);
+        let vertex_normals = vertex_normals_of(&faces, &face_planes, positions.len());
 
         // (min, max) → list of (face, walks min→max)
         let mut by_key: HashMap<(u32, u32), Vec<(u32, bool)>> = HashMap::with_capacity(faces.len() * 3 / 2);
@@ -206,21 +196,13 @@ impl Topology {
                 _ => non_manifold_edges.push(NonManifoldEdge { vertices: [v0, v1], faces: list }),
             }
         }
-        let cos_crease = CREASE_ANGLE_DEG.to_radians().cos();
-        let crease = edges
-            .iter()
-            .map(|e| {
-                e.faces[1] == NO_FACE || {
-                    let (a, b) = (face_planes[e.faces[0] as usize].0, face_planes[e.faces[1] as usize].0);
-                    a.normalize_or_zero().dot(b.normalize_or_zero()) < cos_crease
-                }
-            })
-            .collect();
-        let bounds = positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+        let crease = creases(&edges, &face_planes);
+        let bounds = bounds_of(&positions);
         Self {
             crease,
             bounds,
             positions,
+            welded_from: remap,
             faces,
             source_triangles,
             face_planes,
@@ -230,6 +212,90 @@ impl Topology {
             non_manifold_edges,
             degenerate_faces,
             inconsistent_edges,
+        }
+    }
+
+    /// This topology with the vertices moved: `posed` holds the mesh's input
+    /// vertices (as many as it was built from) in a new pose. `Some` exactly
+    /// when [`Topology::build`] of the posed mesh would give the same welds and
+    /// faces — then it equals that build, field for field, at a fraction of
+    /// its cost (no hashing of edges, no sort): the planes, vertex normals,
+    /// creases and bounds are recomputed, the rest kept.
+    ///
+    /// `None` when the pose changed the topology: two vertices welded at rest
+    /// moved apart, two vertices apart at rest met, a face folded to zero
+    /// area, or a triangle dropped at rest for its area unfolded; or when
+    /// `posed` is not this mesh's vertex count or holds a non-finite position.
+    /// Why: a skinned or morphed mesh is posed every frame, and its poses
+    /// nearly always keep the rest topology (welded vertices share their
+    /// joints, weights and morph deltas).
+    pub fn reposed(&self, indices: &[u32], posed: &[Vec3]) -> Option<Topology> {
+        if posed.len() != self.welded_from.len() || posed.iter().any(|p| !p.is_finite()) {
+            return None;
+        }
+        let key = |p: Vec3| (p + Vec3::ZERO).to_array().map(f32::to_bits);
+        // Welds kept: every input vertex at its welded vertex's first input's
+        // position (welded vertices are numbered in first-seen order).
+        let mut positions = Vec::with_capacity(self.positions.len());
+        for (&w, &p) in self.welded_from.iter().zip(posed) {
+            match positions.get(w as usize) {
+                Some(&first) if key(first) == key(p) => {}
+                Some(_) => return None,
+                None if w as usize == positions.len() => positions.push(p),
+                None => return None,
+            }
+        }
+        if positions.len() != self.positions.len() {
+            return None;
+        }
+        // No two welded vertices met.
+        let mut seen = std::collections::HashSet::with_capacity(positions.len());
+        if !positions.iter().all(|&p| seen.insert(key(p))) {
+            return None;
+        }
+        // The same triangles dropped for their area, and no others.
+        let mut kept = self.source_triangles.iter().peekable();
+        for (t, tri) in indices.chunks_exact(3).enumerate() {
+            let f = [0, 1, 2].map(|k| self.welded_from.get(tri[k] as usize).copied());
+            let [Some(a), Some(b), Some(c)] = f else { return None };
+            let was_kept = kept.next_if_eq(&&(t as u32)).is_some();
+            let repeats = a == b || b == c || a == c;
+            let flat =
+                repeats || triangle_is_degenerate(positions[a as usize], positions[b as usize], positions[c as usize]);
+            if flat == was_kept {
+                return None;
+            }
+        }
+        if kept.next().is_some() {
+            return None;
+        }
+        let face_planes = planes_of(&self.faces, &positions);
+        Some(Topology {
+            vertex_normals: vertex_normals_of(&self.faces, &face_planes, positions.len()),
+            crease: creases(&self.edges, &face_planes),
+            bounds: bounds_of(&positions),
+            face_planes,
+            positions,
+            ..self.clone_without_geometry()
+        })
+    }
+
+    /// A copy of what does not depend on where the vertices are.
+    fn clone_without_geometry(&self) -> Topology {
+        Topology {
+            positions: vec![],
+            welded_from: self.welded_from.clone(),
+            faces: self.faces.clone(),
+            source_triangles: self.source_triangles.clone(),
+            face_planes: vec![],
+            vertex_normals: vec![],
+            face_neighbors: self.face_neighbors.clone(),
+            edges: self.edges.clone(),
+            crease: vec![],
+            non_manifold_edges: self.non_manifold_edges.clone(),
+            degenerate_faces: self.degenerate_faces,
+            inconsistent_edges: self.inconsistent_edges,
+            bounds: self.bounds,
         }
     }
 
@@ -334,6 +400,47 @@ fn ray_triangle(p: glam::DVec3, d: glam::DVec3, [a, b, c]: [glam::DVec3; 3]) -> 
     RayTriangle::Hit
 }
 
+/// Each face's unnormalised normal `(b − a) × (c − a)` and `dot(normal, a)`.
+fn planes_of(faces: &[[u32; 3]], positions: &[Vec3]) -> Vec<(Vec3, f32)> {
+    faces
+        .iter()
+        .map(|f| {
+            let [a, b, c] = f.map(|i| positions[i as usize]);
+            let n = (b - a).cross(c - a);
+            (n, n.dot(a))
+        })
+        .collect()
+}
+
+/// Area-weighted vertex normals: the sum of each vertex's faces' normals.
+fn vertex_normals_of(faces: &[[u32; 3]], face_planes: &[(Vec3, f32)], vertex_count: usize) -> Vec<Vec3> {
+    let mut normals = vec![Vec3::ZERO; vertex_count];
+    for (f, (n, _)) in faces.iter().zip(face_planes) {
+        for &v in f {
+            normals[v as usize] += *n;
+        }
+    }
+    normals
+}
+
+/// Per edge, whether it is a crease ([`Topology::crease`]).
+fn creases(edges: &[Edge], face_planes: &[(Vec3, f32)]) -> Vec<bool> {
+    let cos_crease = CREASE_ANGLE_DEG.to_radians().cos();
+    edges
+        .iter()
+        .map(|e| {
+            e.faces[1] == NO_FACE || {
+                let (a, b) = (face_planes[e.faces[0] as usize].0, face_planes[e.faces[1] as usize].0);
+                a.normalize_or_zero().dot(b.normalize_or_zero()) < cos_crease
+            }
+        })
+        .collect()
+}
+
+fn bounds_of(positions: &[Vec3]) -> (Vec3, Vec3) {
+    positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)))
+}
+
 /// Merges vertices with bit-identical positions (`-0.0` and `0.0` are one).
 ///
 /// Returns the distinct positions, in first-seen order, and the map from input
@@ -404,5 +511,82 @@ mod tests {
         let t = Topology::build(&Mesh::new(p, vec![0, 1, 2, 0, 1, 3]).unwrap());
         assert_eq!(t.faces.len(), 1);
         assert_eq!(t.degenerate_faces, 1);
+    }
+
+    /// A sphere exported flat-shaded (three vertices per triangle, so every
+    /// vertex is welded from several), with one sliver triangle that the
+    /// rest pose drops for its area.
+    fn split_sphere() -> Mesh {
+        let sphere = crate::shapes::uv_sphere(1.0, 6, 8);
+        let mut positions: Vec<Vec3> = sphere.triangles().flatten().collect();
+        positions.extend([Vec3::new(2.0, 0.0, 0.0), Vec3::new(3.0, 0.0, 0.0), Vec3::new(4.0, 0.0, 0.0)]);
+        Mesh::new(positions.clone(), (0..positions.len() as u32).collect()).unwrap()
+    }
+
+    fn posed(mesh: &Mesh, f: impl Fn(Vec3) -> Vec3) -> Vec<Vec3> {
+        mesh.positions().iter().map(|&p| f(p)).collect()
+    }
+
+    #[test]
+    fn a_pose_that_changes_the_topology_is_refused() {
+        let mesh = split_sphere();
+        let rest = Topology::build(&mesh);
+        assert!(rest.reposed(mesh.indices(), mesh.positions()).is_some_and(|t| t == rest));
+        // Two vertices welded at rest moved apart (one split copy of a corner).
+        let mut apart = mesh.positions().to_vec();
+        apart[0] += Vec3::splat(1e-3);
+        assert_eq!(rest.reposed(mesh.indices(), &apart), None);
+        // Two vertices apart at rest met: a corner of the sphere onto another.
+        let (a, b) = (rest.positions[rest.faces[0][0] as usize], rest.positions[rest.faces[0][1] as usize]);
+        let met = posed(&mesh, |p| if p == b { a } else { p });
+        assert_eq!(rest.reposed(mesh.indices(), &met), None);
+        // The sliver dropped at rest unfolded into a triangle.
+        let n = mesh.positions().len();
+        let mut unfolded = mesh.positions().to_vec();
+        unfolded[n - 2].y = 1.0;
+        assert_eq!(rest.reposed(mesh.indices(), &unfolded), None);
+        // A face folded flat: one corner moved onto the line through the other two.
+        let [a, b, c] = rest.faces[10].map(|i| rest.positions[i as usize]);
+        let flat = posed(&mesh, |p| if p == c { (a + b) * 0.5 } else { p });
+        assert_eq!(rest.reposed(mesh.indices(), &flat), None);
+        // Not this mesh's vertices, or not finite.
+        assert_eq!(rest.reposed(mesh.indices(), &mesh.positions()[1..]), None);
+        let mut nan = mesh.positions().to_vec();
+        nan[3] = Vec3::NAN;
+        assert_eq!(rest.reposed(mesh.indices(), &nan), None);
+        // In each case a rebuild gives another topology, so refusing was right
+        // (the NaN and the short list build no mesh at all).
+        for changed in [apart, met, unfolded, flat] {
+            let built = Topology::build(&Mesh::new(changed, mesh.indices().to_vec()).unwrap());
+            assert!(built.positions.len() != rest.positions.len() || built.faces != rest.faces);
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig { cases: 256, ..Default::default() })]
+
+        /// Any pose that moves welded vertices as one (a function of the rest
+        /// position: a bend, a twist, a stretch) and keeps the faces gives, by
+        /// `reposed`, the topology a rebuild gives, field for field.
+        #[test]
+        fn a_pose_that_keeps_the_welds_reposes_to_the_rebuilt_topology(
+            twist in -3.0f32..3.0, bend in -1.0f32..1.0, stretch in 0.2f32..3.0, shift in -1e3f32..1e3,
+        ) {
+            let mesh = split_sphere();
+            let rest = Topology::build(&mesh);
+            let pose = |p: Vec3| {
+                let (s, c) = (twist * p.y).sin_cos();
+                let q = Vec3::new(c * p.x - s * p.z, p.y * stretch, s * p.x + c * p.z);
+                q + Vec3::new(bend * q.y * q.y, 0.0, shift)
+            };
+            let positions = posed(&mesh, pose);
+            let built = Topology::build(&Mesh::new(positions.clone(), mesh.indices().to_vec()).unwrap());
+            let same = built.positions.len() == rest.positions.len() && built.faces == rest.faces;
+            let reposed = rest.reposed(mesh.indices(), &positions);
+            proptest::prop_assert_eq!(reposed.is_some(), same);
+            if let Some(reposed) = reposed {
+                proptest::prop_assert_eq!(reposed, built);
+            }
+        }
     }
 }

@@ -37,11 +37,13 @@ pub(crate) struct PosedCaster {
 /// its mesh and pose are the same; `None` when it is not drawn posed.
 ///
 /// The CPU poses it for the oracles, the CPU extraction and the other
-/// methods. The GPU extraction poses it itself (`pose.wgsl`), from the
-/// topology of the mesh at rest, when that is the posed mesh's topology too
-/// — the same welded vertices and faces, which a pose that welds two
-/// vertices apart, or folds a face flat, breaks: then the GPU gets the
-/// CPU's posed packing, a new mesh each pose. `posable`: the cache of
+/// methods, and keeps the topology at rest with the posed vertices
+/// (`Topology::reposed`: planes, normals, creases and bounds recomputed, no
+/// rebuild) when that is the posed mesh's topology too — the same welded
+/// vertices and faces, which a pose that welds two vertices apart, or folds
+/// a face flat, breaks. The GPU extraction then poses it itself
+/// (`pose.wgsl`) from the topology at rest; else the topology is rebuilt
+/// and the GPU gets the CPU's posed packing, a new mesh each pose. `posable`: the cache of
 /// packings the GPU poses, `None` when the GPU is not to pose it.
 pub(crate) fn posed_mesh<'a>(
     entity: Entity,
@@ -62,19 +64,29 @@ pub(crate) fn posed_mesh<'a>(
     let key = hasher.finish();
     if posed.get(&entity).is_none_or(|p| p.key != key) {
         let pose = poses.pose(entity, mesh)?;
-        let posed_now = core_topology_at(mesh, pose.positions);
+        let rest = at_rest.entry(mesh_id).or_insert_with(|| core_mesh(mesh)).as_ref().ok();
+        // The rest topology with the posed vertices, when the pose kept it
+        // (nearly always): no rebuild, and the GPU may pose it. Else this
+        // pose's own topology, posed on the CPU for the GPU too.
+        let reposed = rest.and_then(|(core, topology, _)| {
+            let topology = topology.reposed(core.indices(), &pose.positions)?;
+            Some((core.indices().to_vec(), topology))
+        });
+        let kept_rest_topology = reposed.is_some();
+        let posed_now = match reposed {
+            Some((indices, topology)) => CoreMesh::new(pose.positions, indices)
+                .map(|core| (Arc::new(core), Arc::new(topology)))
+                .map_err(FinSceneError::Invalid),
+            None => core_topology_at(mesh, pose.positions),
+        };
         // The GPU poses it when the pose kept the topology at rest (then no
         // packing of the posed mesh is made: the posable one stands for it).
-        let gpu = posed_now.as_ref().ok().zip(posable).and_then(|((_, topology), posable)| {
-            let Ok((_, rest, rest_packing)) = at_rest.entry(mesh_id).or_insert_with(|| core_mesh(mesh)) else {
-                return None;
-            };
+        let gpu = rest.filter(|_| kept_rest_topology).zip(posable).and_then(|((_, rest, rest_packing), posable)| {
             let posable = posable.entry(mesh_id).or_insert_with(|| {
                 GpuMeshGeometry::pack_posable(rest_packing, rest, &crate::casters::pose::pose_source(mesh), None)
                     .map(Arc::new)
             });
-            let same_topology = rest.faces == topology.faces && rest.positions.len() == topology.positions.len();
-            Some((posable.clone()?, Arc::new(GpuPose::new(&pose.pose)))).filter(|_| same_topology)
+            Some((posable.clone()?, Arc::new(GpuPose::new(&pose.pose))))
         });
         let cached = posed_now.map(|(core, topology)| {
             let geometry = match &gpu {

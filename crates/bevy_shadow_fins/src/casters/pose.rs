@@ -25,8 +25,9 @@
 //! whose own topology differs (it welds two vertices apart, or folds a face
 //! to nothing) is posed on the CPU for the GPU too (`casters::mesh::posed_mesh`).
 //!
-//! Cost: the CPU still poses and rebuilds the topology of a posed mesh in
-//! every frame in which its pose changed (its time is in the main world's).
+//! Cost: the CPU still poses its copy of a posed mesh in every frame in which
+//! its pose changed (its time is in the main world's); the topology is
+//! rebuilt only for a pose that changed it (`Topology::reposed`).
 
 use std::hash::{Hash, Hasher};
 
