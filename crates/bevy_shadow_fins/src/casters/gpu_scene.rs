@@ -23,18 +23,18 @@ use std::{
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 pub(crate) struct GpuInstance {
-    linear: [[f32; 4]; 3],
-    translation: [f32; 4],
-    normal: [[f32; 4]; 3],
-    light: [f32; 4],
+    pub(crate) linear: [[f32; 4]; 3],
+    pub(crate) translation: [f32; 4],
+    pub(crate) normal: [[f32; 4]; 3],
+    pub(crate) light: [f32; 4],
     /// (geometry word offset, first vertex, first caster face, first caster edge)
-    ids: [u32; 4],
+    pub(crate) ids: [u32; 4],
     /// (flags 1 casts / 2 closed / 4 mirrors, vertices, caster faces, caster edges)
-    info: [u32; 4],
+    pub(crate) info: [u32; 4],
     /// (its pose's hash, low and high words; its cut-out: 0 solid, else 1 +
     /// where its mask starts in the scene's mask words; 0): a new pose
     /// changes the record.
-    pose: [u32; 4],
+    pub(crate) pose: [u32; 4],
 }
 
 impl GpuInstance {

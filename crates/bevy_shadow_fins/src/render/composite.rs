@@ -66,9 +66,9 @@ use crate::{
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub(crate) struct FinLightUniform {
-    position_radius: [f32; 4],
-    forward_inverse_square_range: [f32; 4],
-    color: [f32; 4],
+    pub(crate) position_radius: [f32; 4],
+    pub(crate) forward_inverse_square_range: [f32; 4],
+    pub(crate) color: [f32; 4],
 }
 
 impl FinLightUniform {
@@ -126,21 +126,21 @@ impl FinLightUniform {
 }
 
 /// What the compositing pass does with light slot `i` (`CompositeLight.info.x`).
-const KIND_OWN: u32 = 0;
-const KIND_BEVY: u32 = 1;
+pub(super) const KIND_OWN: u32 = 0;
+pub(super) const KIND_BEVY: u32 = 1;
 const KIND_NONE: u32 = 2;
-const KIND_BEVY_DIRECTIONAL: u32 = 3;
-const KIND_BEVY_RECT: u32 = 4;
+pub(super) const KIND_BEVY_DIRECTIONAL: u32 = 3;
+pub(super) const KIND_BEVY_RECT: u32 = 4;
 
 /// One light slot as the compositing shader reads it (`CompositeLight` in
 /// `composite.wgsl`): the shading of a [`FinLight`], or the index of a Bevy
 /// light in Bevy's clustered light list.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-struct CompositeLight {
-    own: FinLightUniform,
+pub(super) struct CompositeLight {
+    pub(crate) own: FinLightUniform,
     /// x: kind, y: Bevy's light index, z: 1 when this view's layer was written.
-    info: [u32; 4],
+    pub(crate) info: [u32; 4],
 }
 
 /// Bytes of [`CompositeLights`] (the forward hook's fallback of no light).
@@ -149,12 +149,12 @@ pub(super) const COMPOSITE_LIGHTS_BYTES: usize = size_of::<CompositeLights>();
 /// Every light slot of one view (`CompositeLights` in `composite_types.wgsl`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-struct CompositeLights {
+pub(super) struct CompositeLights {
     /// x: the light slots in use; y: 1 while Bevy's own shadow maps of
     /// fin-shadowed lights are kept ([`crate::BevyShadowMapsKept`]: the shader
     /// replaces their shadow by V).
-    count: [u32; 4],
-    lights: [CompositeLight; MAX_FIN_LIGHTS],
+    pub(crate) count: [u32; 4],
+    pub(crate) lights: [CompositeLight; MAX_FIN_LIGHTS],
 }
 
 pub(crate) fn build(app: &mut App) {

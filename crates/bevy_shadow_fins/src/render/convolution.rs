@@ -135,13 +135,13 @@ fn init_pipelines(mut commands: Commands, pipeline_cache: Res<PipelineCache>, as
 /// `ConvolutionParams` in `convolution_types.wgsl`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct ConvolutionUniform {
-    counts: [u32; 4],
-    series: [f32; 4],
-    kernel: [f32; 4],
-    lookup: [f32; 4],
-    levels: [[u32; 4]; MAX_LEVELS / 2],
-    empty: [[f32; 4]; 17],
+pub(super) struct ConvolutionUniform {
+    pub(crate) counts: [u32; 4],
+    pub(crate) series: [f32; 4],
+    pub(crate) kernel: [f32; 4],
+    pub(crate) lookup: [f32; 4],
+    pub(crate) levels: [[u32; 4]; MAX_LEVELS / 2],
+    pub(crate) empty: [[f32; 4]; 17],
 }
 
 fn uniform_of(f: &FinFrameData, layout: &BasisLayout) -> ConvolutionUniform {

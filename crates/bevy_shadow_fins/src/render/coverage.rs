@@ -40,7 +40,7 @@ use crate::{
     settings::FinShadowView,
 };
 
-const WORKGROUP: u32 = 64;
+pub(super) const WORKGROUP: u32 = 64;
 
 pub(super) fn build(app: &mut App) {
     load_shader_library!(app, "shaders/coverage_types.wgsl");
@@ -67,15 +67,15 @@ pub(super) fn finish(app: &mut App) {
 /// `CoverageParams` in `coverage_types.wgsl`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct CoverageParams {
-    lists: [f32; 4],
-    counts: [u32; 4],
-    light: [f32; 4],
-    grid: [f32; 4],
-    info: [u32; 4],
-    axis_u: [f32; 4],
-    axis_v: [f32; 4],
-    axis_n: [f32; 4],
+pub(super) struct CoverageParams {
+    pub(crate) lists: [f32; 4],
+    pub(crate) counts: [u32; 4],
+    pub(crate) light: [f32; 4],
+    pub(crate) grid: [f32; 4],
+    pub(crate) info: [u32; 4],
+    pub(crate) axis_u: [f32; 4],
+    pub(crate) axis_v: [f32; 4],
+    pub(crate) axis_n: [f32; 4],
 }
 
 fn params_of(f: &FinFrameData) -> Option<CoverageParams> {

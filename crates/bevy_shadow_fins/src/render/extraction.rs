@@ -36,44 +36,44 @@ const PARAMS_BYTES: u64 = crate::render::params::GPU_WRITTEN_BYTES;
 pub(super) const C_ARGS_CLEAR: u64 = 56;
 pub(super) const C_ARGS_CASTERS: u64 = 59;
 pub(super) const C_ARGS_FINS: u64 = 62;
-const C_ARGS_SILHOUETTES: u64 = 65;
-const C_ARGS_FIN_THREADS: u64 = 68;
-const C_ARGS_CASTER_THREADS: u64 = 71;
+pub(super) const C_ARGS_SILHOUETTES: u64 = 65;
+pub(super) const C_ARGS_FIN_THREADS: u64 = 68;
+pub(super) const C_ARGS_CASTER_THREADS: u64 = 71;
 /// Stages 1–9's dispatch sizes (vertices, faces, edges, instances), and
 /// `retire_moved`'s.
-const C_ARGS_ITEMS: u64 = 112;
-const C_ARGS_RETIRE: u64 = 124;
-const C_HISTOGRAM: u64 = 128;
+pub(super) const C_ARGS_ITEMS: u64 = 112;
+pub(super) const C_ARGS_RETIRE: u64 = 124;
+pub(super) const C_HISTOGRAM: u64 = 128;
 /// Stats words: whether the last update redrew the maps in part (bit 0) and
 /// extracted the moved instances only (bit 1), and the texels it cleared
 /// and drew again.
-const C_PARTIAL: usize = 13;
-const C_REDRAWN: usize = 14;
+pub(super) const C_PARTIAL: usize = 13;
+pub(super) const C_REDRAWN: usize = 14;
 /// After the histogram, what a partial redraw keeps between frames
 /// (`history` in `extract_common.wgsl`, words relative to its start): the dirty
 /// list's length (or [`FULL`]), then `INSTANCE_WORDS` per instance (its
 /// footprint, deepest vertex, silhouette depths), then `DIRTY_WORDS` per
 /// dirty instance, then the redraw lists.
-const H_DIRTY_COUNT: u64 = 64;
+pub(super) const H_DIRTY_COUNT: u64 = 64;
 /// 1: the GPU may extract the moved instances alone ([`FinIncrementalExtraction`](crate::settings::FinIncrementalExtraction)).
-const H_INCREMENTAL: u64 = 66;
+pub(super) const H_INCREMENTAL: u64 = 66;
 /// The maps' header after their last redraw (`H_TILES` in `extract_common.wgsl`).
-const H_TILES: u64 = 92;
+pub(super) const H_TILES: u64 = 92;
 /// Header words copied: tiles wanted, before, pool (`maps.wgsl`).
 const TILE_HEADER_WORDS: u64 = 3;
-const H_INSTANCES: u64 = 96;
-const INSTANCE_WORDS: u64 = 8;
-const DIRTY_WORDS: u64 = 4;
+pub(super) const H_INSTANCES: u64 = 96;
+pub(super) const INSTANCE_WORDS: u64 = 8;
+pub(super) const DIRTY_WORDS: u64 = 4;
 /// Redraw the maps whole.
-const FULL: u32 = u32::MAX;
+pub(super) const FULL: u32 = u32::MAX;
 /// The most moved instances a partial redraw takes; past it the maps are
 /// redrawn whole (many moved: their footprints would cover much of the maps).
 const MAX_REDRAWN_INSTANCES: usize = 256;
 /// Words 0..16 of `control` go back to the main world: counts, generation, layers.
 const STATS_WORDS: u64 = 16;
-const FACE_WORDS: u64 = crate::gpu_layout::FACE_STATE_WORDS;
-const VERTEX_WORDS: u64 = crate::gpu_layout::VERTEX_STATE_WORDS;
-const WORKGROUP: u32 = 64;
+pub(super) const FACE_WORDS: u64 = crate::gpu_layout::FACE_STATE_WORDS;
+pub(super) const VERTEX_WORDS: u64 = crate::gpu_layout::VERTEX_STATE_WORDS;
+pub(super) const WORKGROUP: u32 = 64;
 
 use crate::gpu_layout::CUTOUT_BYTES;
 use crate::gpu_layout::SILHOUETTE_BYTES;
@@ -357,22 +357,22 @@ fn size_tile_pool(
 /// `ExtractParams` in `extract_common.wgsl`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-struct ExtractParams {
-    totals: [u32; 4],
-    layering: [u32; 4],
-    capacity: [u32; 4],
-    light: [f32; 4],
-    flags: [u32; 4],
-    origin: [f32; 4],
-    axis_u: [f32; 4],
-    axis_v: [f32; 4],
-    axis_n: [f32; 4],
+pub(super) struct ExtractParams {
+    pub(crate) totals: [u32; 4],
+    pub(crate) layering: [u32; 4],
+    pub(crate) capacity: [u32; 4],
+    pub(crate) light: [f32; 4],
+    pub(crate) flags: [u32; 4],
+    pub(crate) origin: [f32; 4],
+    pub(crate) axis_u: [f32; 4],
+    pub(crate) axis_v: [f32; 4],
+    pub(crate) axis_n: [f32; 4],
     /// The maps' region lies within (min x, min y, max x, max y); none when min > max.
-    window: [f32; 4],
+    pub(crate) window: [f32; 4],
     /// The light's support function: (rectangle half extents a, b in the
     /// unit bounding circle, 1, 0), a disk's (1, 1, 0, 0), a point light's
     /// cube face (1/stretch, window, 2, 0).
-    aperture: [f32; 4],
+    pub(crate) aperture: [f32; 4],
 }
 
 pub(super) struct ExtractPipelines {

@@ -41,6 +41,8 @@ mod params;
 mod plateaus;
 mod view;
 mod visibility;
+#[cfg(test)]
+mod wgsl_twins;
 
 pub(crate) fn build(app: &mut App) {
     load_shader_library!(app, "shaders/fin_types.wgsl");
