@@ -41,6 +41,10 @@ pub(crate) struct GpuFin {
     pub data: [f32; 12],
 }
 
+/// Invocations per workgroup of every compute pass (`WORKGROUP` in
+/// `extract_common.wgsl`, `maps.wgsl`, `coverage_types.wgsl`, `pose.wgsl`).
+pub(crate) const WORKGROUP: u32 = 64;
+
 /// Bytes per penumbra-map texel (nine 32-bit channels, `fin_types.wgsl`).
 pub(crate) const MAP_TEXEL_BYTES: u64 = 9 * 4;
 

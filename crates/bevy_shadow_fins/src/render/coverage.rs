@@ -40,7 +40,7 @@ use crate::{
     settings::FinShadowView,
 };
 
-pub(super) const WORKGROUP: u32 = 64;
+pub(super) use crate::gpu_layout::WORKGROUP;
 
 pub(super) fn build(app: &mut App) {
     load_shader_library!(app, "shaders/coverage_types.wgsl");

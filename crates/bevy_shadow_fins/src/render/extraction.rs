@@ -73,7 +73,7 @@ const MAX_REDRAWN_INSTANCES: usize = 256;
 const STATS_WORDS: u64 = 16;
 pub(super) const FACE_WORDS: u64 = crate::gpu_layout::FACE_STATE_WORDS;
 pub(super) const VERTEX_WORDS: u64 = crate::gpu_layout::VERTEX_STATE_WORDS;
-pub(super) const WORKGROUP: u32 = 64;
+pub(super) use crate::gpu_layout::WORKGROUP;
 
 use crate::gpu_layout::CUTOUT_BYTES;
 use crate::gpu_layout::SILHOUETTE_BYTES;

@@ -28,7 +28,7 @@ pub(crate) struct FinParams {
 /// words in `control`, `extract_*.wgsl`): all but `tiles`.
 pub(crate) const GPU_WRITTEN_BYTES: u64 = std::mem::offset_of!(FinParams, tiles) as u64;
 
-pub(crate) const WORKGROUP: u32 = 64;
+pub(crate) use crate::gpu_layout::WORKGROUP;
 
 /// `FinParams.flags.w`: how the frame's maps project.
 pub(crate) fn projection_code(f: &FinFrameData) -> u32 {
