@@ -383,3 +383,33 @@ fn a_kilometre_scene_opens_lit_and_readable() {
     assert!(stdout.contains("loaded towers-km.gltf") && stdout.contains("default light"), "{stdout}");
     assert_readable("towers (km)", &image);
 }
+
+#[test]
+fn a_gltf_without_a_ground_opens_on_a_ground_that_catches_its_shadow() {
+    // A figure exported on its own (a body and a head, nothing under its
+    // feet), as Bevy's helmet and fox ship.
+    let slabs = [([0.25, 0.8, 0.15], [0.0, 0.8, 0.0]), ([0.2, 0.2, 0.2], [0.0, 1.85, 0.0])];
+    let scene = slab_scene("figure-alone", &slabs, 1.0);
+    let (with_ground, stdout) = screenshot_of_scene("gltf-figure-alone", &scene);
+    assert!(!stdout.contains("editor error"), "{stdout}");
+    assert!(stdout.contains("a ground added under it"), "{stdout}");
+    let (without, stdout) = screenshot_of_scene_with("gltf-figure-alone-no-ground", &scene, &["--no-ground"]);
+    assert!(!stdout.contains("a ground added under it"), "{stdout}");
+    // Where the ground is (the lower half of the viewport): lit grey with it,
+    // the sky without it.
+    let (w, h) = (with_ground.width(), with_ground.height());
+    let lower = (w * 3 / 10, w * 7 / 10, h / 2, h * 9 / 10);
+    let (changed, sampled) = changed_pixels_in(&with_ground, &without, lower);
+    println!("figure alone, ground vs none: {changed} of {sampled} lower-viewport pixels changed");
+    assert!(changed * 2 > sampled, "no ground appeared: {changed} of {sampled}");
+    // And the figure's soft shadow lies on it: the ground under the figure is
+    // darker than the ground around it.
+    let luma = |x: u32, y: u32| {
+        let c = with_ground.get_color_at(x, y).unwrap().to_srgba();
+        0.2126 * c.red + 0.7152 * c.green + 0.0722 * c.blue
+    };
+    let row: Vec<f32> = (w * 3 / 10..w * 7 / 10).map(|x| luma(x, h * 3 / 4)).collect();
+    let (darkest, brightest) = row.iter().fold((1f32, 0f32), |(lo, hi), &l| (lo.min(l), hi.max(l)));
+    println!("ground row at 3/4 height: luma {darkest:.3} to {brightest:.3}");
+    assert!(brightest > 0.2 && darkest < 0.6 * brightest, "no shadow on the ground: {darkest} to {brightest}");
+}

@@ -46,6 +46,18 @@ pub struct DefaultView {
     pub far: f32,
     /// True when the camera was placed inside an enclosure (a room).
     pub inside: bool,
+    /// Where a shadow catcher would go because nothing lies under the
+    /// subject to catch its shadow (a helmet or a character exported on its
+    /// own); `None` when the scene has a ground, and inside a room.
+    pub missing_ground: Option<Ground>,
+}
+
+/// A horizontal square, facing up: a ground to catch a subject's shadow
+/// ([`DefaultView::missing_ground`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ground {
+    pub center: Vec3,
+    pub half_size: f32,
 }
 
 /// An object is flat when its thinnest world extent is below this fraction of
@@ -76,6 +88,24 @@ pub const CAMERA_DIRECTION: Vec3 = Vec3::new(0.6, 0.7, 0.9);
 /// The inside camera's vertical field of view in degrees: wide, as rooms are
 /// seen from within a few steps of a wall.
 pub const INSIDE_FOV_DEG: f32 = 70.0;
+
+/// The ground probes stand this many subject diagonals outside the subject's
+/// box (so they miss the subject) ...
+pub const GROUND_PROBE_MARGIN: f32 = 0.25;
+/// ... and of their 8 (the widened box's corners and edge middles), this many
+/// must meet a surface below for the scene to have a ground.
+pub const GROUND_PROBES_HIT: usize = 5;
+/// Of the 5 × 5 columns down across the subject's box, how many must end at
+/// its base for the base to be its ground.
+pub const GROUND_BASE_COLUMNS: usize = 15;
+/// A surface faces up within 60° of straight up (a tilted floor).
+pub const GROUND_SLOPE_COS: f32 = 0.5;
+/// A missing ground's half size in subject diagonals: it holds the shadow of
+/// the default light and fills the default camera's view below the horizon.
+pub const GROUND_HALF_SIZE: f32 = 5.0;
+/// A missing ground lies this many subject diagonals below the subject's
+/// lowest point: under a base that is itself flat, not in its plane.
+pub const GROUND_GAP: f32 = 1e-3;
 
 /// How many horizontal directions the inside camera chooses among.
 const HORIZONTAL_DIRECTIONS: usize = 32;
@@ -188,7 +218,8 @@ pub fn default_view_of(scene: &Scene) -> Option<DefaultView> {
         .fold(0.0, f32::max);
     let far = (1.5 * farthest).max(2.0 * near);
 
-    let view = DefaultView { light: Light::Disk(light), camera, light_distance, near, far, inside };
+    let missing_ground = if inside { None } else { missing_ground(&probe, subject_box, subject_diagonal, tilt) };
+    let view = DefaultView { light: Light::Disk(light), camera, light_distance, near, far, inside, missing_ground };
     view.is_usable().then_some(view)
 }
 
@@ -208,6 +239,58 @@ impl DefaultView {
             && self.far.is_finite()
             && self.near < self.far
     }
+}
+
+/// A ground under the subject when the scene has none. It has one when rays
+/// cast down from 8 points around the subject ([`GROUND_PROBE_MARGIN`]
+/// outside its box, a [`MIN_SPAN`] above its lowest point, so that a ground
+/// it stands on is met) meet something below, [`GROUND_PROBES_HIT`] of them
+/// at least — or when the subject's own base is its ground: of the 5 × 5
+/// columns down across its box, [`GROUND_BASE_COLUMNS`] end on a surface
+/// facing up ([`GROUND_SLOPE_COS`]: a floor, tilted or not), or cross one
+/// within [`MIN_SPAN`] of its lowest point (a plate's top, over its own
+/// underside). A helmet's or a character's columns end on their
+/// undersides, with their last surface facing up high above the base (a
+/// body's top), or miss. Else a
+/// square of [`GROUND_HALF_SIZE`] subject diagonals, centred under the
+/// subject, [`GROUND_GAP`] below its lowest point.
+fn missing_ground(probe: &Probe, subject: Aabb, subject_diagonal: f32, tilt: Quat) -> Option<Ground> {
+    let margin = Vec3::new(1.0, 0.0, 1.0) * (GROUND_PROBE_MARGIN * subject_diagonal);
+    let (lo, hi) = (subject.0 - margin, subject.1 + margin);
+    let mid = (lo + hi) * 0.5;
+    let reach = MIN_SPAN * subject_diagonal;
+    let down = tilt * Vec3::NEG_Y;
+    let around = [
+        (lo.x, lo.z),
+        (mid.x, lo.z),
+        (hi.x, lo.z),
+        (hi.x, mid.z),
+        (hi.x, hi.z),
+        (mid.x, hi.z),
+        (lo.x, hi.z),
+        (lo.x, mid.z),
+    ];
+    let around_hits = around
+        .into_iter()
+        .filter(|&(x, z)| probe.closest(Vec3::new(x, subject.0.y + reach, z), down).is_some())
+        .count();
+    let top = subject.1.y + reach;
+    let (centre, half) = ((subject.0 + subject.1) * 0.5, (subject.1 - subject.0) * 0.5);
+    let base_columns = (0..5)
+        .flat_map(|i| (0..5).map(move |j| (i as f32 / 2.0 - 1.0, j as f32 / 2.0 - 1.0)))
+        .filter(|&(i, j)| {
+            let origin = Vec3::new(centre.x + 0.9 * i * half.x, top, centre.z + 0.9 * j * half.z);
+            // Ends on a surface facing up (a floor, tilted or not), or has
+            // one at the base (a slab's top, over its own underside).
+            probe.column(origin, down).is_some_and(|(_, last_faces_up, last_up)| {
+                last_faces_up || last_up.is_some_and(|t| origin.y + t * down.y <= subject.0.y + reach)
+            })
+        })
+        .count();
+    let center = Vec3::new(mid.x, subject.0.y - GROUND_GAP * subject_diagonal, mid.z);
+    let ground = Ground { center, half_size: GROUND_HALF_SIZE * subject_diagonal };
+    let has_ground = around_hits >= GROUND_PROBES_HIT || base_columns >= GROUND_BASE_COLUMNS;
+    (!has_ground && center.is_finite() && ground.half_size.is_finite()).then_some(ground)
 }
 
 /// How far along `up` from `center` the light goes under an overhang: 90% of
@@ -419,6 +502,27 @@ impl Probe<'_> {
             }
         }
         (start, None)
+    }
+
+    /// Along a ray down: the distance to its last surface and whether that
+    /// faces up ([`GROUND_SLOPE_COS`]), and the distance to its last surface
+    /// facing up.
+    fn column(&self, origin: Vec3, dir: Vec3) -> Option<(f32, bool, Option<f32>)> {
+        let mut last: Option<(f32, bool)> = None;
+        let mut last_up: Option<f32> = None;
+        self.bvh.for_each_hit_index(origin, dir, self.t_min, f32::INFINITY, |i| {
+            let tri = &self.geometry.triangles[i as usize];
+            if let Some(t) = bvh::intersect(tri, origin, dir) {
+                let up = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize_or_zero().y > GROUND_SLOPE_COS;
+                if last.is_none_or(|(l, _)| t > l) {
+                    last = Some((t, up));
+                }
+                if up && last_up.is_none_or(|l| t > l) {
+                    last_up = Some(t);
+                }
+            }
+        });
+        last.map(|(t, up)| (t, up, last_up))
     }
 
     /// Distance to the first surface along the ray.

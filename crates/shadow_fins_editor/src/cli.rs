@@ -27,7 +27,7 @@ pub enum CliError {
     )]
     BadPeer(String),
     #[error(
-        "unknown option {0:?} (options: [scene.gltf] --settings FILE --screenshot PATH --frames N --autosave FILE --no-autosave --view NAME --peer METHOD --animation-time SECONDS)"
+        "unknown option {0:?} (options: [scene.gltf] --settings FILE --screenshot PATH --frames N --autosave FILE --no-autosave --view NAME --peer METHOD --animation-time SECONDS --no-ground)"
     )]
     Unknown(String),
 }
@@ -49,6 +49,7 @@ impl EditorOptions {
                     options.autosave = crate::AutosaveOption::Path(value("--autosave")?.into());
                 }
                 "--no-autosave" => options.autosave = crate::AutosaveOption::Off,
+                "--no-ground" => options.add_ground = false,
                 "--frames" => {
                     let v = value("--frames")?;
                     options.frames = v.parse().ok().filter(|n| *n >= 1).ok_or(CliError::BadFrames(v))?;

@@ -12,7 +12,7 @@ use std::{path::Path, sync::Arc};
 use bevy::{light::SunDisk, prelude::*};
 use bevy_shadow_fins::{FinShadowSettings, GltfSceneLoading};
 use shadow_fins::{
-    default_view::{DefaultView, default_view_of},
+    default_view::{DefaultView, Ground, default_view_of},
     light::Light,
 };
 
@@ -20,7 +20,7 @@ use crate::state::EditorSceneRoot;
 use crate::{
     EditorState,
     orbit::OrbitCamera,
-    state::{EditorCamera, EditorLight, EditorMesh, LightKind, LightParams, LoadedScene},
+    state::{EditorCamera, EditorGround, EditorLight, EditorMesh, LightKind, LightParams, LoadedScene},
 };
 
 /// The illuminance the default light gives the surface under it, lux: a white
@@ -126,7 +126,13 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
             world.despawn(e);
         }
         world.entity_mut(root).remove::<(PendingGltf, GltfSceneLoading)>().insert(EditorSceneRoot);
-        let extent = snapshot.scene.diagonal().unwrap_or(1.0).max(1e-6);
+        let mut scene = snapshot.scene;
+        let (objects, triangles) = (scene.objects.len(), scene.triangle_count());
+        // A ground to catch the shadow, when the file has none (a helmet, a character alone).
+        let add_ground = world.get_resource::<crate::EditorOptions>().is_none_or(|o| o.add_ground);
+        let ground =
+            view.missing_ground.filter(|_| add_ground).and_then(|g| add_ground_under(world, g, &mut scene)).is_some();
+        let extent = scene.diagonal().unwrap_or(1.0).max(1e-6);
         let lights = adopt_lights(world, root, keep_light, &view, extent);
         let camera = adopt_camera(world, root, keep_light, &view, extent);
         // `--animation-time` is for the glTF the editor opens with; later ones start at 0.
@@ -134,8 +140,7 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
         let start = start.unwrap_or(0.0);
         let animations = crate::animation::adopt_animations(world, root, Some(&loading.gltf), start);
         let generation = world.get_resource::<LoadedScene>().map_or(1, |l| l.generation + 1);
-        let (objects, triangles) = (snapshot.scene.objects.len(), snapshot.scene.triangle_count());
-        world.insert_resource(LoadedScene { name: name.clone(), scene: Arc::new(snapshot.scene), generation, extent });
+        world.insert_resource(LoadedScene { name: name.clone(), scene: Arc::new(scene), generation, extent });
         let mut skipped = match snapshot.skipped.len() {
             0 => String::new(),
             n => format!("; {n} meshes unreadable (not in the ground truth, no fin shadow)"),
@@ -151,10 +156,41 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
         if !animations.is_empty() {
             skipped += &format!("; {animations}");
         }
+        if ground {
+            skipped += "; a ground added under it (the file has none; --no-ground leaves it out)";
+        }
         world.resource_mut::<EditorState>().status = Some(format!(
             "loaded {name}: {objects} meshes, {triangles} triangles, {lights}, {camera}{inside}{skipped}"
         ));
     }
+}
+
+/// Spawns `ground` (a grey square: a shadow catcher, which receives fin
+/// shadows and casts none, nor Bevy's) and adds it to `scene`, which the
+/// ground truth traces, as a receiver only.
+fn add_ground_under(world: &mut World, ground: Ground, scene: &mut shadow_fins::scene::Scene) -> Option<()> {
+    let mesh = shadow_fins::shapes::plane(2.0 * ground.half_size, 1);
+    let at = bevy::math::Affine3A::from_translation(ground.center);
+    let mut object = shadow_fins::scene::SceneObject::new("ground (added by the editor)", mesh, at).ok()?;
+    object.casts_shadows = false;
+    let bevy_mesh = world.resource_mut::<Assets<Mesh>>().add(bevy_shadow_fins::mesh_from_core(&object.mesh));
+    let material = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial {
+        base_color: Color::srgb(0.6, 0.6, 0.6),
+        perceptual_roughness: 0.9,
+        ..default()
+    });
+    world.spawn((
+        Name::new("ground (added by the editor)"),
+        EditorMesh,
+        EditorGround,
+        bevy_shadow_fins::NotFinShadowCaster,
+        bevy::light::NotShadowCaster,
+        Mesh3d(bevy_mesh),
+        MeshMaterial3d(material),
+        Transform::from_translation(ground.center),
+    ));
+    scene.objects.push(object);
+    Some(())
 }
 
 /// The glTF's lights: the first spot, directional or point light becomes the

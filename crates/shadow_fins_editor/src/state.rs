@@ -212,6 +212,10 @@ impl LightParams {
 #[derive(Component)]
 pub(crate) struct EditorMesh;
 
+/// The ground the editor added under a glTF that has none (a shadow catcher).
+#[derive(Component)]
+pub(crate) struct EditorGround;
+
 #[derive(Component)]
 pub(crate) struct EditorLight;
 
@@ -332,6 +336,9 @@ pub struct EditorOptions {
     /// Where the opened glTF's first animation rests at start, seconds
     /// (`--animation-time`; clamped to the clip's length).
     pub animation_time: Option<f32>,
+    /// Add a ground under a glTF that has none, to catch its shadow
+    /// (`shadow_fins::default_view::DefaultView::missing_ground`); off with `--no-ground`.
+    pub add_ground: bool,
 }
 
 impl Default for EditorOptions {
@@ -345,6 +352,7 @@ impl Default for EditorOptions {
             view: None,
             peer: None,
             animation_time: None,
+            add_ground: true,
         }
     }
 }

@@ -375,3 +375,67 @@ proptest! {
         assert_scaled(&view, &one, s, (hi - lo).length(), 1e-5, "soup").map_err(TestCaseError::fail)?;
     }
 }
+
+#[test]
+fn a_subject_alone_gets_a_ground_under_it_and_a_scene_with_one_does_not() {
+    // A helmet-like ball and a character-like column, exported on their own,
+    // at a millimetre, a metre and a kilometre.
+    for scale in [1e-3f32, 1.0, 1e3] {
+        let alone = scaled(
+            &Scene::new(vec![
+                placed("ball", shapes::uv_sphere(0.5, 12, 24), Vec3::new(3.0, 1.5, -2.0)),
+                placed("column", shapes::cuboid(Vec3::new(0.2, 1.0, 0.2)), Vec3::new(3.6, 1.0, -2.0)),
+            ]),
+            scale,
+        );
+        let view = default_view_of(&alone).unwrap();
+        let ground = view.missing_ground.unwrap_or_else(|| panic!("no ground proposed at scale {scale}"));
+        let subject_diagonal = Vec3::new(1.3, 2.0, 1.0).length() * scale;
+        // Just under the column's foot, centred under the subject, a few subject diagonals wide.
+        assert!(ground.center.y < 0.0 && ground.center.y > -0.01 * subject_diagonal, "{ground:?}");
+        assert!((ground.center.x - 3.15 * scale).abs() < 0.01 * subject_diagonal, "{ground:?}");
+        assert!((ground.center.z + 2.0 * scale).abs() < 0.01 * subject_diagonal, "{ground:?}");
+        assert!((ground.half_size / subject_diagonal - shadow_fins::default_view::GROUND_HALF_SIZE).abs() < 0.01);
+        // The default light shines down onto it: the ground is under the light.
+        let d = disk(&view);
+        assert!((d.center.x - ground.center.x).abs() < ground.half_size && d.center.y > ground.center.y);
+    }
+    // A figure of two boxes, its body's flat underside on nothing: that base is no ground.
+    let figure = Scene::new(vec![
+        placed("body", shapes::cuboid(Vec3::new(0.25, 0.8, 0.15)), Vec3::new(0.0, 0.8, 0.0)),
+        placed("head", shapes::cuboid(Vec3::splat(0.2)), Vec3::new(0.0, 1.85, 0.0)),
+    ]);
+    assert!(default_view_of(&figure).unwrap().missing_ground.is_some());
+    // The same subject on a ground (an island, a floor of its own size) has one.
+    let mut on_ground = vec![
+        placed("ball", shapes::uv_sphere(0.5, 12, 24), Vec3::new(3.0, 1.5, -2.0)),
+        placed("column", shapes::cuboid(Vec3::new(0.2, 1.0, 0.2)), Vec3::new(3.6, 1.0, -2.0)),
+    ];
+    on_ground.push(placed("floor", shapes::plane(4.0, 2), Vec3::new(3.0, 0.0, -2.0)));
+    assert_eq!(default_view_of(&Scene::new(on_ground.clone())).unwrap().missing_ground, None);
+    on_ground.pop();
+    on_ground.push(object("island", shapes::plane(100.0, 8)));
+    assert_eq!(default_view_of(&Scene::new(on_ground)).unwrap().missing_ground, None);
+    // A room seen from inside has its floor.
+    assert_eq!(default_view_of(&Scene::new(slab_room(Vec3::new(4.0, 2.6, 3.2), 0.05))).unwrap().missing_ground, None);
+}
+
+#[test]
+fn the_built_in_scenes_all_have_their_ground() {
+    for id in SceneId::ALL {
+        let built = id.build();
+        if let Some(view) = default_view_of(&built.scene) {
+            assert_eq!(view.missing_ground, None, "{id:?}");
+        }
+    }
+}
+
+#[test]
+fn the_repositorys_gltf_scenes_all_have_their_ground() {
+    for entry in std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets")).unwrap() {
+        let path = entry.unwrap().path();
+        let import = shadow_fins::gltf_import::load_gltf(&path).unwrap();
+        let view = default_view_of(&import.scene).unwrap();
+        assert_eq!(view.missing_ground, None, "{}", path.display());
+    }
+}
