@@ -517,8 +517,18 @@ mod tests {
     /// vertex is welded from several), with one sliver triangle that the
     /// rest pose drops for its area.
     fn split_sphere() -> Mesh {
-        let sphere = crate::shapes::uv_sphere(1.0, 6, 8);
-        let mut positions: Vec<Vec3> = sphere.triangles().flatten().collect();
+        // An octahedron split twice (8 × 4 faces), built here: `shapes` builds on this module.
+        let mut triangles = vec![];
+        for (sx, sy, sz) in
+            (0..8).map(|i| [i & 1, i & 2, i & 4].map(|b| if b == 0 { 1.0f32 } else { -1.0 })).map(|[a, b, c]| (a, b, c))
+        {
+            let (x, y, z) = (Vec3::X * sx, Vec3::Y * sy, Vec3::Z * sz);
+            let outward = sx * sy * sz > 0.0;
+            let (a, b, c) = if outward { (x, y, z) } else { (x, z, y) };
+            let (ab, bc, ca) = ((a + b).normalize(), (b + c).normalize(), (c + a).normalize());
+            triangles.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+        }
+        let mut positions: Vec<Vec3> = triangles.into_iter().flatten().collect();
         positions.extend([Vec3::new(2.0, 0.0, 0.0), Vec3::new(3.0, 0.0, 0.0), Vec3::new(4.0, 0.0, 0.0)]);
         Mesh::new(positions.clone(), (0..positions.len() as u32).collect()).unwrap()
     }
