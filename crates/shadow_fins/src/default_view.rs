@@ -257,7 +257,7 @@ impl DefaultView {
 fn missing_ground(probe: &Probe, subject: Aabb, subject_diagonal: f32, tilt: Quat) -> Option<Ground> {
     let margin = Vec3::new(1.0, 0.0, 1.0) * (GROUND_PROBE_MARGIN * subject_diagonal);
     let (lo, hi) = (subject.0 - margin, subject.1 + margin);
-    let mid = (lo + hi) * 0.5;
+    let (mid, half) = ((subject.0 + subject.1) * 0.5, (subject.1 - subject.0) * 0.5);
     let reach = MIN_SPAN * subject_diagonal;
     let down = tilt * Vec3::NEG_Y;
     let around = [
@@ -275,14 +275,13 @@ fn missing_ground(probe: &Probe, subject: Aabb, subject_diagonal: f32, tilt: Qua
         .filter(|&(x, z)| probe.closest(Vec3::new(x, subject.0.y + reach, z), down).is_some())
         .count();
     let top = subject.1.y + reach;
-    let (centre, half) = ((subject.0 + subject.1) * 0.5, (subject.1 - subject.0) * 0.5);
     let base_columns = (0..5)
         .flat_map(|i| (0..5).map(move |j| (i as f32 / 2.0 - 1.0, j as f32 / 2.0 - 1.0)))
         .filter(|&(i, j)| {
-            let origin = Vec3::new(centre.x + 0.9 * i * half.x, top, centre.z + 0.9 * j * half.z);
+            let origin = Vec3::new(mid.x + 0.9 * i * half.x, top, mid.z + 0.9 * j * half.z);
             // Ends on a surface facing up (a floor, tilted or not), or has
             // one at the base (a slab's top, over its own underside).
-            probe.column(origin, down).is_some_and(|(_, last_faces_up, last_up)| {
+            probe.column(origin, down).is_some_and(|(last_faces_up, last_up)| {
                 last_faces_up || last_up.is_some_and(|t| origin.y + t * down.y <= subject.0.y + reach)
             })
         })
@@ -504,10 +503,10 @@ impl Probe<'_> {
         (start, None)
     }
 
-    /// Along a ray down: the distance to its last surface and whether that
-    /// faces up ([`GROUND_SLOPE_COS`]), and the distance to its last surface
-    /// facing up.
-    fn column(&self, origin: Vec3, dir: Vec3) -> Option<(f32, bool, Option<f32>)> {
+    /// Along a ray down: whether its last surface faces up
+    /// ([`GROUND_SLOPE_COS`]), and the distance to its last surface facing up;
+    /// `None` when it meets nothing.
+    fn column(&self, origin: Vec3, dir: Vec3) -> Option<(bool, Option<f32>)> {
         let mut last: Option<(f32, bool)> = None;
         let mut last_up: Option<f32> = None;
         self.bvh.for_each_hit_index(origin, dir, self.t_min, f32::INFINITY, |i| {
@@ -522,7 +521,7 @@ impl Probe<'_> {
                 }
             }
         });
-        last.map(|(t, up)| (t, up, last_up))
+        last.map(|(_, up)| (up, last_up))
     }
 
     /// Distance to the first surface along the ray.

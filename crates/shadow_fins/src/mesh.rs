@@ -276,27 +276,15 @@ impl Topology {
             bounds: bounds_of(&positions),
             face_planes,
             positions,
-            ..self.clone_without_geometry()
-        })
-    }
-
-    /// A copy of what does not depend on where the vertices are.
-    fn clone_without_geometry(&self) -> Topology {
-        Topology {
-            positions: vec![],
             welded_from: self.welded_from.clone(),
             faces: self.faces.clone(),
             source_triangles: self.source_triangles.clone(),
-            face_planes: vec![],
-            vertex_normals: vec![],
             face_neighbors: self.face_neighbors.clone(),
             edges: self.edges.clone(),
-            crease: vec![],
             non_manifold_edges: self.non_manifold_edges.clone(),
             degenerate_faces: self.degenerate_faces,
             inconsistent_edges: self.inconsistent_edges,
-            bounds: self.bounds,
-        }
+        })
     }
 
     /// Edges with exactly one face.

@@ -275,8 +275,8 @@ fn every_rust_record_has_the_words_of_its_wgsl_twin() {
         ("FinParams", FinParams::words(), "FinParams"),
     ];
     for (rust, words, wgsl) in twins {
-        let (wgsl_words, _) = wgsl_words(wgsl, &structs, &consts);
         assert!(structs.contains_key(wgsl), "no WGSL struct {wgsl}");
+        let (wgsl_words, _) = wgsl_words(wgsl, &structs, &consts);
         assert_eq!(words, wgsl_words, "{rust} (Rust) and {wgsl} (WGSL) disagree");
     }
 }
