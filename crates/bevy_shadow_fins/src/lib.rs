@@ -40,7 +40,12 @@
 //! lights at once, any mix, each with its own [`FinShadowSettings`] (method,
 //! layers, sub-layers, map resolution, refinement, falloff, overlap) and its own
 //! [`FinLightStats`]. A light that sees no caster runs no extraction or map
-//! pass (its visibility is 1).
+//! pass (its visibility is 1). Past [`MAX_FIN_LIGHTS`], the lights that bring
+//! the most light to the [`FinShadowView`] cameras keep fins (suns first, then
+//! power over squared distance, a tenth for a light whose range is out of
+//! every view; a light with fins keeps them against one up to 1.5× brighter);
+//! the rest keep Bevy's shadows and report
+//! [`FinDegradation::TooManyLights`].
 //!
 //! ## Cameras and meshes
 //!

@@ -16,6 +16,9 @@ pub(crate) struct LightSource {
     /// sun (`DirectionalLight`) or a sphere (`PointLight`).
     pub(crate) light: Light,
     pub(crate) reach: Reach,
+    /// Intensity × colour luminance, for ranking past [`MAX_FIN_LIGHTS`](super::MAX_FIN_LIGHTS)
+    /// lights (`priority.rs`; a sun's is its illuminance, and suns rank first).
+    pub(crate) power: f32,
     pub(crate) settings: FinShadowSettings,
     pub(crate) shading: LightShading,
     /// A sun's maps fitted to what the cameras see (`sun_fit`), in its axes.
@@ -46,6 +49,7 @@ pub(crate) fn light_sources(
             entity,
             light: Light::Disk(disk),
             reach: Reach { range: finite(light.range), cone: None },
+            power: light_power(light.intensity, light.color),
             settings: settings.clamped(),
             shading: LightShading::Own { light: *light, transform: *transform },
             window: None,
@@ -62,6 +66,7 @@ pub(crate) fn light_sources(
                 light: Light::Disk(disk),
                 // Bevy lights nothing past the outer angle (its spot attenuation).
                 reach: Reach { range: finite(spot.range), cone: Some(spot.outer_angle.clamp(0.0, FRAC_PI_2)) },
+                power: light_power(spot.intensity, spot.color),
                 settings,
                 shading: LightShading::Bevy { render_entity: render.id() },
                 window: None,
@@ -71,13 +76,14 @@ pub(crate) fn light_sources(
         },
     );
     let suns = directional_lights.iter().filter(|l| l.6 && !fin_lights.contains(l.0)).filter_map(
-        |(entity, _, sun_disk, settings, transform, render, _)| {
+        |(entity, sun_light, sun_disk, settings, transform, render, _)| {
             let settings = settings?.clamped();
             let sun = SunLight::new(forward(transform), sun_angular_radius(sun_disk)).map_err(|_| entity);
             Some(sun.map(|sun| LightSource {
                 entity,
                 light: Light::Sun(sun),
                 reach: Reach { range: 0.0, cone: None },
+                power: light_power(sun_light.illuminance, sun_light.color),
                 settings,
                 shading: LightShading::Bevy { render_entity: render.id() },
                 window: None,
@@ -112,6 +118,7 @@ pub(crate) fn light_sources(
                     entity,
                     light: Light::Rect(area),
                     reach: Reach { range: finite(rect.range), cone: None },
+                    power: light_power(rect.intensity, rect.color),
                     settings,
                     shading: LightShading::Bevy { render_entity: render.id() },
                     window: None,
@@ -131,6 +138,7 @@ pub(crate) fn light_sources(
                 entity,
                 light: Light::Sphere(sphere),
                 reach: Reach { range: finite(point.range), cone: None },
+                power: light_power(point.intensity, point.color),
                 settings,
                 shading: LightShading::Bevy { render_entity: render.id() },
                 window: None,
@@ -147,6 +155,14 @@ pub(crate) fn light_sources(
     }
     sources.sort_by_key(|s| s.entity);
     (sources, invalid)
+}
+
+/// A light's power for ranking lights (`priority.rs`): its intensity times
+/// the luminance of its colour (0 for anything not finite or negative).
+pub(crate) fn light_power(intensity: f32, color: Color) -> f32 {
+    use bevy::color::Luminance;
+    let p = intensity * color.luminance();
+    if p.is_finite() && p > 0.0 { p } else { 0.0 }
 }
 
 /// The sun's angular radius `θ` from Bevy's `SunDisk::angular_size` (a
@@ -260,6 +276,16 @@ pub(crate) struct OtherLights<'w, 's> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_lights_power_is_its_intensity_times_its_luminance_and_never_nonsense() {
+        assert_eq!(light_power(f32::NAN, Color::WHITE), 0.0);
+        assert_eq!(light_power(-1.0, Color::WHITE), 0.0);
+        assert_eq!(light_power(f32::INFINITY, Color::WHITE), 0.0);
+        assert_eq!(light_power(10.0, Color::BLACK), 0.0);
+        assert!((light_power(10.0, Color::WHITE) - 10.0).abs() < 1e-4);
+        assert!(light_power(10.0, Color::srgb(0.0, 1.0, 0.0)) > light_power(10.0, Color::srgb(0.0, 0.0, 1.0)));
+    }
 
     #[test]
     fn the_suns_angular_radius_is_half_its_sun_disk_clamped_and_earths_without_one() {

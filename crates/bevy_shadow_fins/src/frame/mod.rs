@@ -7,6 +7,7 @@
 //! - `build.rs`: one light's frame, by method;
 //! - `in_frame.rs`: the light frame every path works in; `sun_fit.rs`: a sun's
 //!   maps fitted to the views;
+//! - `priority.rs`: which lights get fins past [`MAX_FIN_LIGHTS`];
 //! - `map_casters.rs`, `coverage.rs`, `plateaus.rs`: each method's data.
 //!
 //! With [`FinExtraction::Gpu`](crate::FinExtraction) (the default) the frame
@@ -39,6 +40,7 @@ pub(crate) mod lights;
 pub(crate) mod map_casters;
 pub(crate) mod map_tiles;
 pub(crate) mod plateaus;
+pub(crate) mod priority;
 pub(crate) mod sun_fit;
 pub(crate) mod update;
 

@@ -242,7 +242,13 @@ pub(crate) fn update_fin_frames(
     for entity in invalid {
         set_stats(&mut light_stats, entity, FinFrameStats { up_to_date: true, ..default() });
     }
-    for cut in sources.drain(sources.len().min(MAX_FIN_LIGHTS)..) {
+    // Past the limit, the lights that matter most to the views keep their slots.
+    let viewers: Vec<super::priority::Viewer> =
+        views.iter().filter_map(|(t, p)| super::priority::Viewer::new(t, p)).collect();
+    let had_fins = |entity| {
+        cache.lights.contains_key(&(entity, None)) || cache.lights.contains_key(&(entity, Some(CubeFace::ALL[0])))
+    };
+    for cut in super::priority::keep_most_important(&mut sources, &viewers, MAX_FIN_LIGHTS, had_fins) {
         warn_once!(
             "fin shadows: more than {MAX_FIN_LIGHTS} fin-shadowed lights; the rest keep Bevy's shadows \
              (a FinLight past the limit is not lit)"
