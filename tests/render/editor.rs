@@ -393,8 +393,14 @@ fn a_gltf_without_a_ground_opens_on_a_ground_that_catches_its_shadow() {
     let (with_ground, stdout) = screenshot_of_scene("gltf-figure-alone", &scene);
     assert!(!stdout.contains("editor error"), "{stdout}");
     assert!(stdout.contains("a ground added under it"), "{stdout}");
-    let (without, stdout) = screenshot_of_scene_with("gltf-figure-alone-no-ground", &scene, &["--no-ground"]);
+    // With a settings file too: its light is kept, the view is still fitted to the file.
+    let (without, stdout) = screenshot_of_scene_with(
+        "gltf-figure-alone-no-ground",
+        &scene,
+        &["--no-ground", "--settings", "tests/data/editor-settings.ron"],
+    );
     assert!(!stdout.contains("a ground added under it"), "{stdout}");
+    assert!(stdout.contains("the kept light") && stdout.contains("the default view"), "{stdout}");
     // Where the ground is (the lower half of the viewport): lit grey with it,
     // the sky without it.
     let (w, h) = (with_ground.width(), with_ground.height());

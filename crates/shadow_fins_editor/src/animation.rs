@@ -192,7 +192,8 @@ fn snapshot_rested_pose(world: &mut World) {
     let Some(root) = root else { return };
     let snapshot = bevy_shadow_fins::scene_snapshot(world, Some(root));
     world.insert_resource(LoadedScene {
-        scene: std::sync::Arc::new(snapshot.scene),
+        // The ground the editor added is not under the root: it comes back.
+        scene: std::sync::Arc::new(crate::ground::with_shown_ground(world, snapshot.scene)),
         generation: loaded.generation + 1,
         ..loaded
     });

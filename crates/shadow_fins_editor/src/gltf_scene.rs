@@ -12,15 +12,16 @@ use std::{path::Path, sync::Arc};
 use bevy::{light::SunDisk, prelude::*};
 use bevy_shadow_fins::{FinShadowSettings, GltfSceneLoading};
 use shadow_fins::{
-    default_view::{DefaultView, Ground, default_view_of},
+    default_view::{DefaultView, default_view_of},
     light::Light,
 };
 
 use crate::state::EditorSceneRoot;
 use crate::{
     EditorState,
+    ground::AddedGround,
     orbit::OrbitCamera,
-    state::{EditorCamera, EditorGround, EditorLight, EditorMesh, LightKind, LightParams, LoadedScene},
+    state::{EditorCamera, EditorLight, EditorMesh, LightKind, LightParams, LoadedScene},
 };
 
 /// The illuminance the default light gives the surface under it, lux: a white
@@ -126,21 +127,26 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
             world.despawn(e);
         }
         world.entity_mut(root).remove::<(PendingGltf, GltfSceneLoading)>().insert(EditorSceneRoot);
-        let mut scene = snapshot.scene;
+        let scene = snapshot.scene;
         let (objects, triangles) = (scene.objects.len(), scene.triangle_count());
-        // A ground to catch the shadow, when the file has none (a helmet, a character alone).
+        // A ground to catch the shadow, when the file has none (a helmet, a
+        // character alone): spawned below, once the scene is the loaded one.
         let add_ground = world.get_resource::<crate::EditorOptions>().is_none_or(|o| o.add_ground);
-        let ground =
-            view.missing_ground.filter(|_| add_ground).and_then(|g| add_ground_under(world, g, &mut scene)).is_some();
+        match view.missing_ground {
+            Some(ground) => world.insert_resource(AddedGround { ground, shown: add_ground }),
+            None => _ = world.remove_resource::<AddedGround>(),
+        }
+        let ground = view.missing_ground.is_some() && add_ground;
         let extent = scene.diagonal().unwrap_or(1.0).max(1e-6);
         let lights = adopt_lights(world, root, keep_light, &view, extent);
-        let camera = adopt_camera(world, root, keep_light, &view, extent);
+        let camera = adopt_camera(world, root, &view, extent);
         // `--animation-time` is for the glTF the editor opens with; later ones start at 0.
         let start = world.get_resource_mut::<crate::EditorOptions>().and_then(|mut o| o.animation_time.take());
         let start = start.unwrap_or(0.0);
         let animations = crate::animation::adopt_animations(world, root, Some(&loading.gltf), start);
         let generation = world.get_resource::<LoadedScene>().map_or(1, |l| l.generation + 1);
         world.insert_resource(LoadedScene { name: name.clone(), scene: Arc::new(scene), generation, extent });
+        crate::ground::apply_added_ground(world);
         let mut skipped = match snapshot.skipped.len() {
             0 => String::new(),
             n => format!("; {n} meshes unreadable (not in the ground truth, no fin shadow)"),
@@ -157,40 +163,12 @@ pub(crate) fn finish_gltf_loads(world: &mut World) {
             skipped += &format!("; {animations}");
         }
         if ground {
-            skipped += "; a ground added under it (the file has none; --no-ground leaves it out)";
+            skipped += "; a ground added under it (the file has none; switch it in View)";
         }
         world.resource_mut::<EditorState>().status = Some(format!(
             "loaded {name}: {objects} meshes, {triangles} triangles, {lights}, {camera}{inside}{skipped}"
         ));
     }
-}
-
-/// Spawns `ground` (a grey square: a shadow catcher, which receives fin
-/// shadows and casts none, nor Bevy's) and adds it to `scene`, which the
-/// ground truth traces, as a receiver only.
-fn add_ground_under(world: &mut World, ground: Ground, scene: &mut shadow_fins::scene::Scene) -> Option<()> {
-    let mesh = shadow_fins::shapes::plane(2.0 * ground.half_size, 1);
-    let at = bevy::math::Affine3A::from_translation(ground.center);
-    let mut object = shadow_fins::scene::SceneObject::new("ground (added by the editor)", mesh, at).ok()?;
-    object.casts_shadows = false;
-    let bevy_mesh = world.resource_mut::<Assets<Mesh>>().add(bevy_shadow_fins::mesh_from_core(&object.mesh));
-    let material = world.resource_mut::<Assets<StandardMaterial>>().add(StandardMaterial {
-        base_color: Color::srgb(0.6, 0.6, 0.6),
-        perceptual_roughness: 0.9,
-        ..default()
-    });
-    world.spawn((
-        Name::new("ground (added by the editor)"),
-        EditorMesh,
-        EditorGround,
-        bevy_shadow_fins::NotFinShadowCaster,
-        bevy::light::NotShadowCaster,
-        Mesh3d(bevy_mesh),
-        MeshMaterial3d(material),
-        Transform::from_translation(ground.center),
-    ));
-    scene.objects.push(object);
-    Some(())
 }
 
 /// The glTF's lights: the first spot, directional or point light becomes the
@@ -259,7 +237,8 @@ fn adopt_lights(world: &mut World, root: Entity, keep_light: bool, view: &Defaul
     }
     let adopted = bevy_shadow_fins::give_gltf_lights_fin_shadows(world, root, settings, fallback_radius);
     match (count, keep_light) {
-        (0, _) => "no light in the file (default light)".into(),
+        (0, false) => "no light in the file (default light)".into(),
+        (0, true) => "the kept light (none in the file)".into(),
         (n, false) => {
             format!("{n} lights from the file (the first is the editor's, {} more fin-shadowed)", adopted.lights.len())
         }
@@ -278,9 +257,9 @@ pub(crate) fn fit_clip_planes(projection: &mut Projection, view: Option<&Default
 }
 
 /// The glTF's cameras are turned off (they would draw over the editor's
-/// view); the first gives the editor its view unless the user's is kept,
-/// else the default view does. Near plane and zoom follow the scene's size.
-fn adopt_camera(world: &mut World, root: Entity, keep_light: bool, view: &DefaultView, extent: f32) -> String {
+/// view); the first gives the editor its view, else the default view does
+/// (also when the user's light is kept: no setting holds a camera). Near plane and zoom follow the scene's size.
+fn adopt_camera(world: &mut World, root: Entity, view: &DefaultView, extent: f32) -> String {
     // Already off (`spawn_gltf_scene` turns them off as they spawn).
     let cameras = under::<Camera3d>(world, root);
     let finite =
@@ -297,9 +276,8 @@ fn adopt_camera(world: &mut World, root: Entity, keep_light: bool, view: &Defaul
     let Ok((mut orbit, mut projection)) = editor.single_mut(world) else { return "no editor camera".into() };
     fit_clip_planes(&mut projection, Some(view), extent);
     orbit.scale = extent;
-    if keep_light {
-        return "the kept view".into();
-    }
+    // Always, kept light or not: settings hold no camera, and the view
+    // before (the demo's, another file's) is fitted to another scene.
     match from_file {
         Some((transform, fov)) => {
             let position = transform.translation();

@@ -21,6 +21,7 @@ mod animation;
 mod autosave;
 mod cli;
 mod gltf_scene;
+mod ground;
 mod lights;
 mod orbit;
 mod peers;

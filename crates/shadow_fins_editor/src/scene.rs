@@ -38,6 +38,7 @@ pub(crate) fn build(app: &mut App) {
             load_dropped_files,
             load_scene,
             gltf_scene::finish_gltf_loads.in_set(GltfLoadsFinished),
+            crate::ground::apply_added_ground,
             drag_light_with_shift,
             sync_light,
             sync_marker,
@@ -211,6 +212,8 @@ fn load_scene(
         gltf_scene::fit_clip_planes(&mut projection, None, extent);
     }
     commands.insert_resource(LoadedScene { name: "demo".into(), scene: Arc::new(path.scene), generation, extent });
+    // The demo has its own ground.
+    commands.remove_resource::<crate::ground::AddedGround>();
     // The demo does not animate.
     commands.insert_resource(crate::animation::EditorAnimation::default());
     state.status = Some("loaded demo".into());

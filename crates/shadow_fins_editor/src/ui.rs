@@ -104,6 +104,7 @@ fn panels(
     mut peer: ResMut<PeerJob>,
     mut animation: ResMut<crate::animation::EditorAnimation>,
     mut texture: Local<ViewTexture>,
+    mut added_ground: Option<ResMut<crate::ground::AddedGround>>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?.clone();
     let Ok(mut fin_settings) = settings.single_mut() else { return Ok(()) };
@@ -230,6 +231,14 @@ fn panels(
             ui.heading("View");
             for v in ViewKind::ALL {
                 ui.radio_value(&mut state.view, v, v.label());
+            }
+            // Only for a file with no ground of its own (`ground.rs`).
+            if let Some(ground) = added_ground.as_mut() {
+                let mut shown = ground.shown;
+                ui.checkbox(&mut shown, "ground under the subject (the file has none)");
+                if shown != ground.shown {
+                    ground.shown = shown;
+                }
             }
             // The other papers' methods, on the CPU at the ground truth's pixels.
             let mut method = peer.method;

@@ -200,7 +200,9 @@ use shadow_fins_lab::assets::{self, FILES};
 
 /// The workspace's committed `assets/` folder.
 fn committed_assets() -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets")
+    // At run time: a binary built in another clone must not read that clone's folder.
+    let manifest = std::env::var("CARGO_MANIFEST_DIR").unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").into());
+    std::path::Path::new(&manifest).join("../../assets")
 }
 
 /// Standard or URL-safe base64, written here rather than taken from the generator.
